@@ -1,0 +1,54 @@
+#pragma once
+// Errors as values. Bad input, disk and network failures travel as a Status (or an Expected<T>)
+// carrying a message that names the file and the place; no exception crosses a library edge.
+
+#include <string>
+#include <utility>
+#include <variant>
+
+namespace raystack {
+
+class [[nodiscard]] Status {
+ public:
+  Status() = default;  // OK
+  static Status Error(std::string message) { return Status(std::move(message)); }
+
+  bool ok() const { return !failed_; }
+  const std::string& message() const { return message_; }
+
+ private:
+  explicit Status(std::string message) : failed_(true), message_(std::move(message)) {}
+  bool failed_ = false;
+  std::string message_;
+};
+
+inline Status OkStatus() { return Status(); }
+
+// A value or the Status explaining why there is none (a small std::expected).
+template <typename T>
+class [[nodiscard]] Expected {
+ public:
+  Expected(T value) : v_(std::move(value)) {}  // NOLINT: implicit by design
+  Expected(Status error) : v_(std::move(error)) {}  // NOLINT: must not be OK
+
+  bool ok() const { return v_.index() == 0; }
+  T& value() & { return std::get<0>(v_); }
+  T&& value() && { return std::get<0>(std::move(v_)); }
+  const T& value() const& { return std::get<0>(v_); }
+  T* operator->() { return &std::get<0>(v_); }
+  const T* operator->() const { return &std::get<0>(v_); }
+  T& operator*() & { return std::get<0>(v_); }
+  Status status() const { return ok() ? OkStatus() : std::get<1>(v_); }
+
+ private:
+  std::variant<T, Status> v_;
+};
+
+}  // namespace raystack
+
+// Return early from a function returning Status (or Expected) when `expr` failed.
+#define RAYSTACK_RETURN_IF_ERROR(expr)          \
+  do {                                          \
+    ::raystack::Status _rs_status = (expr);     \
+    if (!_rs_status.ok()) return _rs_status;    \
+  } while (0)

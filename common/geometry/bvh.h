@@ -1,0 +1,66 @@
+#pragma once
+// A binary BVH over a few thousand primitives (one block's worth), built with binned SAH.
+// Nodes are 32-byte PODs in depth-first order, stored as-is inside blocks on disk, so a
+// decompressed block is traversed in place. Building allocates; traversal never does.
+
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "common/geometry/bounds.h"
+#include "common/geometry/ray.h"
+
+namespace raystack {
+
+struct BvhNode {
+  float lower[3];
+  float upper[3];
+  uint32_t offset;  // inner: index of the second child (the first is this + 1); leaf: first primitive
+  uint16_t count;   // 0 for an inner node, else the number of primitives in the leaf
+  uint8_t axis;     // inner: split axis, used to visit the near child first
+  uint8_t pad;
+};
+static_assert(sizeof(BvhNode) == 32, "BvhNode is stored on disk");
+
+struct BvhBuildPrimitive {
+  Bounds3f bounds;  // may be clipped to a cell: tighter than the primitive's own box
+};
+
+struct BvhBuildOptions {
+  int max_leaf_size = 4;  // leaves hold at most this many primitives (1..65535)
+  int bins = 16;          // SAH bins per axis
+  float traversal_cost = 1.0f;
+  float intersection_cost = 1.0f;
+};
+
+// Builds the BVH. On return, leaf primitives are `order[offset .. offset + count)`, where
+// `order` is a permutation of 0..prims.size()-1. Empty input gives no nodes. Deterministic:
+// the same input gives the same nodes. Terminates on degenerate input (all boxes equal, zero
+// extent): such sets are split by index.
+std::vector<BvhNode> BuildBvh(std::span<const BvhBuildPrimitive> prims,
+                              const BvhBuildOptions& options, std::vector<uint32_t>* order);
+
+// Per-ray constants for box tests.
+struct RayBoxSetup {
+  Vec3f origin;
+  Vec3f inv_dir;
+  int dir_is_neg[3];
+
+  explicit RayBoxSetup(const Ray& ray);
+};
+
+// Slab test, robust in the sense of Ize 2013: the far distance is enlarged by 2 ulp-ish so a ray
+// grazing a box edge is never culled by rounding. Returns true if [tmin, tmax] meets the box.
+bool IntersectBox(const RayBoxSetup& s, const float lower[3], const float upper[3], float tmin,
+                  float tmax, float* t_enter);
+
+// Visits the leaves a ray may hit, near child first. `leaf(first, count)` tests primitives
+// [first, first + count) and returns true to stop the traversal (any-hit). It may lower
+// `*tmax` (closest-hit) so farther subtrees are pruned.
+template <typename LeafFn>
+void TraverseBvh(std::span<const BvhNode> nodes, const Ray& ray, float* tmax, LeafFn&& leaf);
+
+}  // namespace raystack
+
+#include "common/geometry/bvh_inl.h"

@@ -1,0 +1,42 @@
+#pragma once
+// Small fixed-size vectors for geometry. Plain aggregates: trivially copyable, no padding.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+namespace raystack {
+
+struct Vec3f {
+  float x = 0, y = 0, z = 0;
+
+  constexpr float operator[](int i) const { return i == 0 ? x : (i == 1 ? y : z); }
+  constexpr float& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
+};
+static_assert(sizeof(Vec3f) == 12);
+
+constexpr Vec3f operator+(Vec3f a, Vec3f b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
+constexpr Vec3f operator-(Vec3f a, Vec3f b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+constexpr Vec3f operator-(Vec3f a) { return {-a.x, -a.y, -a.z}; }
+constexpr Vec3f operator*(Vec3f a, float s) { return {a.x * s, a.y * s, a.z * s}; }
+constexpr Vec3f operator*(float s, Vec3f a) { return a * s; }
+constexpr Vec3f operator*(Vec3f a, Vec3f b) { return {a.x * b.x, a.y * b.y, a.z * b.z}; }
+constexpr bool operator==(Vec3f a, Vec3f b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
+
+constexpr float Dot(Vec3f a, Vec3f b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+constexpr Vec3f Cross(Vec3f a, Vec3f b) {
+  return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
+}
+inline float Length(Vec3f a) { return std::sqrt(Dot(a, a)); }
+inline Vec3f Normalize(Vec3f a) { return a * (1.0f / Length(a)); }
+inline Vec3f Min(Vec3f a, Vec3f b) {
+  return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
+}
+inline Vec3f Max(Vec3f a, Vec3f b) {
+  return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
+}
+inline bool IsFinite(Vec3f a) {
+  return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);
+}
+
+}  // namespace raystack

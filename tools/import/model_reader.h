@@ -1,0 +1,73 @@
+#pragma once
+// Streaming readers for triangle models (OBJ + MTL, PLY ascii / binary LE / binary BE).
+// A reader never holds the whole model: faces are resolved against a vertex table that stays
+// in memory up to a budget and spills to a temporary file beyond it, and triangles leave in
+// fixed-size batches through a TriangleSink. Bad input is a Status naming the file and the
+// line (text) or byte offset (binary); nothing is thrown, nothing crashes.
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/geometry/vec.h"
+
+namespace raystack {
+class ProgressReporter;
+}
+
+namespace raystack::import {
+
+inline constexpr uint32_t kNoMaterial = 0xffffffffu;
+
+// One material from an MTL file (only what a ray tracer needs).
+struct Material {
+  std::string name;
+  Vec3f kd{0.8f, 0.8f, 0.8f};  // diffuse albedo
+  Vec3f ks{0, 0, 0};           // specular
+  Vec3f ke{0, 0, 0};           // emission
+  float ni = 1.0f;             // index of refraction
+  float d = 1.0f;              // opacity
+  int illum = 2;
+};
+
+struct SourceTriangle {
+  Vec3f p[3];
+  Vec3f n[3];       // valid when has_normals
+  float uv[3][2];   // valid when has_uvs
+  uint32_t material = kNoMaterial;  // index into ModelInfo::materials
+  bool has_normals = false;
+  bool has_uvs = false;
+};
+
+// Receives triangles in source order, in batches (one virtual call per batch, not per triangle).
+class TriangleSink {
+ public:
+  virtual ~TriangleSink() = default;
+  // Returning an error stops the reader, which returns that error.
+  virtual Status Consume(std::span<const SourceTriangle> batch) = 0;
+};
+
+struct ReadOptions {
+  uint64_t vertex_memory_bytes = 256ull << 20;  // vertex table budget before spilling to disk
+  std::string temp_dir;                         // where the spill file goes ("" = $TMPDIR or /tmp)
+  ProgressReporter* progress = nullptr;         // fed with input bytes consumed, if set
+};
+
+struct ModelInfo {
+  std::vector<Material> materials;  // referenced by SourceTriangle::material
+  uint64_t vertices = 0;            // OBJ `v` lines or PLY vertex count
+  uint64_t faces = 0;               // faces read (polygons count once)
+  uint64_t triangles = 0;           // triangles after fan triangulation, zero-area included
+  uint64_t zero_area_dropped = 0;   // triangles with zero area: counted, not sent to the sink
+  bool has_normals = false;         // any triangle had normals
+  bool has_uvs = false;             // any triangle had texture coordinates
+};
+
+// Reads an OBJ or PLY file (chosen by content: PLY starts with "ply"; else by extension).
+// Triangles go to `sink`; `info` is filled as reading goes (valid on success).
+Status ReadModel(const std::string& path, const ReadOptions& options, TriangleSink& sink,
+                 ModelInfo* info);
+
+}  // namespace raystack::import
