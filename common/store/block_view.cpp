@@ -1,0 +1,160 @@
+#include "common/store/block_view.h"
+
+#include <cmath>
+#include <vector>
+
+#include "common/base/log.h"
+
+namespace raystack::store {
+namespace {
+
+Status Bad(uint32_t block_id, const std::string& what) {
+  return Status::Error(StrFormat("block %u is malformed: ", block_id) + what);
+}
+
+// The traversal stack holds at most this many pending nodes; Parse rejects deeper trees.
+constexpr int kMaxBvhDepth = 64;
+
+// Checks that nodes form one binary tree in depth-first layout, every node reached once, no
+// deeper than the traversal stack, and leaves cover valid triangle ranges.
+Status CheckBvh(std::span<const BvhNode> nodes, uint32_t triangle_count, uint32_t block_id) {
+  if (nodes.empty()) {
+    return triangle_count == 0 ? OkStatus() : Bad(block_id, "triangles but no BVH nodes");
+  }
+  struct Item { uint32_t node; int depth; };
+  std::vector<Item> stack{{0, 1}};
+  uint32_t visited = 0;
+  uint64_t leaf_triangles = 0;
+  while (!stack.empty()) {
+    Item item = stack.back();
+    stack.pop_back();
+    if (item.node >= nodes.size()) return Bad(block_id, "BVH child index out of range");
+    if (item.depth > kMaxBvhDepth) return Bad(block_id, "BVH deeper than 64 levels");
+    if (++visited > nodes.size()) return Bad(block_id, "BVH is not a tree");
+    const BvhNode& n = nodes[item.node];
+    for (int a = 0; a < 3; ++a) {
+      if (std::isnan(n.lower[a]) || std::isnan(n.upper[a]))
+        return Bad(block_id, "NaN in BVH bounds");
+    }
+    if (n.count > 0) {
+      if (uint64_t{n.offset} + n.count > triangle_count)
+        return Bad(block_id, "BVH leaf points past the triangles");
+      leaf_triangles += n.count;
+    } else {
+      if (n.offset <= item.node + 1 || n.axis > 2)
+        return Bad(block_id, "BVH inner node with a bad child or axis");
+      stack.push_back({n.offset, item.depth + 1});
+      stack.push_back({item.node + 1, item.depth + 1});
+    }
+  }
+  if (visited != nodes.size()) return Bad(block_id, "BVH has unreachable nodes");
+  if (leaf_triangles != triangle_count)
+    return Bad(block_id, "BVH leaves do not cover each triangle once");
+  return OkStatus();
+}
+
+}  // namespace
+
+Expected<BlockView> BlockView::Parse(const uint8_t* raw, uint64_t size, uint32_t block_id) {
+  if (reinterpret_cast<uintptr_t>(raw) % 16 != 0) return Bad(block_id, "buffer not aligned");
+  if (size < sizeof(BlockHeader)) return Bad(block_id, "shorter than its header");
+  BlockView v;
+  v.header_ = reinterpret_cast<const BlockHeader*>(raw);
+  const BlockHeader& h = *v.header_;
+  if (h.magic != kBlockMagic) return Bad(block_id, "bad magic");
+  if (h.version != kFormatVersion)
+    return Bad(block_id, StrFormat("version %u, expected %u", h.version, kFormatVersion));
+  if (h.block_id != block_id) return Bad(block_id, StrFormat("says it is block %u", h.block_id));
+  if (h.flags & ~uint16_t{0xf}) return Bad(block_id, "unknown flags");
+  const BlockLayout layout = BlockLayout::For(h);
+  if (layout.total != size)
+    return Bad(block_id, StrFormat("size %llu does not match its counts (%llu)",
+                                   static_cast<unsigned long long>(size),
+                                   static_cast<unsigned long long>(layout.total)));
+  if (!(h.flags & kBlockIndices32) && h.vertex_count > 65536)
+    return Bad(block_id, "16-bit indices with more than 65536 vertices");
+
+  v.nodes_ = reinterpret_cast<const BvhNode*>(raw + layout.nodes);
+  const auto* pos = reinterpret_cast<const float*>(raw + layout.positions);
+  v.x_ = pos;
+  v.y_ = pos + h.vertex_count;
+  v.z_ = pos + 2 * uint64_t{h.vertex_count};
+  if (h.flags & kBlockIndices32)
+    v.indices32_ = reinterpret_cast<const uint32_t*>(raw + layout.indices);
+  else
+    v.indices16_ = reinterpret_cast<const uint16_t*>(raw + layout.indices);
+  v.ids_ = reinterpret_cast<const uint32_t*>(raw + layout.triangle_ids);
+  if (h.flags & kBlockPerTriangleMaterial)
+    v.materials_ = reinterpret_cast<const uint16_t*>(raw + layout.materials);
+  if (h.flags & kBlockNormals) {
+    const auto* n = reinterpret_cast<const float*>(raw + layout.normals);
+    v.nx_ = n;
+    v.ny_ = n + h.vertex_count;
+    v.nz_ = n + 2 * uint64_t{h.vertex_count};
+  }
+
+  for (uint64_t i = 0; i < 3 * uint64_t{h.triangle_count}; ++i) {
+    uint32_t index = v.indices32_ ? v.indices32_[i] : v.indices16_[i];
+    if (index >= h.vertex_count) return Bad(block_id, "vertex index out of range");
+  }
+  for (uint64_t i = 0; i < 3 * uint64_t{h.vertex_count}; ++i) {
+    if (!std::isfinite(pos[i])) return Bad(block_id, "non-finite vertex coordinate");
+  }
+  RAYSTACK_RETURN_IF_ERROR(CheckBvh(v.nodes(), h.triangle_count, block_id));
+  return v;
+}
+
+Bounds3f BlockView::cell() const {
+  const BlockHeader& h = *header_;
+  return {{h.cell_lower[0], h.cell_lower[1], h.cell_lower[2]},
+          {h.cell_upper[0], h.cell_upper[1], h.cell_upper[2]}};
+}
+
+bool BlockView::Intersect(const Ray& ray, Hit* hit) const {
+  const RayTriangleSetup setup(ray);
+  bool found = false;
+  // Hits equal to the best t must still be tested (the smaller id wins a tie), so the
+  // triangle test's open upper bound is one float above it.
+  float tmax = std::nextafter(hit->t, std::numeric_limits<float>::infinity());
+  TraverseBvh(nodes(), ray, &tmax, [&](uint32_t first, uint32_t count) {
+    for (uint32_t i = first; i < first + count; ++i) {
+      Vec3f p0, p1, p2;
+      TriangleVertices(i, &p0, &p1, &p2);
+      float t, u, w;
+      if (IntersectTriangle(setup, p0, p1, p2, ray.tmin, tmax, &t, &u, &w) &&
+          CloserThan(t, ids_[i], *hit)) {
+        hit->t = t;
+        hit->u = u;
+        hit->v = w;
+        hit->triangle_id = ids_[i];
+        hit->local_triangle = i;
+        hit->block_id = header_->block_id;
+        tmax = std::nextafter(t, std::numeric_limits<float>::infinity());
+        found = true;
+      }
+    }
+    return false;
+  });
+  return found;
+}
+
+bool BlockView::Occluded(const Ray& ray) const {
+  const RayTriangleSetup setup(ray);
+  float tmax = ray.tmax;
+  bool occluded = false;
+  TraverseBvh(nodes(), ray, &tmax, [&](uint32_t first, uint32_t count) {
+    for (uint32_t i = first; i < first + count; ++i) {
+      Vec3f p0, p1, p2;
+      TriangleVertices(i, &p0, &p1, &p2);
+      float t, u, w;
+      if (IntersectTriangle(setup, p0, p1, p2, ray.tmin, ray.tmax, &t, &u, &w)) {
+        occluded = true;
+        return true;
+      }
+    }
+    return false;
+  });
+  return occluded;
+}
+
+}  // namespace raystack::store

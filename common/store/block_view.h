@@ -1,0 +1,77 @@
+#pragma once
+// A decoded block, read in place: a view over the raw bytes (which the caller owns and keeps
+// alive and 16-byte aligned). Parse() validates every count, offset, index and the BVH's shape,
+// so a block whose checksum is right but whose content is hostile still cannot make a
+// traversal read out of bounds or loop. Intersection never allocates.
+
+#include <cstdint>
+#include <cstring>
+#include <span>
+
+#include "common/base/status.h"
+#include "common/geometry/bounds.h"
+#include "common/geometry/bvh.h"
+#include "common/geometry/ray.h"
+#include "common/geometry/triangle.h"
+#include "common/store/block_layout.h"
+#include "common/store/format.h"
+
+namespace raystack::store {
+
+class BlockView {
+ public:
+  BlockView() = default;
+
+  // Checks `raw` (size bytes) as the raw form of block `block_id`. Errors name the block.
+  static Expected<BlockView> Parse(const uint8_t* raw, uint64_t size, uint32_t block_id);
+
+  const BlockHeader& header() const { return *header_; }
+  uint32_t triangle_count() const { return header_->triangle_count; }
+  uint32_t vertex_count() const { return header_->vertex_count; }
+  Bounds3f cell() const;
+  std::span<const BvhNode> nodes() const { return {nodes_, header_->node_count}; }
+
+  Vec3f Vertex(uint32_t i) const { return {x_[i], y_[i], z_[i]}; }
+  void TriangleVertices(uint32_t t, Vec3f* p0, Vec3f* p1, Vec3f* p2) const;
+  uint32_t VertexIndex(uint32_t t, int corner) const;
+  uint32_t TriangleId(uint32_t t) const { return ids_[t]; }
+  // Material index into the store's material table, or kNoMaterial.
+  uint32_t Material(uint32_t t) const;
+  bool has_normals() const { return header_->flags & kBlockNormals; }
+  bool has_uvs() const { return header_->flags & kBlockUvs; }
+  Vec3f Normal(uint32_t vertex) const { return {nx_[vertex], ny_[vertex], nz_[vertex]}; }
+
+  // Closest hit in (ray.tmin, hit->t], ties broken by CloserThan. Updates `hit` (with this
+  // block's id) and returns true when it found a closer one.
+  bool Intersect(const Ray& ray, Hit* hit) const;
+  // Any hit in (ray.tmin, ray.tmax).
+  bool Occluded(const Ray& ray) const;
+
+ private:
+  const BlockHeader* header_ = nullptr;
+  const BvhNode* nodes_ = nullptr;
+  const float *x_ = nullptr, *y_ = nullptr, *z_ = nullptr;
+  const uint16_t* indices16_ = nullptr;
+  const uint32_t* indices32_ = nullptr;
+  const uint32_t* ids_ = nullptr;
+  const uint16_t* materials_ = nullptr;
+  const float *nx_ = nullptr, *ny_ = nullptr, *nz_ = nullptr;
+};
+
+inline uint32_t BlockView::VertexIndex(uint32_t t, int corner) const {
+  const uint32_t k = 3 * t + static_cast<uint32_t>(corner);
+  return indices32_ ? indices32_[k] : indices16_[k];
+}
+
+inline void BlockView::TriangleVertices(uint32_t t, Vec3f* p0, Vec3f* p1, Vec3f* p2) const {
+  *p0 = Vertex(VertexIndex(t, 0));
+  *p1 = Vertex(VertexIndex(t, 1));
+  *p2 = Vertex(VertexIndex(t, 2));
+}
+
+inline uint32_t BlockView::Material(uint32_t t) const {
+  if (!materials_) return header_->constant_material;
+  return materials_[t] == kNoMaterial16 ? kNoMaterial : materials_[t];
+}
+
+}  // namespace raystack::store

@@ -1,0 +1,219 @@
+#include "common/store/store_reader.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+#include "common/base/log.h"
+
+namespace raystack::store {
+namespace {
+
+// Reads a whole small file (index or octree), checks its FileHeader and body checksum.
+Status ReadChecked(const std::string& path, const char (&magic)[8], std::vector<uint8_t>* body) {
+  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Status::Error(path + ": cannot open: " + std::strerror(errno));
+  struct stat st {};
+  ::fstat(fd, &st);
+  const uint64_t size = static_cast<uint64_t>(st.st_size);
+  FileHeader h{};
+  Status status;
+  if (size < sizeof h || ::pread(fd, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h)) {
+    status = Status::Error(path + ": truncated header (not a raystack store file?)");
+  } else if (std::memcmp(h.magic, magic, 8) != 0) {
+    status = Status::Error(path + ": wrong magic (not a raystack store file of this kind)");
+  } else if (h.version != kFormatVersion) {
+    status = Status::Error(StrFormat("%s: format version %u, this build reads version %u",
+                                     path.c_str(), h.version, kFormatVersion));
+  } else if (h.header_bytes != sizeof h || h.body_bytes != size - sizeof h) {
+    status = Status::Error(path + ": size does not match its header (truncated?)");
+  } else {
+    body->resize(h.body_bytes);
+    ssize_t got = ::pread(fd, body->data(), body->size(), sizeof h);
+    if (got != static_cast<ssize_t>(body->size()))
+      status = Status::Error(path + ": short read");
+    else if (Checksum(*body) != h.body_checksum)
+      status = Status::Error(path + ": checksum mismatch (file is damaged)");
+  }
+  ::close(fd);
+  return status;
+}
+
+bool FiniteBox(const float lo[3], const float hi[3]) {
+  for (int a = 0; a < 3; ++a)
+    if (!std::isfinite(lo[a]) || !std::isfinite(hi[a]) || lo[a] > hi[a]) return false;
+  return true;
+}
+
+}  // namespace
+
+Expected<std::unique_ptr<StoreReader>> StoreReader::Open(const std::string& dir) {
+  std::unique_ptr<StoreReader> r(new StoreReader());
+  r->dir_ = dir;
+  Status s = r->ReadIndex();
+  if (s.ok()) s = r->ReadOctree();
+  if (s.ok()) s = r->OpenBlocks();
+  if (!s.ok()) return s;
+  return r;
+}
+
+StoreReader::~StoreReader() {
+  if (blocks_fd_ >= 0) ::close(blocks_fd_);
+}
+
+Bounds3f StoreReader::root_cell() const {
+  const StoreSummary& s = summary_;
+  return {{s.root_lower[0], s.root_lower[1], s.root_lower[2]},
+          {s.root_upper[0], s.root_upper[1], s.root_upper[2]}};
+}
+
+Bounds3f StoreReader::model_bounds() const {
+  const StoreSummary& s = summary_;
+  return {{s.model_lower[0], s.model_lower[1], s.model_lower[2]},
+          {s.model_upper[0], s.model_upper[1], s.model_upper[2]}};
+}
+
+Status StoreReader::ReadIndex() {
+  const std::string path = dir_ + "/" + kIndexFile;
+  std::vector<uint8_t> body;
+  RAYSTACK_RETURN_IF_ERROR(ReadChecked(path, kIndexMagic, &body));
+  if (body.size() < sizeof summary_) return Status::Error(path + ": truncated summary");
+  std::memcpy(&summary_, body.data(), sizeof summary_);
+  const StoreSummary& s = summary_;
+  const uint64_t expected = sizeof s + uint64_t{s.material_count} * sizeof(MaterialRecord) +
+                            uint64_t{s.block_count} * sizeof(BlockEntry);
+  if (expected != body.size())
+    return Status::Error(path + ": sizes do not match the block and material counts");
+  if (s.codec > kCodecShuffleLz4) return Status::Error(path + ": unknown block codec");
+  if (!FiniteBox(s.root_lower, s.root_upper)) return Status::Error(path + ": bad root cell");
+  materials_.resize(s.material_count);
+  blocks_.resize(s.block_count);
+  std::memcpy(materials_.data(), body.data() + sizeof s,
+              materials_.size() * sizeof(MaterialRecord));
+  std::memcpy(blocks_.data(), body.data() + sizeof s + materials_.size() * sizeof(MaterialRecord),
+              blocks_.size() * sizeof(BlockEntry));
+  for (MaterialRecord& m : materials_) m.name[sizeof m.name - 1] = '\0';
+  return OkStatus();
+}
+
+Status StoreReader::ReadOctree() {
+  const std::string path = dir_ + "/" + kOctreeFile;
+  std::vector<uint8_t> body;
+  RAYSTACK_RETURN_IF_ERROR(ReadChecked(path, kOctreeMagic, &body));
+  if (body.size() % sizeof(OctreeNode) != 0 ||
+      body.size() / sizeof(OctreeNode) != summary_.octree_node_count)
+    return Status::Error(path + ": node count does not match index.bin");
+  nodes_.resize(summary_.octree_node_count);
+  std::memcpy(nodes_.data(), body.data(), body.size());
+  if (nodes_.empty())
+    return summary_.block_count == 0 ? OkStatus() : Status::Error(path + ": no root node");
+
+  // One tree, no cycles, bounded depth, each block owned by exactly one leaf.
+  struct Item { uint32_t node; int depth; };
+  std::vector<Item> stack{{0, 1}};
+  std::vector<uint8_t> seen(nodes_.size(), 0);
+  uint64_t blocks_seen = 0;
+  while (!stack.empty()) {
+    Item it = stack.back();
+    stack.pop_back();
+    if (seen[it.node]++) return Status::Error(path + ": octree is not a tree");
+    if (it.depth > 32) return Status::Error(path + ": octree deeper than 32 levels");
+    const OctreeNode& n = nodes_[it.node];
+    if (n.kind == kOctreeInner) {
+      if (n.first <= it.node || uint64_t{n.first} + 8 > nodes_.size())
+        return Status::Error(StrFormat("%s: node %u has children out of range", path.c_str(),
+                                       it.node));
+      for (uint32_t c = 0; c < 8; ++c) stack.push_back({n.first + c, it.depth + 1});
+    } else if (n.kind == kOctreeLeaf) {
+      if (n.count == 0 || uint64_t{n.first} + n.count > blocks_.size())
+        return Status::Error(StrFormat("%s: leaf %u has blocks out of range", path.c_str(),
+                                       it.node));
+      for (uint32_t b = n.first; b < n.first + n.count; ++b)
+        if (blocks_[b].octree_leaf != it.node)
+          return Status::Error(StrFormat("%s: block %u is not owned by leaf %u", path.c_str(), b,
+                                         it.node));
+      blocks_seen += n.count;
+    } else if (n.kind != kOctreeEmpty) {
+      return Status::Error(StrFormat("%s: node %u has unknown kind", path.c_str(), it.node));
+    }
+  }
+  if (blocks_seen != blocks_.size())
+    return Status::Error(path + ": leaves do not cover every block once");
+  return OkStatus();
+}
+
+Status StoreReader::OpenBlocks() {
+  const std::string path = dir_ + "/" + kBlocksFile;
+  blocks_fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (blocks_fd_ < 0) return Status::Error(path + ": cannot open: " + std::strerror(errno));
+  struct stat st {};
+  ::fstat(blocks_fd_, &st);
+  blocks_file_bytes_ = static_cast<uint64_t>(st.st_size);
+  FileHeader h{};
+  if (::pread(blocks_fd_, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h) ||
+      std::memcmp(h.magic, kBlocksMagic, 8) != 0)
+    return Status::Error(path + ": not a raystack block file");
+  if (h.version != kFormatVersion)
+    return Status::Error(StrFormat("%s: format version %u, this build reads version %u",
+                                   path.c_str(), h.version, kFormatVersion));
+  if (h.body_bytes != blocks_file_bytes_ - sizeof h)
+    return Status::Error(path + ": size does not match its header (truncated?)");
+  for (uint32_t i = 0; i < blocks_.size(); ++i) {
+    const BlockEntry& e = blocks_[i];
+    if (e.offset < sizeof h || e.offset + e.stored_bytes > blocks_file_bytes_)
+      return Status::Error(BlockError(i, "lies outside the file (truncated?)"));
+  }
+  return OkStatus();
+}
+
+std::string StoreReader::BlockError(uint32_t id, const std::string& what) const {
+  const uint64_t offset = id < blocks_.size() ? blocks_[id].offset : 0;
+  return StrFormat("%s/%s: block %u (byte offset %llu): ", dir_.c_str(), kBlocksFile, id,
+                   static_cast<unsigned long long>(offset)) +
+         what;
+}
+
+Status StoreReader::ReadStored(uint32_t id, std::vector<uint8_t>* stored) const {
+  if (id >= blocks_.size()) return Status::Error(BlockError(id, "no such block"));
+  const BlockEntry& e = blocks_[id];
+  stored->resize(e.stored_bytes);
+  uint64_t done = 0;
+  while (done < e.stored_bytes) {
+    ssize_t n = ::pread(blocks_fd_, stored->data() + done, e.stored_bytes - done,
+                        static_cast<off_t>(e.offset + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0)
+      return Status::Error(BlockError(id, n < 0 ? std::string("read failed: ") +
+                                                      std::strerror(errno)
+                                                : std::string("unexpected end of file")));
+    done += static_cast<uint64_t>(n);
+  }
+  return OkStatus();
+}
+
+Expected<BlockView> StoreReader::Decode(uint32_t id, std::span<const uint8_t> stored,
+                                        AlignedBuffer* scratch, AlignedBuffer* raw) const {
+  if (id >= blocks_.size()) return Status::Error(BlockError(id, "no such block"));
+  const BlockEntry& e = blocks_[id];
+  if (stored.size() != e.stored_bytes || Checksum(stored) != e.checksum)
+    return Status::Error(BlockError(id, "checksum mismatch (the block is damaged)"));
+  Status s = DecodeBlock(stored, e.raw_bytes, summary_.codec == kCodecShuffleLz4, scratch, raw);
+  if (!s.ok()) return Status::Error(BlockError(id, s.message()));
+  Expected<BlockView> view = BlockView::Parse(raw->data(), e.raw_bytes, id);
+  if (!view.ok()) return Status::Error(BlockError(id, view.status().message()));
+  if (view->triangle_count() != e.triangle_count)
+    return Status::Error(BlockError(id, "triangle count differs from the index"));
+  return view;
+}
+
+Expected<BlockView> StoreReader::Load(uint32_t id, std::vector<uint8_t>* stored,
+                                      AlignedBuffer* scratch, AlignedBuffer* raw) const {
+  RAYSTACK_RETURN_IF_ERROR(ReadStored(id, stored));
+  return Decode(id, *stored, scratch, raw);
+}
+
+}  // namespace raystack::store

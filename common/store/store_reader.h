@@ -1,0 +1,62 @@
+#pragma once
+// Opens a block store: reads and verifies index.bin and octree.bin whole (they are small and
+// always in RAM), and reads single blocks on request from blocks.bin with pread, so one
+// StoreReader serves any number of threads. Every error names the file and the block.
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/store/block_codec.h"
+#include "common/store/block_view.h"
+#include "common/store/format.h"
+#include "common/store/octree.h"
+
+namespace raystack::store {
+
+class StoreReader {
+ public:
+  // Opens the store in directory `dir`, verifying headers, versions, checksums and the octree.
+  static Expected<std::unique_ptr<StoreReader>> Open(const std::string& dir);
+  ~StoreReader();
+  StoreReader(const StoreReader&) = delete;
+  StoreReader& operator=(const StoreReader&) = delete;
+
+  const std::string& dir() const { return dir_; }
+  const StoreSummary& summary() const { return summary_; }
+  std::span<const BlockEntry> blocks() const { return blocks_; }
+  std::span<const MaterialRecord> materials() const { return materials_; }
+  OctreeView octree() const { return OctreeView(nodes_, root_cell()); }
+  Bounds3f root_cell() const;
+  Bounds3f model_bounds() const;
+  uint64_t blocks_file_bytes() const { return blocks_file_bytes_; }
+
+  // Reads block `id`'s stored bytes (for a loader that batches reads). Thread-safe.
+  Status ReadStored(uint32_t id, std::vector<uint8_t>* stored) const;
+  // Verifies the checksum, decompresses into `raw` and validates. Thread-safe.
+  Expected<BlockView> Decode(uint32_t id, std::span<const uint8_t> stored, AlignedBuffer* scratch,
+                             AlignedBuffer* raw) const;
+  // ReadStored + Decode.
+  Expected<BlockView> Load(uint32_t id, std::vector<uint8_t>* stored, AlignedBuffer* scratch,
+                           AlignedBuffer* raw) const;
+
+ private:
+  StoreReader() = default;
+  Status ReadIndex();
+  Status ReadOctree();
+  Status OpenBlocks();
+  std::string BlockError(uint32_t id, const std::string& what) const;
+
+  std::string dir_;
+  StoreSummary summary_{};
+  std::vector<MaterialRecord> materials_;
+  std::vector<BlockEntry> blocks_;
+  std::vector<OctreeNode> nodes_;
+  int blocks_fd_ = -1;
+  uint64_t blocks_file_bytes_ = 0;
+};
+
+}  // namespace raystack::store

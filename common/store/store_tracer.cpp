@@ -1,0 +1,79 @@
+#include "common/store/store_tracer.h"
+
+namespace raystack::store {
+
+struct StoreTracer::Loaded {
+  AlignedBuffer raw;
+  BlockView view;
+};
+
+StoreTracer::StoreTracer(const StoreReader& store)
+    : store_(store), blocks_(store.blocks().size()) {}
+
+StoreTracer::~StoreTracer() = default;
+
+Expected<const BlockView*> StoreTracer::Block(uint32_t id) {
+  if (!blocks_[id]) {
+    auto loaded = std::make_unique<Loaded>();
+    Expected<BlockView> view = store_.Load(id, &stored_, &scratch_, &loaded->raw);
+    if (!view.ok()) return view.status();
+    loaded->view = *view;
+    blocks_[id] = std::move(loaded);
+    ++blocks_loaded_;
+  }
+  return &blocks_[id]->view;
+}
+
+Status StoreTracer::LoadAll() {
+  for (uint32_t id = 0; id < blocks_.size(); ++id) {
+    Expected<const BlockView*> b = Block(id);
+    if (!b.ok()) return b.status();
+  }
+  return OkStatus();
+}
+
+Expected<Hit> StoreTracer::Intersect(const Ray& ray) {
+  Hit hit;
+  hit.t = ray.tmax;
+  Status error;
+  float tmax = ray.tmax;
+  store_.octree().VisitLeaves(ray, &tmax, [&](uint32_t, const OctreeNode& leaf, float, float) {
+    for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b) {
+      Expected<const BlockView*> block = Block(b);
+      if (!block.ok()) {
+        error = block.status();
+        return false;
+      }
+      (*block)->Intersect(ray, &hit);
+    }
+    tmax = hit.t;  // later leaves start beyond the best hit: skip them
+    return true;
+  });
+  if (!error.ok()) return error;
+  if (!hit.Valid()) hit.t = std::numeric_limits<float>::infinity();
+  return hit;
+}
+
+Expected<bool> StoreTracer::Occluded(const Ray& ray) {
+  bool occluded = false;
+  Status error;
+  float tmax = ray.tmax;
+  store_.octree().VisitLeaves(ray, &tmax, [&](uint32_t, const OctreeNode& leaf, float, float) {
+    for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b) {
+      Expected<const BlockView*> block = Block(b);
+      if (!block.ok()) {
+        error = block.status();
+        return false;
+      }
+      if ((*block)->Occluded(ray)) {
+        occluded = true;
+        return false;
+      }
+    }
+    return true;
+  });
+  if (!error.ok()) return error;
+  return occluded;
+}
+
+}  // namespace raystack::store

@@ -1,0 +1,42 @@
+#pragma once
+// Synchronous closest-hit and any-hit queries against a whole store: walks the level-1 octree
+// front to back and intersects each crossed leaf's blocks, loading them on first use and
+// keeping them. Unbounded memory: this is the reference path for tests and tools (and the
+// in-core baseline), not the renderer's ray stack. Not thread-safe.
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/geometry/ray.h"
+#include "common/store/store_reader.h"
+
+namespace raystack::store {
+
+class StoreTracer {
+ public:
+  explicit StoreTracer(const StoreReader& store);
+  ~StoreTracer();
+
+  // Closest hit in (ray.tmin, ray.tmax); an invalid Hit when the ray hits nothing.
+  Expected<Hit> Intersect(const Ray& ray);
+  // True when anything lies in (ray.tmin, ray.tmax).
+  Expected<bool> Occluded(const Ray& ray);
+  // Loads every block now (for in-core use).
+  Status LoadAll();
+
+  uint64_t blocks_loaded() const { return blocks_loaded_; }
+
+ private:
+  struct Loaded;
+  Expected<const BlockView*> Block(uint32_t id);
+
+  const StoreReader& store_;
+  std::vector<std::unique_ptr<Loaded>> blocks_;  // by block id; null until loaded
+  std::vector<uint8_t> stored_;
+  AlignedBuffer scratch_;
+  uint64_t blocks_loaded_ = 0;
+};
+
+}  // namespace raystack::store

@@ -1,0 +1,123 @@
+#include "common/store/store_writer.h"
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+#include "common/base/log.h"
+#include "common/store/block_codec.h"
+
+namespace raystack::store {
+namespace {
+
+std::string Tmp(const std::string& path) { return path + ".tmp"; }
+
+Status WriteWhole(const std::string& path, const char (&magic)[8],
+                  const std::vector<uint8_t>& body) {
+  FileHeader h{};
+  std::memcpy(h.magic, magic, 8);
+  h.version = kFormatVersion;
+  h.header_bytes = sizeof h;
+  h.body_bytes = body.size();
+  h.body_checksum = Checksum(body);
+  std::FILE* f = std::fopen(Tmp(path).c_str(), "wb");
+  if (!f) return Status::Error(path + ": cannot create: " + std::strerror(errno));
+  bool ok = std::fwrite(&h, sizeof h, 1, f) == 1 &&
+            (body.empty() || std::fwrite(body.data(), body.size(), 1, f) == 1);
+  ok = (std::fclose(f) == 0) && ok;
+  if (!ok) return Status::Error(path + ": write failed (disk full?)");
+  if (std::rename(Tmp(path).c_str(), path.c_str()) != 0)
+    return Status::Error(path + ": cannot rename into place: " + std::strerror(errno));
+  return OkStatus();
+}
+
+template <typename T>
+void Append(std::vector<uint8_t>* out, const T* data, size_t count) {
+  const auto* p = reinterpret_cast<const uint8_t*>(data);
+  out->insert(out->end(), p, p + sizeof(T) * count);
+}
+
+}  // namespace
+
+Expected<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) return Status::Error(dir + ": cannot create directory: " + ec.message());
+  // A half-written store must not look complete: drop the old index first.
+  std::filesystem::remove(dir + "/" + kIndexFile, ec);
+  std::unique_ptr<StoreWriter> w(new StoreWriter());
+  w->dir_ = dir;
+  const std::string path = Tmp(dir + "/" + kBlocksFile);
+  w->blocks_ = std::fopen(path.c_str(), "wb");
+  if (!w->blocks_) return Status::Error(path + ": cannot create: " + std::strerror(errno));
+  std::setvbuf(w->blocks_, nullptr, _IOFBF, 1 << 20);
+  FileHeader placeholder{};
+  if (std::fwrite(&placeholder, sizeof placeholder, 1, w->blocks_) != 1)
+    return Status::Error(path + ": write failed");
+  w->offset_ = sizeof placeholder;
+  return w;
+}
+
+StoreWriter::~StoreWriter() {
+  if (blocks_) std::fclose(blocks_);
+}
+
+Status StoreWriter::Add(const EncodedBlock& b) {
+  if (b.id != entries_.size())
+    return Status::Error(StrFormat("internal: block %u written out of order", b.id));
+  if (std::fwrite(b.stored.data(), 1, b.stored.size(), blocks_) != b.stored.size())
+    return Status::Error(dir_ + "/" + kBlocksFile + ": write failed (disk full?): " +
+                         std::strerror(errno));
+  BlockEntry e{};
+  e.offset = offset_;
+  e.stored_bytes = static_cast<uint32_t>(b.stored.size());
+  e.raw_bytes = b.raw_bytes;
+  for (int a = 0; a < 3; ++a) {
+    e.cell_lower[a] = b.cell.lower[a];
+    e.cell_upper[a] = b.cell.upper[a];
+  }
+  e.triangle_count = b.triangles;
+  e.octree_leaf = b.octree_leaf;
+  e.checksum = Checksum(b.stored);
+  entries_.push_back(e);
+  offset_ += b.stored.size();
+  return OkStatus();
+}
+
+Status StoreWriter::Finish(StoreSummary s, std::span<const OctreeNode> octree,
+                           std::span<const MaterialRecord> materials) {
+  const std::string blocks_path = dir_ + "/" + kBlocksFile;
+  FileHeader h{};
+  std::memcpy(h.magic, kBlocksMagic, 8);
+  h.version = kFormatVersion;
+  h.header_bytes = sizeof h;
+  h.body_bytes = offset_ - sizeof h;
+  bool ok = std::fflush(blocks_) == 0 && std::fseek(blocks_, 0, SEEK_SET) == 0 &&
+            std::fwrite(&h, sizeof h, 1, blocks_) == 1;
+  ok = (std::fclose(blocks_) == 0) && ok;
+  blocks_ = nullptr;
+  if (!ok) return Status::Error(blocks_path + ": write failed (disk full?)");
+  if (std::rename(Tmp(blocks_path).c_str(), blocks_path.c_str()) != 0)
+    return Status::Error(blocks_path + ": cannot rename into place");
+
+  std::vector<uint8_t> body;
+  Append(&body, octree.data(), octree.size());
+  RAYSTACK_RETURN_IF_ERROR(WriteWhole(dir_ + "/" + kOctreeFile, kOctreeMagic, body));
+
+  s.block_count = static_cast<uint32_t>(entries_.size());
+  s.octree_node_count = static_cast<uint32_t>(octree.size());
+  s.material_count = static_cast<uint32_t>(materials.size());
+  s.references = s.raw_bytes = s.stored_bytes = 0;
+  for (const BlockEntry& e : entries_) {
+    s.references += e.triangle_count;
+    s.raw_bytes += e.raw_bytes;
+    s.stored_bytes += e.stored_bytes;
+  }
+  body.clear();
+  Append(&body, &s, 1);
+  Append(&body, materials.data(), materials.size());
+  Append(&body, entries_.data(), entries_.size());
+  return WriteWhole(dir_ + "/" + kIndexFile, kIndexMagic, body);
+}
+
+}  // namespace raystack::store

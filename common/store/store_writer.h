@@ -1,0 +1,51 @@
+#pragma once
+// Writes a block store directory: blocks are appended to blocks.bin in the order given (the
+// converter gives them in space-filling-curve order); Finish() writes octree.bin and then
+// index.bin. Each file is written under a temporary name and renamed into place, index.bin
+// last, so a store directory with an index.bin is always complete.
+
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/geometry/bounds.h"
+#include "common/store/format.h"
+
+namespace raystack::store {
+
+struct EncodedBlock {
+  uint32_t id = 0;
+  std::vector<uint8_t> stored;  // lz4 bytes
+  uint32_t raw_bytes = 0;
+  uint32_t triangles = 0;
+  uint32_t octree_leaf = 0;
+  Bounds3f cell;
+};
+
+class StoreWriter {
+ public:
+  // Creates `dir` if needed and starts blocks.bin. Existing store files are replaced.
+  static Expected<std::unique_ptr<StoreWriter>> Create(const std::string& dir);
+  ~StoreWriter();
+
+  // Appends a block; ids must come in order 0, 1, 2, ...
+  Status Add(const EncodedBlock& block);
+  // Completes the store. `summary`'s counts of blocks, bytes and references are filled here.
+  Status Finish(StoreSummary summary, std::span<const OctreeNode> octree,
+                std::span<const MaterialRecord> materials);
+
+  std::span<const BlockEntry> entries() const { return entries_; }
+
+ private:
+  StoreWriter() = default;
+  std::string dir_;
+  std::FILE* blocks_ = nullptr;
+  uint64_t offset_ = 0;
+  std::vector<BlockEntry> entries_;
+};
+
+}  // namespace raystack::store

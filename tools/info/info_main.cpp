@@ -1,0 +1,127 @@
+// raystack-info: what a block store holds, and (with --verify) whether every block is sound.
+
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "common/base/log.h"
+#include "common/store/store_reader.h"
+
+namespace raystack {
+namespace {
+
+constexpr const char* kUsage = R"(usage: raystack-info STORE [--verify] [--blocks]
+
+Prints what a raystack block store holds: format version, triangle and reference counts,
+blocks and their size histogram, bytes per triangle, compression ratio, bounds, materials.
+  --verify   read, checksum, decompress and validate every block (exit 1 on the first bad one)
+  --blocks   list every block (offset, sizes, triangles, cell)
+)";
+
+void PrintHistogram(std::span<const store::BlockEntry> blocks) {
+  // Raw sizes in 8 KB bins up to the largest block.
+  uint32_t largest = 0;
+  for (const auto& b : blocks) largest = std::max(largest, b.raw_bytes);
+  constexpr uint32_t kBin = 8 * 1024;
+  std::vector<uint64_t> bins(largest / kBin + 1, 0);
+  for (const auto& b : blocks) ++bins[b.raw_bytes / kBin];
+  const uint64_t most = *std::max_element(bins.begin(), bins.end());
+  std::printf("raw block size histogram:\n");
+  for (size_t i = 0; i < bins.size(); ++i) {
+    const int width = most ? static_cast<int>(50 * bins[i] / most) : 0;
+    std::printf("  %4zu-%4zu KB %8llu %s\n", i * 8, i * 8 + 8,
+                static_cast<unsigned long long>(bins[i]), std::string(static_cast<size_t>(width), '#').c_str());
+  }
+}
+
+int Run(const std::string& dir, bool verify, bool list) {
+  Expected<std::unique_ptr<store::StoreReader>> opened = store::StoreReader::Open(dir);
+  if (!opened.ok()) {
+    std::fprintf(stderr, "raystack-info: %s\n", opened.status().message().c_str());
+    return 1;
+  }
+  const store::StoreReader& s = **opened;
+  const store::StoreSummary& m = s.summary();
+  const double tris = static_cast<double>(std::max<uint64_t>(m.source_triangles, 1));
+  std::printf("store            %s\n", dir.c_str());
+  std::printf("format version   %u (codec %s)\n", store::kFormatVersion,
+              m.codec == store::kCodecShuffleLz4 ? "byte-shuffle + lz4" : "lz4");
+  std::printf("triangles        %llu\n", static_cast<unsigned long long>(m.source_triangles));
+  std::printf("references       %llu (%.3f per triangle)\n",
+              static_cast<unsigned long long>(m.references), m.references / tris);
+  std::printf("blocks           %u (mean raw %.1f KB, mean stored %.1f KB; cap %u KB, target %u KB)\n",
+              m.block_count, m.block_count ? m.raw_bytes / 1024.0 / m.block_count : 0.0,
+              m.block_count ? m.stored_bytes / 1024.0 / m.block_count : 0.0,
+              m.max_block_bytes / 1024, m.target_block_bytes / 1024);
+  std::printf("octree nodes     %u\n", m.octree_node_count);
+  std::printf("bytes/triangle   %.2f on disk, %.2f raw\n", m.stored_bytes / tris, m.raw_bytes / tris);
+  std::printf("compression      %.2fx (%llu -> %llu bytes)\n",
+              m.stored_bytes ? static_cast<double>(m.raw_bytes) / m.stored_bytes : 0.0,
+              static_cast<unsigned long long>(m.raw_bytes),
+              static_cast<unsigned long long>(m.stored_bytes));
+  std::printf("model bounds     (%g, %g, %g) - (%g, %g, %g)\n", m.model_lower[0], m.model_lower[1],
+              m.model_lower[2], m.model_upper[0], m.model_upper[1], m.model_upper[2]);
+  std::printf("root cell        (%g, %g, %g) - (%g, %g, %g)\n", m.root_lower[0], m.root_lower[1],
+              m.root_lower[2], m.root_upper[0], m.root_upper[1], m.root_upper[2]);
+  std::printf("attributes       %s%s%s\n", (m.model_flags & store::kModelHasNormals) ? "normals " : "",
+              (m.model_flags & store::kModelHasUvs) ? "uvs " : "",
+              (m.model_flags & store::kModelHasMaterials) ? "materials" : (m.model_flags ? "" : "none"));
+  std::printf("materials        %u\n", m.material_count);
+  for (const store::MaterialRecord& r : s.materials())
+    std::printf("  %-24s Kd (%.3g %.3g %.3g) Ke (%.3g %.3g %.3g)\n", r.name, r.kd[0], r.kd[1],
+                r.kd[2], r.ke[0], r.ke[1], r.ke[2]);
+  if (m.block_count) PrintHistogram(s.blocks());
+  if (list) {
+    for (uint32_t i = 0; i < s.blocks().size(); ++i) {
+      const store::BlockEntry& b = s.blocks()[i];
+      std::printf("block %u offset %llu stored %u raw %u triangles %u cell (%g %g %g)-(%g %g %g)\n", i,
+                  static_cast<unsigned long long>(b.offset), b.stored_bytes, b.raw_bytes,
+                  b.triangle_count, b.cell_lower[0], b.cell_lower[1], b.cell_lower[2],
+                  b.cell_upper[0], b.cell_upper[1], b.cell_upper[2]);
+    }
+  }
+  if (verify) {
+    std::vector<uint8_t> stored;
+    store::AlignedBuffer scratch, raw;
+    for (uint32_t i = 0; i < s.blocks().size(); ++i) {
+      Expected<store::BlockView> v = s.Load(i, &stored, &scratch, &raw);
+      if (!v.ok()) {
+        std::fprintf(stderr, "raystack-info: %s\n", v.status().message().c_str());
+        return 1;
+      }
+    }
+    std::printf("verify           all %u blocks OK\n", m.block_count);
+  }
+  return 0;
+}
+
+}  // namespace
+}  // namespace raystack
+
+int main(int argc, char** argv) {
+  std::string dir;
+  bool verify = false, list = false;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "-h") || !std::strcmp(argv[i], "--help")) {
+      std::fputs(raystack::kUsage, stdout);
+      return 0;
+    }
+    if (!std::strcmp(argv[i], "--verify")) verify = true;
+    else if (!std::strcmp(argv[i], "--blocks")) list = true;
+    else if (argv[i][0] == '-') {
+      std::fprintf(stderr, "raystack-info: unknown option %s (see --help)\n", argv[i]);
+      return 2;
+    } else if (dir.empty()) dir = argv[i];
+    else {
+      std::fprintf(stderr, "raystack-info: one store at a time (see --help)\n");
+      return 2;
+    }
+  }
+  if (dir.empty()) {
+    std::fputs(raystack::kUsage, stderr);
+    return 2;
+  }
+  return raystack::Run(dir, verify, list);
+}

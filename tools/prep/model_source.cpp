@@ -1,0 +1,69 @@
+#include "tools/prep/model_source.h"
+
+#include "common/base/log.h"
+
+namespace raystack::prep {
+
+Status SpoolSink::Consume(std::span<const import::SourceTriangle> batch) {
+  for (const import::SourceTriangle& s : batch) {
+    if (next_id_ >= 0xffffffffull)
+      return Status::Error("more than 4,294,967,294 triangles: ids are 32-bit in format v1");
+    PackedTriangle t;
+    TriangleAttributes a{};
+    for (int c = 0; c < 3; ++c) {
+      t.p[c] = s.p[c];
+      bounds_.Extend(s.p[c]);
+      if (s.has_normals) a.n[c] = s.n[c];
+      if (s.has_uvs) {
+        a.uv[c][0] = s.uv[c][0];
+        a.uv[c][1] = s.uv[c][1];
+      }
+    }
+    t.id = static_cast<uint32_t>(next_id_++);
+    const uint32_t material =
+        s.material == import::kNoMaterial ? store::kNoMaterial : s.material + material_offset_;
+    if (material != store::kNoMaterial && material >= store::kMaxMaterials)
+      return Status::Error("more than 65534 materials");
+    t.material_and_flags = material | (s.has_normals ? PackedTriangle::kHasNormals : 0) |
+                           (s.has_uvs ? PackedTriangle::kHasUvs : 0);
+    attributes_ |= s.has_normals || s.has_uvs;
+    RAYSTACK_RETURN_IF_ERROR(spool_->Append(t, &a));
+  }
+  return OkStatus();
+}
+
+ReplicatedSource::ReplicatedSource(const TriangleSpool& spool, const Bounds3f& bounds,
+                                   bool attributes, std::array<int, 3> grid)
+    : spool_(spool), base_(bounds), bounds_(bounds), attributes_(attributes), grid_(grid) {
+  const Vec3f e = bounds.Empty() ? Vec3f{0, 0, 0} : bounds.Extent();
+  step_ = e * 1.1f;
+  if (!bounds.Empty())
+    bounds_.upper = bounds.upper + Vec3f{step_.x * static_cast<float>(grid[0] - 1),
+                                         step_.y * static_cast<float>(grid[1] - 1),
+                                         step_.z * static_cast<float>(grid[2] - 1)};
+}
+
+Status ReplicatedSource::ForEach(const TriangleSpool::Visitor& visit) const {
+  if (copies() == 1) return spool_.ForEach(visit);
+  const uint64_t n = spool_.triangles();
+  uint64_t copy = 0;
+  std::vector<PackedTriangle> moved;
+  for (int z = 0; z < grid_[2]; ++z)
+    for (int y = 0; y < grid_[1]; ++y)
+      for (int x = 0; x < grid_[0]; ++x, ++copy) {
+        const Vec3f offset{step_.x * static_cast<float>(x), step_.y * static_cast<float>(y),
+                           step_.z * static_cast<float>(z)};
+        RAYSTACK_RETURN_IF_ERROR(spool_.ForEach(
+            [&](std::span<const PackedTriangle> tris, std::span<const TriangleAttributes> attrs) {
+              moved.assign(tris.begin(), tris.end());
+              for (PackedTriangle& t : moved) {
+                for (Vec3f& p : t.p) p = p + offset;
+                t.id = static_cast<uint32_t>(copy * n + t.id);
+              }
+              return visit(moved, attrs);
+            }));
+      }
+  return OkStatus();
+}
+
+}  // namespace raystack::prep

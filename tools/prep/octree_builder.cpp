@@ -1,0 +1,345 @@
+#include "tools/prep/octree_builder.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+
+#include "common/base/check.h"
+#include "common/base/log.h"
+#include "common/base/progress.h"
+#include "common/store/block_layout.h"
+#include "common/store/octree.h"
+#include "tools/prep/block_pipeline.h"
+#include "tools/prep/clip.h"
+
+namespace raystack::prep {
+namespace {
+
+using store::OctreeNode;
+
+// Past this depth, cells are a few float ulps of the root wide: splitting means nothing.
+constexpr int kMaxDepth = 24;
+// Levels in a row where some child kept every triangle of its parent before we give up.
+constexpr int kMaxStall = 4;
+// Memory one triangle costs while its bucket is subdivided (the triangle plus ~2.5 refs).
+constexpr uint64_t kBucketBytesPerTriangle = sizeof(PackedTriangle) + 3 * 28;
+
+struct Ref {
+  uint32_t tri;
+  Bounds3f bounds;  // clipped to the current cell
+};
+
+// The cube the octree starts from: the model's box grown to its largest side, plus a margin
+// so no triangle sits on the outer faces.
+Bounds3f RootCell(const Bounds3f& model) {
+  if (model.Empty()) return {{0, 0, 0}, {1, 1, 1}};
+  const Vec3f c = model.Center();
+  const Vec3f e = model.Extent();
+  float half = 0.5f * std::max({e.x, e.y, e.z});
+  const float magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), half});
+  half = half * 1.001f + magnitude * 1e-6f + 1e-30f;
+  return {{c.x - half, c.y - half, c.z - half}, {c.x + half, c.y + half, c.z + half}};
+}
+
+class Builder {
+ public:
+  Builder(const BuildOptions& options, store::StoreWriter* writer, bool attributes)
+      : options_(options), attributes_(attributes),
+        pipeline_(options.threads, writer, options.shuffle),
+        max_tris_(MaxTrianglesPerBlock(options.max_block_bytes, attributes)) {
+    // Typical raw bytes per triangle: indices, id, shared vertices, ~0.7 BVH nodes.
+    bytes_per_triangle_ = 6.0 + 4.0 + 32.0 * 0.7 +
+                          options.vertices_per_triangle * (attributes ? 32.0 : 12.0);
+    bucket_capacity_ = std::max<uint64_t>(
+        options.memory_bytes / (kBucketBytesPerTriangle + (attributes ? 60 : 0)), 4096);
+  }
+
+  Status Run(const TriangleSource& source, BuildResult* result) {
+    result->root_cell = root_ = RootCell(source.bounds());
+    nodes_.push_back({0, 0, store::kOctreeEmpty, 0});
+    if (source.triangles() <= bucket_capacity_) {
+      RAYSTACK_RETURN_IF_ERROR(BuildInMemory(source, 0, root_, 0));
+    } else {
+      RAYSTACK_RETURN_IF_ERROR(Partition(source, 0, root_, 0));
+    }
+    RAYSTACK_RETURN_IF_ERROR(pipeline_.Drain());
+    const PipelineStats s = pipeline_.stats();
+    result->octree = std::move(nodes_);
+    result->references = s.references;
+    result->blocks = s.blocks;
+    result->raw_bytes = s.raw_bytes;
+    result->stored_bytes = s.stored_bytes;
+    result->vertices = s.vertices;
+    result->largest_raw_bytes = s.largest_raw_bytes;
+    result->max_depth = static_cast<uint32_t>(max_depth_);
+    result->multi_block_leaves = multi_block_leaves_;
+    result->partition_passes = partition_passes_;
+    return OkStatus();
+  }
+
+ private:
+  double EstimateBytes(size_t triangles) const {
+    return sizeof(store::BlockHeader) + bytes_per_triangle_ * static_cast<double>(triangles);
+  }
+
+  uint32_t AddChildren() {
+    const uint32_t first = static_cast<uint32_t>(nodes_.size());
+    nodes_.resize(nodes_.size() + 8, {0, 0, store::kOctreeEmpty, 0});
+    return first;
+  }
+
+  // Loads a whole source (small model or one bucket) and subdivides it.
+  Status BuildInMemory(const TriangleSource& source, uint32_t node, const Bounds3f& cell,
+                       int depth) {
+    triangles_.clear();
+    attributes_store_.clear();
+    triangles_.reserve(source.triangles());
+    if (attributes_) attributes_store_.reserve(source.triangles());
+    RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
+                                                std::span<const TriangleAttributes> attrs) {
+      triangles_.insert(triangles_.end(), tris.begin(), tris.end());
+      if (attributes_) attributes_store_.insert(attributes_store_.end(), attrs.begin(), attrs.end());
+      return OkStatus();
+    }));
+    std::vector<Ref> refs;
+    refs.reserve(triangles_.size());
+    for (uint32_t i = 0; i < triangles_.size(); ++i) {
+      const Bounds3f b = ClipTriangleToCell(triangles_[i].p, cell);
+      if (!b.Empty()) refs.push_back({i, b});
+    }
+    Subdivide(node, cell, std::move(refs), depth, 0);
+    // Jobs point into triangles_: let them finish before the next bucket replaces it.
+    return pipeline_.Drain();
+  }
+
+  // Splits `refs` among the 8 children of `cell`; returns the size of the largest child.
+  size_t SplitRefs(const Bounds3f& cell, const std::vector<Ref>& refs,
+                   std::vector<Ref> (&kids)[8]) const {
+    const Vec3f mid = (cell.lower + cell.upper) * 0.5f;
+    for (const Ref& r : refs) {
+      int lo_mask = 0, hi_mask = 0;  // which halves the box touches, per axis
+      for (int a = 0; a < 3; ++a) {
+        if (r.bounds.lower[a] <= mid[a]) lo_mask |= 1 << a;
+        if (r.bounds.upper[a] >= mid[a]) hi_mask |= 1 << a;
+      }
+      const bool straddles = (lo_mask & hi_mask) != 0;
+      for (int i = 0; i < 8; ++i) {
+        bool touches = true;
+        for (int a = 0; a < 3 && touches; ++a) touches = (i >> a & 1) ? (hi_mask >> a & 1) : (lo_mask >> a & 1);
+        if (!touches) continue;
+        if (!straddles) {
+          kids[i].push_back(r);  // wholly inside this child: its box stays as is
+          continue;
+        }
+        const Bounds3f b = ClipTriangleToCell(triangles_[r.tri].p, store::ChildCell(cell, i));
+        if (!b.Empty()) kids[i].push_back({r.tri, b});
+      }
+    }
+    size_t largest = 0;
+    for (const auto& k : kids) largest = std::max(largest, k.size());
+    return largest;
+  }
+
+  void Subdivide(uint32_t node, const Bounds3f& cell, std::vector<Ref> refs, int depth,
+                 int stall) {
+    max_depth_ = std::max(max_depth_, depth);
+    if (refs.empty()) return;  // stays kOctreeEmpty
+    const bool must_split = refs.size() > max_tris_;
+    const bool can_split = depth < kMaxDepth && stall < kMaxStall;
+    if (!can_split) return MakeLeaf(node, cell, std::move(refs));
+    if (!must_split && EstimateBytes(refs.size()) <= options_.target_block_bytes)
+      return MakeLeaf(node, cell, std::move(refs));
+
+    std::vector<Ref> kids[8];
+    const size_t largest = SplitRefs(cell, refs, kids);
+    if (!must_split) {
+      // Leaf or split, whichever lands closer to the target size (in ratio).
+      size_t filled = 0, total = 0;
+      for (const auto& k : kids) {
+        filled += !k.empty();
+        total += k.size();
+      }
+      const double mean_child = EstimateBytes(total / std::max<size_t>(filled, 1));
+      const double leaf_error = std::fabs(std::log(EstimateBytes(refs.size()) / options_.target_block_bytes));
+      const double split_error = std::fabs(std::log(mean_child / options_.target_block_bytes));
+      if (leaf_error <= split_error) return MakeLeaf(node, cell, std::move(refs));
+    }
+    const int next_stall = largest == refs.size() ? stall + 1 : 0;
+    std::vector<Ref>().swap(refs);  // free before recursing
+    const uint32_t first = AddChildren();
+    nodes_[node] = {first, 0, store::kOctreeInner, 0};
+    for (int i = 0; i < 8; ++i) {
+      Subdivide(first + static_cast<uint32_t>(i), store::ChildCell(cell, i), std::move(kids[i]),
+                depth + 1, next_stall);
+    }
+  }
+
+  void MakeLeaf(uint32_t node, const Bounds3f& cell, std::vector<Ref> refs) {
+    const size_t chunks = (refs.size() + max_tris_ - 1) / max_tris_;
+    if (chunks > 1) ++multi_block_leaves_;
+    CHECK(chunks <= 0xffff);
+    nodes_[node] = {next_block_, static_cast<uint16_t>(chunks), store::kOctreeLeaf, 0};
+    for (size_t c = 0; c < chunks; ++c) {
+      LeafJob job;
+      job.triangles = triangles_;
+      if (attributes_) job.attributes = attributes_store_;
+      const size_t begin = c * refs.size() / chunks, end = (c + 1) * refs.size() / chunks;
+      job.refs.reserve(end - begin);
+      job.ref_bounds.reserve(end - begin);
+      for (size_t i = begin; i < end; ++i) {
+        job.refs.push_back(refs[i].tri);
+        job.ref_bounds.push_back(refs[i].bounds);
+      }
+      job.cell = cell;
+      job.block_id = next_block_++;
+      job.octree_leaf = node;
+      if (options_.progress) options_.progress->Update(end - begin);
+      pipeline_.Submit(std::move(job));
+    }
+  }
+
+  // Splits a source too large for memory into the cells `levels` levels down, on disk.
+  Status Partition(const TriangleSource& source, uint32_t node, const Bounds3f& cell, int depth);
+
+  const BuildOptions& options_;
+  bool attributes_;
+  BlockPipeline pipeline_;
+  uint32_t max_tris_;
+  double bytes_per_triangle_;
+  uint64_t bucket_capacity_;
+  Bounds3f root_;
+  std::vector<OctreeNode> nodes_;
+  std::vector<PackedTriangle> triangles_;
+  std::vector<TriangleAttributes> attributes_store_;
+  uint32_t next_block_ = 0;
+  int max_depth_ = 0;
+  uint32_t multi_block_leaves_ = 0, partition_passes_ = 0;
+};
+
+// A bucket on disk, readable as a source.
+class SpoolSource : public TriangleSource {
+ public:
+  SpoolSource(const TriangleSpool& spool, Bounds3f bounds, bool attributes)
+      : spool_(spool), bounds_(bounds), attributes_(attributes) {}
+  Status ForEach(const TriangleSpool::Visitor& visit) const override { return spool_.ForEach(visit); }
+  uint64_t triangles() const override { return spool_.triangles(); }
+  uint64_t bytes() const override { return spool_.bytes(); }
+  Bounds3f bounds() const override { return bounds_; }
+  bool has_attributes() const override { return attributes_; }
+
+ private:
+  const TriangleSpool& spool_;
+  Bounds3f bounds_;
+  bool attributes_;
+};
+
+// Appends triangle `t` to the bucket of every level-`levels` cell it overlaps below `cell`.
+Status Classify(const PackedTriangle& t, const TriangleAttributes& a, const Bounds3f& bounds,
+                const Bounds3f& cell, int levels, uint32_t morton,
+                std::vector<TriangleSpool>* buckets) {
+  if (levels == 0) return (*buckets)[morton].Append(t, &a);
+  const Vec3f mid = (cell.lower + cell.upper) * 0.5f;
+  for (int i = 0; i < 8; ++i) {
+    bool touches = true;
+    for (int k = 0; k < 3 && touches; ++k)
+      touches = (i >> k & 1) ? bounds.upper[k] >= mid[k] : bounds.lower[k] <= mid[k];
+    if (!touches) continue;
+    const Bounds3f child = store::ChildCell(cell, i);
+    const Bounds3f b = child.Contains(bounds) ? bounds : ClipTriangleToCell(t.p, child);
+    if (b.Empty()) continue;
+    RAYSTACK_RETURN_IF_ERROR(
+        Classify(t, a, b, child, levels - 1, morton * 8 + static_cast<uint32_t>(i), buckets));
+  }
+  return OkStatus();
+}
+
+Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bounds3f& cell,
+                          int depth) {
+  ++partition_passes_;
+  // Enough levels that an even spread fits in memory with room for unevenness; at most 3
+  // (512 open bucket files).
+  int levels = 1;
+  while (levels < 3 && source.triangles() / (1ull << (3 * levels)) > bucket_capacity_ / 4) ++levels;
+  if (depth + levels > kMaxDepth) levels = std::max(1, kMaxDepth - depth);
+  const uint32_t count = 1u << (3 * levels);
+  LOG_INFO("prep", "partitioning %llu triangles into %u buckets on disk (depth %d)",
+           static_cast<unsigned long long>(source.triangles()), count, depth);
+  std::vector<TriangleSpool> buckets;
+  buckets.reserve(count);
+  for (uint32_t i = 0; i < count; ++i)
+    buckets.emplace_back(StrFormat("%s/bucket-d%d-n%u-%u.tmp", options_.temp_dir.c_str(), depth,
+                                   node, i),
+                         0, 64 << 10);
+  RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
+                                              std::span<const TriangleAttributes> attrs) {
+    for (size_t i = 0; i < tris.size(); ++i) {
+      const Bounds3f b = ClipTriangleToCell(tris[i].p, cell);
+      if (b.Empty()) continue;
+      RAYSTACK_RETURN_IF_ERROR(Classify(tris[i], attrs[i], b, cell, levels, 0, &buckets));
+    }
+    return OkStatus();
+  }));
+  for (TriangleSpool& b : buckets) RAYSTACK_RETURN_IF_ERROR(b.Close());
+
+  // Walk the levels in Morton order, creating inner nodes; buckets become subtrees.
+  struct Walk {
+    Builder* self;
+    std::vector<TriangleSpool>* buckets;
+    int levels, base_depth;
+    Status Go(uint32_t n, const Bounds3f& c, int level, uint32_t morton) {
+      if (level == levels) {
+        TriangleSpool& spool = (*buckets)[morton];
+        if (spool.triangles() == 0) return OkStatus();
+        SpoolSource sub(spool, c, self->attributes_);
+        Status s = spool.triangles() <= self->bucket_capacity_
+                       ? self->BuildInMemory(sub, n, c, base_depth + level)
+                       : self->Partition(sub, n, c, base_depth + level);
+        spool.Clear();
+        return s;
+      }
+      const uint32_t first = self->AddChildren();
+      self->nodes_[n] = {first, 0, store::kOctreeInner, 0};
+      bool any = false;
+      for (int i = 0; i < 8; ++i) {
+        RAYSTACK_RETURN_IF_ERROR(Go(first + static_cast<uint32_t>(i), store::ChildCell(c, i),
+                                    level + 1, morton * 8 + static_cast<uint32_t>(i)));
+        any |= self->nodes_[first + static_cast<uint32_t>(i)].kind != store::kOctreeEmpty;
+      }
+      if (!any) self->nodes_[n] = {0, 0, store::kOctreeEmpty, 0};
+      return OkStatus();
+    }
+  } walk{this, &buckets, levels, depth};
+  return walk.Go(node, cell, 0, 0);
+}
+
+}  // namespace
+
+uint32_t MaxTrianglesPerBlock(uint32_t max_block_bytes, bool attributes) {
+  // Worst case: no shared vertex (3 per triangle) and one BVH leaf per triangle.
+  auto worst = [&](uint32_t n) {
+    store::BlockHeader h{};
+    h.triangle_count = n;
+    h.vertex_count = 3 * n;
+    h.node_count = n ? 2 * n - 1 : 0;
+    h.flags = store::kBlockPerTriangleMaterial | (3 * n > 65536 ? store::kBlockIndices32 : 0) |
+              (attributes ? store::kBlockNormals | store::kBlockUvs : 0);
+    return store::BlockLayout::For(h).total;
+  };
+  uint32_t lo = 1, hi = 1u << 20;
+  while (lo < hi) {  // largest n with worst(n) <= cap
+    const uint32_t m = lo + (hi - lo + 1) / 2;
+    if (worst(m) <= max_block_bytes) lo = m;
+    else hi = m - 1;
+  }
+  return lo;
+}
+
+Expected<BuildResult> BuildOctree(const TriangleSource& source, const BuildOptions& options,
+                                  store::StoreWriter* writer) {
+  Builder builder(options, writer, source.has_attributes());
+  BuildResult result;
+  RAYSTACK_RETURN_IF_ERROR(builder.Run(source, &result));
+  return result;
+}
+
+}  // namespace raystack::prep

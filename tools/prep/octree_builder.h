@@ -1,0 +1,69 @@
+#pragma once
+// Builds the level-1 octree and its blocks from a stream of triangles, out of core.
+//
+// If the model fits the in-memory budget it is subdivided directly. Otherwise the stream is
+// split into 8^k buckets (the cells of octree level k, k <= 3) on disk, each triangle going to
+// every cell it overlaps; each bucket is then subdivided in memory (or split again if it is
+// still too large). Buckets and children are visited in Morton order, so blocks reach the
+// disk along a Z-order curve: neighbours in space are neighbours in blocks.bin.
+//
+// Subdivision stops at a cell whose block size estimate is closer (in ratio) to the target
+// than its children's mean would be; the cap is never exceeded (a worst-case bound decides
+// "must split"). A cell that cannot be split (all triangles at one point, depth limit) becomes
+// a leaf with several blocks, so depth and block count stay bounded on degenerate input.
+
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/geometry/bounds.h"
+#include "common/store/format.h"
+#include "common/store/store_writer.h"
+#include "tools/prep/triangle_spool.h"
+
+namespace raystack {
+class ProgressReporter;
+}
+
+namespace raystack::prep {
+
+struct BuildOptions {
+  uint32_t max_block_bytes = 128 * 1024;
+  uint32_t target_block_bytes = 32 * 1024;
+  uint64_t memory_bytes = 1024ull << 20;  // working set for buckets (a share of --mem-limit)
+  int threads = 2;
+  std::string temp_dir;
+  bool shuffle = true;
+  float vertices_per_triangle = 0.6f;  // for size estimates (closed meshes ~0.5, soups 3)
+  ProgressReporter* progress = nullptr;  // fed with references placed in blocks
+};
+
+// A stream of triangles the builder may read several times.
+class TriangleSource {
+ public:
+  virtual ~TriangleSource() = default;
+  virtual Status ForEach(const TriangleSpool::Visitor& visit) const = 0;
+  virtual uint64_t triangles() const = 0;
+  virtual uint64_t bytes() const = 0;  // as spooled
+  virtual Bounds3f bounds() const = 0;
+  virtual bool has_attributes() const = 0;  // any triangle with normals or uvs
+};
+
+struct BuildResult {
+  std::vector<store::OctreeNode> octree;
+  Bounds3f root_cell;
+  uint64_t references = 0, blocks = 0, raw_bytes = 0, stored_bytes = 0, vertices = 0;
+  uint32_t largest_raw_bytes = 0, max_depth = 0, multi_block_leaves = 0, partition_passes = 0;
+};
+
+// Builds into an open StoreWriter (the caller finishes the store with the returned octree).
+Expected<BuildResult> BuildOctree(const TriangleSource& source, const BuildOptions& options,
+                                  store::StoreWriter* writer);
+
+// Most triangles a block may hold and still be under `max_block_bytes` in the worst case.
+uint32_t MaxTrianglesPerBlock(uint32_t max_block_bytes, bool attributes);
+
+}  // namespace raystack::prep

@@ -1,0 +1,60 @@
+#pragma once
+// An append-only sequence of triangles (PackedTriangle, followed by TriangleAttributes when the
+// triangle has any) that stays in memory up to a budget and spills to a file beyond it. The
+// converter keeps the parsed model and each partition bucket in one, so its memory is bounded
+// whatever the model's size.
+
+#include <cstdint>
+#include <cstdio>
+#include <functional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/store/block_encoder.h"
+
+namespace raystack::prep {
+
+using store::PackedTriangle;
+using store::TriangleAttributes;
+
+class TriangleSpool {
+ public:
+  // `path` is where it spills (created on first spill); `memory_budget` bytes stay in RAM;
+  // `file_buffer` bytes buffer writes once spilled (small when hundreds are open at once).
+  TriangleSpool(std::string path, uint64_t memory_budget, size_t file_buffer = 1 << 20);
+  ~TriangleSpool();
+  TriangleSpool(TriangleSpool&&) noexcept;
+  TriangleSpool& operator=(TriangleSpool&&) = delete;
+
+  // `attributes` must be non-null when `t` has normals or uvs.
+  Status Append(const PackedTriangle& t, const TriangleAttributes* attributes);
+  // Finishes writing; the spool becomes readable. Idempotent.
+  Status Close();
+
+  uint64_t triangles() const { return triangles_; }
+  uint64_t bytes() const { return bytes_; }
+  bool spilled() const { return file_ != nullptr || spilled_; }
+
+  // Streams every triangle, in order, in batches. `visit(tris, attrs)`: attrs is parallel to
+  // tris (entries of triangles without attributes are unspecified). An error stops the scan.
+  using Visitor = std::function<Status(std::span<const PackedTriangle>,
+                                       std::span<const TriangleAttributes>)>;
+  Status ForEach(const Visitor& visit) const;
+  // Deletes the spill file and frees memory.
+  void Clear();
+
+ private:
+  Status Spill();
+
+  std::string path_;
+  uint64_t memory_budget_;
+  size_t file_buffer_;
+  std::vector<uint8_t> memory_;
+  std::FILE* file_ = nullptr;
+  bool spilled_ = false;
+  uint64_t triangles_ = 0, bytes_ = 0;
+};
+
+}  // namespace raystack::prep
