@@ -47,8 +47,13 @@ class [[nodiscard]] Expected {
 }  // namespace raystack
 
 // Return early from a function returning Status (or Expected) when `expr` failed.
-#define RAYSTACK_RETURN_IF_ERROR(expr)          \
-  do {                                          \
-    ::raystack::Status _rs_status = (expr);     \
-    if (!_rs_status.ok()) return _rs_status;    \
+// (The unique name lets it nest, e.g. inside a lambda passed to another use of it.)
+#define RAYSTACK_RETURN_IF_ERROR(expr) RAYSTACK_RETURN_IF_ERROR_IMPL(expr, __COUNTER__)
+#define RAYSTACK_RETURN_IF_ERROR_IMPL(expr, n) \
+  RAYSTACK_RETURN_IF_ERROR_NAMED(expr, RAYSTACK_CONCAT(_rs_status_, n))
+#define RAYSTACK_CONCAT(a, b) a##b
+#define RAYSTACK_RETURN_IF_ERROR_NAMED(expr, name) \
+  do {                                             \
+    ::raystack::Status name = (expr);              \
+    if (!name.ok()) return name;                   \
   } while (0)

@@ -49,9 +49,10 @@ inline bool IntersectTriangle(const RayTriangleSetup& s, Vec3f p0, Vec3f p1, Vec
   float v = ax * cy - ay * cx;
   float w = bx * ay - by * ax;
   if (u == 0.0f || v == 0.0f || w == 0.0f) {  // on an edge in float: decide in double
-    u = static_cast<float>(static_cast<double>(cx) * by - static_cast<double>(cy) * bx);
-    v = static_cast<float>(static_cast<double>(ax) * cy - static_cast<double>(ay) * cx);
-    w = static_cast<float>(static_cast<double>(bx) * ay - static_cast<double>(by) * ax);
+    const double dax = ax, day = ay, dbx = bx, dby = by, dcx = cx, dcy = cy;
+    u = static_cast<float>(dcx * dby - dcy * dbx);
+    v = static_cast<float>(dax * dcy - day * dcx);
+    w = static_cast<float>(dbx * day - dby * dax);
   }
   if ((u < 0 || v < 0 || w < 0) && (u > 0 || v > 0 || w > 0)) return false;
   const float det = u + v + w;

@@ -56,7 +56,7 @@ struct StoreSummary {
   uint32_t codec;               // BlockCodec
   uint32_t reserved;
 };
-static_assert(sizeof(StoreSummary) == 104);
+static_assert(sizeof(StoreSummary) == 112);
 
 enum BlockCodec : uint32_t { kCodecLz4 = 0, kCodecShuffleLz4 = 1 };
 

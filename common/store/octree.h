@@ -3,7 +3,6 @@
 // empty, and which blocks fill each leaf. It answers two questions for a ray: which leaves it
 // crosses, front to back, and where each starts and ends along the ray.
 
-#include <algorithm>
 #include <cstdint>
 #include <span>
 
@@ -83,7 +82,13 @@ void OctreeView::VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const {
       if (IntersectBox(setup, clo, chi, ray.tmin, *tmax, &te))
         hits[n++] = {node.first + static_cast<uint32_t>(i), c, te};
     }
-    std::sort(hits, hits + n, [](const Item& a, const Item& b) { return a.t_enter > b.t_enter; });
+    // Insertion sort, far to near (n <= 8), so the nearest child is popped first.
+    for (int i = 1; i < n; ++i) {
+      const Item x = hits[i];
+      int j = i;
+      for (; j > 0 && hits[j - 1].t_enter < x.t_enter; --j) hits[j] = hits[j - 1];
+      hits[j] = x;
+    }
     for (int i = 0; i < n; ++i) stack[top++] = hits[i];
   }
 }

@@ -61,25 +61,25 @@ int Run(const std::string& dir, bool verify, bool list) {
               m.stored_bytes ? static_cast<double>(m.raw_bytes) / m.stored_bytes : 0.0,
               static_cast<unsigned long long>(m.raw_bytes),
               static_cast<unsigned long long>(m.stored_bytes));
-  std::printf("model bounds     (%g, %g, %g) - (%g, %g, %g)\n", m.model_lower[0], m.model_lower[1],
-              m.model_lower[2], m.model_upper[0], m.model_upper[1], m.model_upper[2]);
-  std::printf("root cell        (%g, %g, %g) - (%g, %g, %g)\n", m.root_lower[0], m.root_lower[1],
-              m.root_lower[2], m.root_upper[0], m.root_upper[1], m.root_upper[2]);
+  std::printf("model bounds     (%g, %g, %g) - (%g, %g, %g)\n", double{m.model_lower[0]}, double{m.model_lower[1]},
+              double{m.model_lower[2]}, double{m.model_upper[0]}, double{m.model_upper[1]}, double{m.model_upper[2]});
+  std::printf("root cell        (%g, %g, %g) - (%g, %g, %g)\n", double{m.root_lower[0]}, double{m.root_lower[1]},
+              double{m.root_lower[2]}, double{m.root_upper[0]}, double{m.root_upper[1]}, double{m.root_upper[2]});
   std::printf("attributes       %s%s%s\n", (m.model_flags & store::kModelHasNormals) ? "normals " : "",
               (m.model_flags & store::kModelHasUvs) ? "uvs " : "",
               (m.model_flags & store::kModelHasMaterials) ? "materials" : (m.model_flags ? "" : "none"));
   std::printf("materials        %u\n", m.material_count);
   for (const store::MaterialRecord& r : s.materials())
-    std::printf("  %-24s Kd (%.3g %.3g %.3g) Ke (%.3g %.3g %.3g)\n", r.name, r.kd[0], r.kd[1],
-                r.kd[2], r.ke[0], r.ke[1], r.ke[2]);
+    std::printf("  %-24s Kd (%.3g %.3g %.3g) Ke (%.3g %.3g %.3g)\n", r.name, double{r.kd[0]}, double{r.kd[1]},
+                double{r.kd[2]}, double{r.ke[0]}, double{r.ke[1]}, double{r.ke[2]});
   if (m.block_count) PrintHistogram(s.blocks());
   if (list) {
     for (uint32_t i = 0; i < s.blocks().size(); ++i) {
       const store::BlockEntry& b = s.blocks()[i];
       std::printf("block %u offset %llu stored %u raw %u triangles %u cell (%g %g %g)-(%g %g %g)\n", i,
                   static_cast<unsigned long long>(b.offset), b.stored_bytes, b.raw_bytes,
-                  b.triangle_count, b.cell_lower[0], b.cell_lower[1], b.cell_lower[2],
-                  b.cell_upper[0], b.cell_upper[1], b.cell_upper[2]);
+                  b.triangle_count, double{b.cell_lower[0]}, double{b.cell_lower[1]}, double{b.cell_lower[2]},
+                  double{b.cell_upper[0]}, double{b.cell_upper[1]}, double{b.cell_upper[2]});
     }
   }
   if (verify) {

@@ -7,7 +7,7 @@
 namespace raystack::prep {
 
 BlockPipeline::BlockPipeline(int threads, store::StoreWriter* writer, bool shuffle,
-                             store::BvhBuildOptions bvh)
+                             BvhBuildOptions bvh)
     : writer_(writer), shuffle_(shuffle), bvh_(bvh),
       max_in_flight_(static_cast<size_t>(16 * std::max(threads, 1))) {
   for (int i = 0; i < std::max(threads, 1); ++i) workers_.emplace_back([this] { Work(); });

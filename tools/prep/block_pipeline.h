@@ -38,7 +38,7 @@ struct PipelineStats {
 class BlockPipeline {
  public:
   BlockPipeline(int threads, store::StoreWriter* writer, bool shuffle,
-                store::BvhBuildOptions bvh = {});
+                BvhBuildOptions bvh = {});
   ~BlockPipeline();  // stops the workers (after Drain, or abandoning on error)
 
   void Submit(LeafJob job);
@@ -51,7 +51,7 @@ class BlockPipeline {
 
   store::StoreWriter* writer_;
   bool shuffle_;
-  store::BvhBuildOptions bvh_;
+  BvhBuildOptions bvh_;
   std::vector<std::thread> workers_;
   mutable std::mutex mutex_;
   std::condition_variable work_ready_, space_ready_, drained_;

@@ -26,7 +26,8 @@ Status SpoolSink::Consume(std::span<const import::SourceTriangle> batch) {
       return Status::Error("more than 65534 materials");
     t.material_and_flags = material | (s.has_normals ? PackedTriangle::kHasNormals : 0) |
                            (s.has_uvs ? PackedTriangle::kHasUvs : 0);
-    attributes_ |= s.has_normals || s.has_uvs;
+    normals_ |= s.has_normals;
+    uvs_ |= s.has_uvs;
     RAYSTACK_RETURN_IF_ERROR(spool_->Append(t, &a));
   }
   return OkStatus();

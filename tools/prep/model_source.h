@@ -25,7 +25,9 @@ class SpoolSink : public import::TriangleSink {
   Status Consume(std::span<const import::SourceTriangle> batch) override;
 
   const Bounds3f& bounds() const { return bounds_; }
-  bool has_attributes() const { return attributes_; }
+  bool has_attributes() const { return normals_ || uvs_; }
+  bool has_normals() const { return normals_; }
+  bool has_uvs() const { return uvs_; }
   uint64_t triangles() const { return next_id_; }
 
  private:
@@ -33,7 +35,7 @@ class SpoolSink : public import::TriangleSink {
   uint32_t material_offset_ = 0;
   uint64_t next_id_ = 0;
   Bounds3f bounds_;
-  bool attributes_ = false;
+  bool normals_ = false, uvs_ = false;
 };
 
 // The spooled model, repeated on an nx x ny x nz grid (1,1,1 = as is). Copy c of triangle i

@@ -49,7 +49,7 @@ class Builder {
         max_tris_(MaxTrianglesPerBlock(options.max_block_bytes, attributes)) {
     // Typical raw bytes per triangle: indices, id, shared vertices, ~0.7 BVH nodes.
     bytes_per_triangle_ = 6.0 + 4.0 + 32.0 * 0.7 +
-                          options.vertices_per_triangle * (attributes ? 32.0 : 12.0);
+                          static_cast<double>(options.vertices_per_triangle) * (attributes ? 32.0 : 12.0);
     bucket_capacity_ = std::max<uint64_t>(
         options.memory_bytes / (kBucketBytesPerTriangle + (attributes ? 60 : 0)), 4096);
   }

@@ -1,0 +1,147 @@
+#include "tools/prep/convert.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+
+#include "common/base/log.h"
+#include "common/base/progress.h"
+#include "common/base/temp_dir.h"
+#include "common/store/store_writer.h"
+#include "tools/import/model_reader.h"
+#include "tools/prep/generator.h"
+#include "tools/prep/model_source.h"
+#include "tools/prep/octree_builder.h"
+
+namespace raystack::prep {
+namespace {
+
+store::MaterialRecord ToRecord(const import::Material& m) {
+  store::MaterialRecord r{};
+  std::strncpy(r.name, m.name.c_str(), sizeof r.name - 1);
+  for (int k = 0; k < 3; ++k) {
+    r.kd[k] = m.kd[k];
+    r.ks[k] = m.ks[k];
+    r.ke[k] = m.ke[k];
+  }
+  r.ni = m.ni;
+  r.d = m.d;
+  r.illum = m.illum;
+  return r;
+}
+
+double Since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+Expected<ConvertReport> Convert(const ConvertOptions& args) {
+  const auto start = std::chrono::steady_clock::now();
+  if (args.output.empty()) return Status::Error("no output store given");
+  if (args.inputs.empty() == args.generate.empty())
+    return Status::Error("give input files or a model to generate (not both)");
+  if (args.target_block_bytes > args.max_block_bytes)
+    return Status::Error("the target block size is above the cap");
+  const uint64_t budget = args.memory_limit_bytes;
+  Expected<TempDir> temp = TempDir::Create(args.temp_dir);
+  if (!temp.ok()) return temp.status();
+  ConvertReport report;
+
+  // 1. Read every input into one spool (RAM up to a fifth of the budget, then disk).
+  TriangleSpool spool(temp->File("model.tmp"), budget / 5);
+  SpoolSink sink(&spool);
+  std::vector<store::MaterialRecord> materials;
+  uint64_t vertices = 0;
+  if (!args.generate.empty()) {
+    import::ModelInfo info;
+    RAYSTACK_RETURN_IF_ERROR(GenerateModel(args.generate, sink, &info));
+    report.source_triangles += info.triangles;
+    report.zero_area_dropped += info.zero_area_dropped;
+  }
+  for (const std::string& input : args.inputs) {
+    std::error_code ec;
+    const uint64_t size = std::filesystem::file_size(input, ec);
+    ProgressReporter progress("reading " + input, ec ? 0 : size, "B", args.quiet);
+    import::ReadOptions options;
+    options.vertex_memory_bytes = budget * 3 / 20;
+    options.temp_dir = temp->path();
+    options.progress = &progress;
+    import::ModelInfo info;
+    sink.set_material_offset(static_cast<uint32_t>(materials.size()));
+    RAYSTACK_RETURN_IF_ERROR(import::ReadModel(input, options, sink, &info));
+    progress.Done();
+    for (const import::Material& m : info.materials) materials.push_back(ToRecord(m));
+    report.source_triangles += info.triangles;
+    report.zero_area_dropped += info.zero_area_dropped;
+    vertices += info.vertices;
+  }
+  RAYSTACK_RETURN_IF_ERROR(spool.Close());
+  if (materials.size() > store::kMaxMaterials)
+    return Status::Error(StrFormat("%zu materials: format v1 stores at most %u", materials.size(),
+                                   store::kMaxMaterials));
+  report.read_seconds = Since(start);
+
+  ReplicatedSource source(spool, sink.bounds(), sink.has_attributes(), args.replicate);
+  report.triangles = source.triangles();
+  report.copies = source.copies();
+  if (source.triangles() >= 0xffffffffull)
+    return Status::Error(StrFormat("%llu triangles after replication: format v1 ids are 32-bit",
+                                   static_cast<unsigned long long>(source.triangles())));
+  if (source.triangles() == 0)
+    return Status::Error(StrFormat("the model has no triangles (after dropping %llu of zero area)",
+                                   static_cast<unsigned long long>(report.zero_area_dropped)));
+
+  // 2. Octree and blocks.
+  Expected<std::unique_ptr<store::StoreWriter>> writer = store::StoreWriter::Create(args.output);
+  if (!writer.ok()) return writer.status();
+  ProgressReporter progress("building blocks", source.triangles(), "tri", args.quiet);
+  BuildOptions options;
+  options.max_block_bytes = args.max_block_bytes;
+  options.target_block_bytes = args.target_block_bytes;
+  options.memory_bytes = budget * 2 / 5;
+  options.threads = args.threads;
+  options.temp_dir = temp->path();
+  options.shuffle = args.shuffle;
+  options.progress = &progress;
+  if (vertices > 0 && sink.triangles() > 0)
+    options.vertices_per_triangle = std::clamp(
+        static_cast<float>(static_cast<double>(vertices) / static_cast<double>(sink.triangles())) * 1.15f,
+        0.3f, 3.0f);
+  Expected<BuildResult> built = BuildOctree(source, options, writer->get());
+  if (!built.ok()) return built.status();
+  progress.Done();
+
+  store::StoreSummary summary{};
+  summary.source_triangles = source.triangles();
+  const Bounds3f model = source.bounds();
+  for (int a = 0; a < 3; ++a) {
+    summary.model_lower[a] = model.lower[a];
+    summary.model_upper[a] = model.upper[a];
+    summary.root_lower[a] = built->root_cell.lower[a];
+    summary.root_upper[a] = built->root_cell.upper[a];
+  }
+  summary.model_flags = (sink.has_normals() ? uint32_t{store::kModelHasNormals} : 0u) |
+                        (sink.has_uvs() ? uint32_t{store::kModelHasUvs} : 0u) |
+                        (materials.empty() ? 0u : uint32_t{store::kModelHasMaterials});
+  summary.max_block_bytes = options.max_block_bytes;
+  summary.target_block_bytes = options.target_block_bytes;
+  summary.codec = args.shuffle ? store::kCodecShuffleLz4 : store::kCodecLz4;
+  RAYSTACK_RETURN_IF_ERROR((*writer)->Finish(summary, built->octree, materials));
+
+  const BuildResult& r = *built;
+  report.blocks = r.blocks;
+  report.references = r.references;
+  report.raw_bytes = r.raw_bytes;
+  report.stored_bytes = r.stored_bytes;
+  report.largest_raw_bytes = r.largest_raw_bytes;
+  report.max_depth = r.max_depth;
+  report.partition_passes = r.partition_passes;
+  report.multi_block_leaves = r.multi_block_leaves;
+  report.octree_nodes = r.octree.size();
+  report.seconds = Since(start);
+  return report;
+}
+
+}  // namespace raystack::prep

@@ -1,0 +1,43 @@
+#pragma once
+// The whole conversion, as a function: inputs (files or a generated model) -> a block store.
+// raystack-prep is a command-line front end to it; tests call it directly.
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/base/status.h"
+
+namespace raystack::prep {
+
+struct ConvertOptions {
+  std::vector<std::string> inputs;  // OBJ/PLY files, merged in order
+  std::string generate;             // or a procedural model, "KIND:N" (see generator.h)
+  std::string output;               // store directory
+  std::string temp_dir;             // "" = $TMPDIR or /tmp
+  std::array<int, 3> replicate{1, 1, 1};
+  uint32_t target_block_bytes = 32 * 1024;
+  uint32_t max_block_bytes = 128 * 1024;
+  uint64_t memory_limit_bytes = 1024ull << 20;
+  int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  bool shuffle = true;
+  bool quiet = false;  // no progress output
+};
+
+struct ConvertReport {
+  uint64_t source_triangles = 0;  // read, zero-area included
+  uint64_t zero_area_dropped = 0;
+  uint64_t triangles = 0;  // in the store (after replication)
+  uint64_t copies = 1;
+  uint64_t blocks = 0, references = 0, raw_bytes = 0, stored_bytes = 0;
+  uint32_t largest_raw_bytes = 0, max_depth = 0, partition_passes = 0, multi_block_leaves = 0;
+  uint64_t octree_nodes = 0;
+  double seconds = 0, read_seconds = 0;
+};
+
+// Converts; every failure is a Status naming the file and place.
+Expected<ConvertReport> Convert(const ConvertOptions& options);
+
+}  // namespace raystack::prep
