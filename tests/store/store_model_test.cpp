@@ -1,0 +1,193 @@
+// The store holds the model faithfully: every triangle is in the blocks whose cells it
+// overlaps, blocks stay inside their cells, and closest hits through the store equal brute
+// force over the source triangles, bit for bit (t and triangle id), for 10^5 rays per model.
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+#include <set>
+
+#include "common/base/temp_dir.h"
+#include "common/store/store_reader.h"
+#include "common/store/store_tracer.h"
+#include "tests/support/brute_force.h"
+#include "tests/support/model_loader.h"
+#include "tools/prep/clip.h"
+#include "tools/prep/convert.h"
+
+namespace raystack {
+namespace {
+
+using testing::BruteForce;
+using testing::Tri;
+
+struct Built {
+  TempDir dir;
+  std::unique_ptr<store::StoreReader> store;
+};
+
+Built Convert(const prep::ConvertOptions& base) {
+  Expected<TempDir> dir = TempDir::Create();
+  EXPECT_TRUE(dir.ok());
+  prep::ConvertOptions options = base;
+  options.output = dir->File("store");
+  options.quiet = true;
+  Expected<prep::ConvertReport> report = prep::Convert(options);
+  EXPECT_TRUE(report.ok()) << report.status().message();
+  Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(options.output);
+  EXPECT_TRUE(store.ok()) << store.status().message();
+  return {std::move(*dir), store.ok() ? std::move(*store) : nullptr};
+}
+
+// Every (block, triangle) pair overlaps; every triangle is somewhere; BVH boxes lie in cells.
+void CheckPlacement(const store::StoreReader& s, const std::vector<Tri>& tris) {
+  std::vector<uint8_t> seen(tris.size(), 0);
+  std::vector<uint8_t> stored;
+  store::AlignedBuffer scratch, raw;
+  for (uint32_t b = 0; b < s.blocks().size(); ++b) {
+    Expected<store::BlockView> v = s.Load(b, &stored, &scratch, &raw);
+    ASSERT_TRUE(v.ok()) << v.status().message();
+    const Bounds3f cell = v->cell();
+    const store::BlockEntry& e = s.blocks()[b];
+    ASSERT_EQ(cell.lower, (Vec3f{e.cell_lower[0], e.cell_lower[1], e.cell_lower[2]}));
+    if (!v->nodes().empty()) {
+      const BvhNode& root = v->nodes()[0];
+      const Vec3f pad = cell.Extent() * 1e-5f;
+      for (int a = 0; a < 3; ++a) {
+        EXPECT_GE(root.lower[a], cell.lower[a] - pad[a]) << "block " << b;
+        EXPECT_LE(root.upper[a], cell.upper[a] + pad[a]) << "block " << b;
+      }
+    }
+    for (uint32_t t = 0; t < v->triangle_count(); ++t) {
+      const uint32_t id = v->TriangleId(t);
+      ASSERT_LT(id, tris.size());
+      seen[id] = 1;
+      Vec3f p[3];
+      v->TriangleVertices(t, &p[0], &p[1], &p[2]);
+      ASSERT_TRUE(p[0] == tris[id].p[0] && p[1] == tris[id].p[1] && p[2] == tris[id].p[2])
+          << "block " << b << " changed triangle " << id;
+      ASSERT_FALSE(prep::ClipTriangleToCell(p, cell).Empty())
+          << "triangle " << id << " is in block " << b << " but does not overlap its cell";
+    }
+  }
+  for (size_t i = 0; i < tris.size(); ++i) ASSERT_TRUE(seen[i]) << "triangle " << i << " is in no block";
+}
+
+// Half the rays aim at a point on a random triangle (they mostly hit), half go anywhere; a
+// few are axis-parallel.
+std::vector<Ray> MakeRays(const std::vector<Tri>& tris, const Bounds3f& box, int n, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> u(0.0f, 1.0f);
+  const Vec3f lo = box.lower - box.Extent() * 0.25f, ext = box.Extent() * 1.5f;
+  std::vector<Ray> rays;
+  for (int i = 0; i < n; ++i) {
+    Ray r;
+    r.origin = lo + Vec3f{u(rng) * ext.x, u(rng) * ext.y, u(rng) * ext.z};
+    if (i % 2 == 0) {
+      const Tri& t = tris[rng() % tris.size()];
+      float a = u(rng), b = u(rng);
+      if (a + b > 1) { a = 1 - a; b = 1 - b; }
+      r.direction = t.p[0] + (t.p[1] - t.p[0]) * a + (t.p[2] - t.p[0]) * b - r.origin;
+    } else if (i % 16 == 1) {
+      Vec3f d{0, 0, 0};
+      d[static_cast<int>(rng() % 3)] = (rng() & 1) ? 1.0f : -1.0f;
+      r.direction = d;
+    } else {
+      r.direction = Vec3f{u(rng) - 0.5f, u(rng) - 0.5f, u(rng) - 0.5f};
+    }
+    if (r.direction == Vec3f{0, 0, 0}) r.direction = {0, 1, 0};
+    rays.push_back(r);
+  }
+  return rays;
+}
+
+void CheckRays(const store::StoreReader& s, const std::vector<Tri>& tris, int n) {
+  BruteForce reference(tris);
+  store::StoreTracer tracer(s);
+  Bounds3f box;
+  for (const Tri& t : tris)
+    for (const Vec3f& p : t.p) box.Extend(p);
+  int hits = 0, mismatches = 0;
+  for (const Ray& ray : MakeRays(tris, box, n, 42)) {
+    const Hit want = reference.Intersect(ray);
+    Expected<Hit> got = s.blocks().empty() ? Expected<Hit>(Hit{}) : tracer.Intersect(ray);
+    ASSERT_TRUE(got.ok()) << got.status().message();
+    hits += want.Valid();
+    if (got->triangle_id != want.triangle_id || (want.Valid() && got->t != want.t)) {
+      if (++mismatches <= 5)
+        ADD_FAILURE() << "ray (" << ray.origin.x << "," << ray.origin.y << "," << ray.origin.z
+                      << ") dir (" << ray.direction.x << "," << ray.direction.y << ","
+                      << ray.direction.z << "): store hit " << got->triangle_id << " at t="
+                      << got->t << ", brute force " << want.triangle_id << " at t=" << want.t;
+    }
+  }
+  EXPECT_EQ(mismatches, 0);
+  EXPECT_GT(hits, n / 4) << "too few rays hit: the test would prove little";
+}
+
+TEST(StoreModel, GeneratedSphere) {
+  prep::ConvertOptions o;
+  o.generate = "sphere:50000";
+  Built b = Convert(o);
+  ASSERT_TRUE(b.store);
+  const std::vector<Tri> tris = testing::GenerateTriangles(o.generate);
+  CheckPlacement(*b.store, tris);
+  CheckRays(*b.store, tris, 100000);
+}
+
+TEST(StoreModel, GeneratedSoupWithSmallBlocks) {
+  prep::ConvertOptions o;
+  o.generate = "soup:20000";
+  o.target_block_bytes = 4096;
+  o.max_block_bytes = 16384;
+  Built b = Convert(o);
+  ASSERT_TRUE(b.store);
+  for (const store::BlockEntry& e : b.store->blocks()) EXPECT_LE(e.raw_bytes, 16384u);
+  const std::vector<Tri> tris = testing::GenerateTriangles(o.generate);
+  CheckPlacement(*b.store, tris);
+  CheckRays(*b.store, tris, 100000);
+}
+
+TEST(StoreModel, PartitionedOnDiskMatchesInMemory) {
+  // A memory limit this small forces the external partition path; it must give a store
+  // with the same hits.
+  prep::ConvertOptions o;
+  o.generate = "spheres:200000";
+  o.memory_limit_bytes = 64ull << 20;
+  Built b = Convert(o);
+  ASSERT_TRUE(b.store);
+  const std::vector<Tri> tris = testing::GenerateTriangles(o.generate);
+  CheckPlacement(*b.store, tris);
+  CheckRays(*b.store, tris, 20000);
+}
+
+class SharedModelTest : public ::testing::TestWithParam<const char*> {};
+
+TEST_P(SharedModelTest, HitsEqualBruteForce) {
+  const std::string dir = testing::SharedModels();
+  if (dir.empty())
+    GTEST_SKIP() << "no shared models folder (../shared/models): the real-model layer is skipped";
+  const std::string path = dir + "/" + GetParam();
+  prep::ConvertOptions o;
+  o.inputs = {path};
+  Built b = Convert(o);
+  ASSERT_TRUE(b.store);
+  const std::vector<Tri> tris = testing::LoadTriangles(path);
+  ASSERT_FALSE(tris.empty());
+  CheckPlacement(*b.store, tris);
+  CheckRays(*b.store, tris, 100000);
+}
+
+INSTANTIATE_TEST_SUITE_P(Models, SharedModelTest,
+                         ::testing::Values("CornellBox-Original.obj", "bun_zipper.ply",
+                                           "dragon_vrip.ply", "conference.obj", "motorBike.obj"),
+                         [](const auto& info) {
+                           std::string name = info.param;
+                           for (char& c : name)
+                             if (!isalnum(static_cast<unsigned char>(c))) c = '_';
+                           return name;
+                         });
+
+}  // namespace
+}  // namespace raystack
