@@ -107,10 +107,13 @@ bool BufferedInput::NextLine(std::string_view* line) {
 
 Status BufferedInput::ReadBytes(void* out, size_t n) {
   char* dst = static_cast<char*>(out);
+  const uint64_t start = offset();
+  const size_t wanted = n;
   while (n > 0) {
     if (begin_ == end_ && !Refill()) {
       if (!status_.ok()) return status_;
-      return ByteError(offset(), "unexpected end of file");
+      return ByteError(start, StrFormat("unexpected end of file (%zu bytes needed, %zu left)",
+                                        wanted, wanted - n));
     }
     size_t take = std::min(n, end_ - begin_);
     std::memcpy(dst, buffer_.get() + begin_, take);
