@@ -45,6 +45,18 @@ inline Status ReadFile(const std::string& path, CollectingSink* sink, ModelInfo*
   return ReadModel(path, options, *sink, info);
 }
 
+// Every field equal (padding aside), attributes only where present.
+inline bool SameTriangle(const SourceTriangle& a, const SourceTriangle& b) {
+  if (a.material != b.material || a.has_normals != b.has_normals || a.has_uvs != b.has_uvs)
+    return false;
+  for (int k = 0; k < 3; ++k) {
+    if (!(a.p[k] == b.p[k])) return false;
+    if (a.has_normals && !(a.n[k] == b.n[k])) return false;
+    if (a.has_uvs && (a.uv[k][0] != b.uv[k][0] || a.uv[k][1] != b.uv[k][1])) return false;
+  }
+  return true;
+}
+
 // Expects a failed status whose message contains every one of `parts`.
 inline void ExpectErrorMentions(const Status& status, const std::vector<std::string>& parts) {
   ASSERT_FALSE(status.ok()) << "expected an error";
