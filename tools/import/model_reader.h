@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "common/base/status.h"
+#include "common/geometry/bounds.h"
 #include "common/geometry/vec.h"
 
 namespace raystack {
@@ -53,6 +54,7 @@ struct ReadOptions {
   uint64_t vertex_memory_bytes = 256ull << 20;  // vertex table budget before spilling to disk
   std::string temp_dir;                         // where the spill file goes ("" = $TMPDIR or /tmp)
   ProgressReporter* progress = nullptr;         // fed with input bytes consumed, if set
+  uint64_t max_triangles = 0xffffffffull;       // more is an error: triangle ids are 32-bit
 };
 
 struct ModelInfo {
@@ -63,6 +65,7 @@ struct ModelInfo {
   uint64_t zero_area_dropped = 0;   // triangles with zero area: counted, not sent to the sink
   bool has_normals = false;         // any triangle had normals
   bool has_uvs = false;             // any triangle had texture coordinates
+  Bounds3f bounds;                  // of all vertices, referenced or not
 };
 
 // Reads an OBJ or PLY file (chosen by content: PLY starts with "ply"; else by extension).

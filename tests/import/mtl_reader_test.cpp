@@ -1,0 +1,64 @@
+#include "tools/import/mtl_reader.h"
+
+#include <gtest/gtest.h>
+
+#include "tests/import/import_test_util.h"
+
+namespace raystack::import {
+namespace {
+
+Status ReadMtlText(const ScratchFiles& files, const std::string& text, MaterialTable* table) {
+  auto input = BufferedInput::Open(files.Write("lib.mtl", text), nullptr);
+  if (!input.ok()) return input.status();
+  return ReadMtl(*input, table);
+}
+
+TEST(MtlReader, ReadsTheKeysARayTracerUses) {
+  ScratchFiles files;
+  MaterialTable table;
+  ASSERT_TRUE(ReadMtlText(files,
+                          "# comment\n"
+                          "newmtl lamp\n"
+                          "  Kd 0.1 0.2 0.3\n  Ks 0.5\n\tKe 17 12 4 # warm\n"
+                          "  Ni 1.5\n  d 0.25\n  illum 7\n  map_Kd wood.png\n  Ns 10\n"
+                          "newmtl glass\r\n  Tr 0.75\r\n",
+                          &table)
+                  .ok());
+  std::vector<Material> materials = table.Take();
+  ASSERT_EQ(materials.size(), 2u);
+  const Material& lamp = materials[0];
+  EXPECT_EQ(lamp.name, "lamp");
+  EXPECT_EQ(lamp.kd, (Vec3f{0.1f, 0.2f, 0.3f}));
+  EXPECT_EQ(lamp.ks, (Vec3f{0.5f, 0.5f, 0.5f}));
+  EXPECT_EQ(lamp.ke, (Vec3f{17, 12, 4}));
+  EXPECT_EQ(lamp.ni, 1.5f);
+  EXPECT_EQ(lamp.d, 0.25f);
+  EXPECT_EQ(lamp.illum, 7);
+  EXPECT_EQ(materials[1].name, "glass");
+  EXPECT_EQ(materials[1].d, 0.25f);
+  EXPECT_EQ(materials[1].kd, Material{}.kd);
+}
+
+TEST(MtlReader, UseBeforeDefinitionKeepsTheIndex) {
+  ScratchFiles files;
+  MaterialTable table;
+  EXPECT_EQ(table.Use("late"), 0u);
+  EXPECT_EQ(table.Use("never"), 1u);
+  ASSERT_TRUE(ReadMtlText(files, "newmtl late\nKd 1 0 0\n", &table).ok());
+  EXPECT_EQ(table.Use("late"), 0u);
+  EXPECT_EQ(table.UndefinedNames(), std::vector<std::string>{"never"});
+  std::vector<Material> materials = table.Take();
+  EXPECT_EQ(materials[0].kd, (Vec3f{1, 0, 0}));
+  EXPECT_EQ(materials[1].kd, Material{}.kd);
+}
+
+TEST(MtlReader, BadNumberNamesFileAndLine) {
+  ScratchFiles files;
+  MaterialTable table;
+  ExpectErrorMentions(ReadMtlText(files, "newmtl a\nKd 1 nan 0\n", &table),
+                      {"lib.mtl:2:", "nan"});
+  ExpectErrorMentions(ReadMtlText(files, "newmtl a\n\nNi\n", &table), {"lib.mtl:3:"});
+}
+
+}  // namespace
+}  // namespace raystack::import

@@ -1,0 +1,246 @@
+#include "tools/import/obj_reader.h"
+
+#include <gtest/gtest.h>
+
+#include "tests/import/import_test_util.h"
+
+namespace raystack::import {
+namespace {
+
+// A unit square in z = 0 with texture coordinates and one normal, then one face line.
+std::string Square(const std::string& face) {
+  return "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+         "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
+         "vn 0 0 1\n" +
+         face + "\n";
+}
+
+struct ObjResult {
+  Status status;
+  ModelInfo info;
+  CollectingSink sink;
+};
+
+ObjResult ReadObjText(const ScratchFiles& files, const std::string& text,
+                      const ReadOptions& options = {}, const std::string& name = "model.obj") {
+  ObjResult result;
+  result.status = ReadFile(files.Write(name, text), &result.sink, &result.info, options);
+  return result;
+}
+
+TEST(ObjReader, ReadsEveryIndexForm) {
+  ScratchFiles files;
+  struct Case {
+    const char* face;
+    bool uvs, normals;
+  } cases[] = {{"f 1 2 3", false, false},
+               {"f 1/1 2/2 3/3", true, false},
+               {"f 1//1 2//1 3//1", false, true},
+               {"f 1/1/1 2/2/1 3/3/1", true, true}};
+  for (const Case& c : cases) {
+    ObjResult r = ReadObjText(files, Square(c.face));
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
+    ASSERT_EQ(r.sink.triangles.size(), 1u) << c.face;
+    const SourceTriangle& t = r.sink.triangles[0];
+    EXPECT_EQ(t.p[1], (Vec3f{1, 0, 0}));
+    EXPECT_EQ(t.has_uvs, c.uvs) << c.face;
+    EXPECT_EQ(t.has_normals, c.normals) << c.face;
+    EXPECT_EQ(r.info.has_uvs, c.uvs);
+    EXPECT_EQ(r.info.has_normals, c.normals);
+    if (c.uvs) {
+      EXPECT_EQ(t.uv[2][0], 1.0f);
+    }
+    if (c.normals) {
+      EXPECT_EQ(t.n[0], (Vec3f{0, 0, 1}));
+    }
+    EXPECT_EQ(t.material, kNoMaterial);
+  }
+}
+
+TEST(ObjReader, NegativeIndicesCountBackFromTheLastVertex) {
+  ScratchFiles files;
+  ObjResult r = ReadObjText(files, Square("f -4/-4/-1 -3/-3/-1 -2/-2/-1"));
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  ASSERT_EQ(r.sink.triangles.size(), 1u);
+  EXPECT_EQ(r.sink.triangles[0].p[0], (Vec3f{0, 0, 0}));
+  EXPECT_EQ(r.sink.triangles[0].p[2], (Vec3f{1, 1, 0}));
+  EXPECT_EQ(r.sink.triangles[0].uv[1][0], 1.0f);
+}
+
+TEST(ObjReader, PolygonsBecomeFans) {
+  ScratchFiles files;
+  ObjResult r = ReadObjText(files,
+                            "v 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\n"
+                            "f 1 2 3 4 5\nf 1 2 3 4\n");
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.info.faces, 2u);
+  EXPECT_EQ(r.info.triangles, 5u);
+  ASSERT_EQ(r.sink.triangles.size(), 5u);
+  for (int i = 0; i < 2; ++i) {  // (1 2 3) (1 3 4) (1 4 5)
+    EXPECT_EQ(r.sink.triangles[i].p[0], (Vec3f{0, 0, 0}));
+    EXPECT_EQ(r.sink.triangles[i].p[2], r.sink.triangles[i + 1].p[1]);
+  }
+  EXPECT_EQ(r.sink.triangles[2].p[0], (Vec3f{0, 0, 0}));
+  EXPECT_EQ(r.sink.triangles[2].p[2], (Vec3f{0, 1, 0}));
+}
+
+TEST(ObjReader, ToleratesCrlfTabsCommentsGroupsAndContinuations) {
+  ScratchFiles files;
+  ObjResult r = ReadObjText(files,
+                            "# header\r\n"
+                            "o thing\r\n"
+                            "g part:1%2\r\n"
+                            "s off\r\n"
+                            "v\t 0  0\t0 \r\n"
+                            "v 1 0 0 1.0   # with w\r\n"
+                            "v 1 1 0 0.5 0.5 0.5\r\n"
+                            "\r\n"
+                            "   \t\r\n"
+                            "f 1 \\\r\n"
+                            "  2 \\\r\n"
+                            "  3\r\n"
+                            "l 1 2\r\n"
+                            "vp 0.5\r\n"
+                            "f 3 2 1");  // no final newline
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.info.vertices, 3u);
+  EXPECT_EQ(r.info.triangles, 2u);
+  ASSERT_EQ(r.sink.triangles.size(), 2u);
+  EXPECT_EQ(r.sink.triangles[0].p[2], (Vec3f{1, 1, 0}));
+  EXPECT_EQ(r.info.bounds.upper, (Vec3f{1, 1, 0}));
+}
+
+TEST(ObjReader, MaterialsComeFromSeveralLibrariesNextToTheObj) {
+  ScratchFiles files;
+  files.Write("a.mtl", "newmtl red\nKd 1 0 0\n");
+  files.Write("b.mtl", "newmtl light\nKe 5 5 5\n");
+  ObjResult r = ReadObjText(files,
+                            "mtllib a.mtl missing.mtl b.mtl\n"
+                            "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                            "f 1 2 3\n"
+                            "usemtl light\nf 1 2 3\n"
+                            "usemtl red\nf 1 2 3\n"
+                            "usemtl ghost\nf 1 2 3\n");
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  ASSERT_EQ(r.sink.triangles.size(), 4u);
+  const std::vector<Material>& m = r.info.materials;
+  ASSERT_EQ(m.size(), 3u);
+  EXPECT_EQ(r.sink.triangles[0].material, kNoMaterial);
+  EXPECT_EQ(m[r.sink.triangles[1].material].name, "light");
+  EXPECT_EQ(m[r.sink.triangles[1].material].ke, (Vec3f{5, 5, 5}));
+  EXPECT_EQ(m[r.sink.triangles[2].material].kd, (Vec3f{1, 0, 0}));
+  EXPECT_EQ(m[r.sink.triangles[3].material].name, "ghost");
+  EXPECT_EQ(m[r.sink.triangles[3].material].kd, Material{}.kd);
+}
+
+TEST(ObjReader, MalformedMaterialLibraryIsAnError) {
+  ScratchFiles files;
+  files.Write("bad.mtl", "newmtl x\nKd 1 inf 0\n");
+  ObjResult r = ReadObjText(files, "mtllib bad.mtl\nv 0 0 0\n");
+  ExpectErrorMentions(r.status, {"bad.mtl:2:"});
+}
+
+TEST(ObjReader, ZeroAreaTrianglesAreCountedNotSent) {
+  ScratchFiles files;
+  ObjResult r = ReadObjText(files,
+                            "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\n"
+                            "f 1 2 3\nf 1 1 4\nf 1 2 4\n");
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.info.triangles, 3u);
+  EXPECT_EQ(r.info.zero_area_dropped, 2u);
+  EXPECT_EQ(r.sink.triangles.size(), 1u);
+}
+
+TEST(ObjReader, BatchesAreFullExceptTheLast) {
+  ScratchFiles files;
+  std::string text = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  for (int i = 0; i < 10'000; ++i) text += "f 1 2 3\n";
+  ObjResult r = ReadObjText(files, text);
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.sink.triangles.size(), 10'000u);
+  EXPECT_EQ(r.sink.batches, 3);
+}
+
+TEST(ObjReader, SpilledVerticesGiveIdenticalTriangles) {
+  ScratchFiles files;
+  std::string text;
+  const int kSide = 120;  // 14,400 vertices, 28,322 triangles
+  for (int y = 0; y < kSide; ++y)
+    for (int x = 0; x < kSide; ++x)
+      text += "v " + std::to_string(x) + " " + std::to_string(y) + " " +
+              std::to_string((x * y) % 7) + "\nvt 0." + std::to_string(x) + " 0." +
+              std::to_string(y) + "\n";
+  for (int y = 0; y + 1 < kSide; ++y)
+    for (int x = 0; x + 1 < kSide; ++x) {
+      int a = y * kSide + x + 1, b = a + 1, c = a + kSide + 1, d = a + kSide;
+      auto ref = [](int i) { return std::to_string(i) + "/" + std::to_string(i); };
+      text += "f " + ref(a) + " " + ref(b) + " " + ref(c) + " " + ref(d) + "\n";
+    }
+  std::string path = files.Write("grid.obj", text);
+  CollectingSink in_memory, spilled;
+  ModelInfo info_memory, info_spilled;
+  ASSERT_TRUE(ReadFile(path, &in_memory, &info_memory).ok());
+  ReadOptions tiny;
+  tiny.vertex_memory_bytes = 4096;
+  tiny.temp_dir = files.path();
+  ASSERT_TRUE(ReadFile(path, &spilled, &info_spilled, tiny).ok());
+  ASSERT_EQ(in_memory.triangles.size(), spilled.triangles.size());
+  EXPECT_EQ(info_memory.triangles, 2u * (kSide - 1) * (kSide - 1));
+  for (size_t i = 0; i < spilled.triangles.size(); ++i)
+    ASSERT_TRUE(SameTriangle(in_memory.triangles[i], spilled.triangles[i])) << i;
+}
+
+TEST(ObjReader, SinkErrorStopsTheReader) {
+  struct FailingSink : TriangleSink {
+    Status Consume(std::span<const SourceTriangle>) override {
+      return Status::Error("disk full");
+    }
+  } sink;
+  ScratchFiles files;
+  ModelInfo info;
+  Status status = ReadModel(files.Write("a.obj", Square("f 1 2 3")), {}, sink, &info);
+  ASSERT_FALSE(status.ok());
+  EXPECT_EQ(status.message(), "disk full");
+}
+
+TEST(ObjReader, TriangleCapIsAnError) {
+  ScratchFiles files;
+  ReadOptions options;
+  options.max_triangles = 3;
+  ObjResult r = ReadObjText(files, Square("f 1 2 3 4\nf 1 2 3 4"), options);
+  ExpectErrorMentions(r.status, {"model.obj:11:", "more than 3 triangles"});
+}
+
+// Every malformed input: an error naming the file and the line.
+TEST(ObjReader, MalformedInputNamesFileAndLine) {
+  ScratchFiles files;
+  struct Case {
+    std::string text;
+    std::vector<std::string> mentions;
+  } cases[] = {
+      {Square("f 1 2 99"), {"model.obj:10:", "face index 99 out of range", "4 vertices"}},
+      {Square("f 1 2 -5"), {"model.obj:10:", "face index -5 out of range"}},
+      {Square("f 0 1 2"), {"model.obj:10:", "face index 0"}},
+      {Square("f 1/9 2/1 3/1"), {"model.obj:10:", "texture index 9"}},
+      {Square("f 1//2 2//1 3//1"), {"model.obj:10:", "normal index 2"}},
+      {Square("f 1/1/1/1 2 3"), {"model.obj:10:", "more than 3 indices"}},
+      {Square("f 1 2"), {"model.obj:10:", "2 vertices"}},
+      {Square("f 1 2 x"), {"model.obj:10:", "'x'"}},
+      {Square("f 1 2 3.5"), {"model.obj:10:"}},
+      {"v 0 0 0\nv nan 0 0\n", {"model.obj:2:", "nan"}},
+      {"v 0 0 0\nv 1 inf 0\n", {"model.obj:2:", "inf"}},
+      {"v 0 0 0\nv 1 1e39 0\n", {"model.obj:2:", "float range"}},
+      {"v 0 0 0\r\nv 1 2", {"model.obj:2:", "expected 3 numbers, found 2"}},
+      {"vn 1 2\n", {"model.obj:1:", "expected 3"}},
+      {"vt\n", {"model.obj:1:"}},
+      {"v 1 2 3\n\x01\x02\xff\xfe garbage\n", {"model.obj:2:", "not an OBJ statement"}},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.text);
+    ObjResult r = ReadObjText(files, c.text);
+    ExpectErrorMentions(r.status, c.mentions);
+  }
+}
+
+}  // namespace
+}  // namespace raystack::import

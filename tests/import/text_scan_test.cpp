@@ -1,0 +1,57 @@
+#include "tools/import/text_scan.h"
+
+#include <gtest/gtest.h>
+
+namespace raystack::import {
+namespace {
+
+TEST(TextScan, ParsesFloats) {
+  float value = 0;
+  EXPECT_EQ(ParseFloat("1.5", &value), nullptr);
+  EXPECT_EQ(value, 1.5f);
+  EXPECT_EQ(ParseFloat("+2", &value), nullptr);
+  EXPECT_EQ(value, 2.0f);
+  EXPECT_EQ(ParseFloat("-3e2", &value), nullptr);
+  EXPECT_EQ(value, -300.0f);
+  EXPECT_EQ(ParseFloat("0.000000", &value), nullptr);
+  EXPECT_EQ(value, 0.0f);
+}
+
+TEST(TextScan, TinyFloatsRoundTowardZero) {
+  float value = 1;
+  EXPECT_EQ(ParseFloat("1e-60", &value), nullptr);
+  EXPECT_EQ(value, 0.0f);
+}
+
+TEST(TextScan, RejectsNonFiniteAndMalformedFloats) {
+  float value = 7;
+  for (const char* bad : {"nan", "NaN", "inf", "-inf", "infinity", "1e39", "-1e39", "1e400",
+                          "abc", "1.5x", "", "+", "+-1", "0x10", "1,5"})
+    EXPECT_NE(ParseFloat(bad, &value), nullptr) << bad;
+  EXPECT_EQ(value, 7.0f);
+}
+
+TEST(TextScan, ParsesIntegers) {
+  int64_t value = 0;
+  EXPECT_EQ(ParseInt("12", &value), nullptr);
+  EXPECT_EQ(value, 12);
+  EXPECT_EQ(ParseInt("-3", &value), nullptr);
+  EXPECT_EQ(value, -3);
+  EXPECT_EQ(ParseInt("+4", &value), nullptr);
+  EXPECT_EQ(value, 4);
+  for (const char* bad : {"1.0", "99999999999999999999", "x", "", "+-2", "3a"})
+    EXPECT_NE(ParseInt(bad, &value), nullptr) << bad;
+}
+
+TEST(TextScan, SplitsTokensOnBlanks) {
+  std::string_view rest = " \tv  1\t2 \r";
+  EXPECT_EQ(NextToken(&rest), "v");
+  EXPECT_EQ(NextToken(&rest), "1");
+  EXPECT_EQ(NextToken(&rest), "2");
+  EXPECT_EQ(NextToken(&rest), "");
+  EXPECT_EQ(Trim("  a b \t"), "a b");
+  EXPECT_EQ(StripComment("Kd 1 2 3 # red"), "Kd 1 2 3 ");
+}
+
+}  // namespace
+}  // namespace raystack::import

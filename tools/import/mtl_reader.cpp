@@ -1,0 +1,132 @@
+#include "tools/import/mtl_reader.h"
+
+#include <set>
+
+#include "common/base/log.h"
+#include "tools/import/text_scan.h"
+
+namespace raystack::import {
+
+uint32_t MaterialTable::Add(std::string_view name) {
+  auto index = static_cast<uint32_t>(materials_.size());
+  materials_.push_back(Material{});
+  materials_.back().name = std::string(name);
+  defined_.push_back(false);
+  index_.emplace(std::string(name), index);
+  return index;
+}
+
+uint32_t MaterialTable::Use(std::string_view name) {
+  auto it = index_.find(std::string(name));
+  return it != index_.end() ? it->second : Add(name);
+}
+
+Material* MaterialTable::Define(std::string_view name) {
+  auto it = index_.find(std::string(name));
+  uint32_t index = it != index_.end() ? it->second : Add(name);
+  if (defined_[index]) return nullptr;
+  defined_[index] = true;
+  return &materials_[index];
+}
+
+std::vector<std::string> MaterialTable::UndefinedNames() const {
+  std::vector<std::string> names;
+  for (size_t i = 0; i < materials_.size(); ++i)
+    if (!defined_[i]) names.push_back(materials_[i].name);
+  return names;
+}
+
+namespace {
+
+// Reads the remaining numbers of one MTL statement.
+class MtlLine {
+ public:
+  MtlLine(BufferedInput& input, std::string_view rest) : input_(input), rest_(rest) {}
+
+  Status Float(float* out) {
+    std::string_view token = NextToken(&rest_);
+    if (const char* why = ParseFloat(token, out))
+      return input_.LineError(std::string(why) + " '" + std::string(token) + "'");
+    return OkStatus();
+  }
+  // "r g b", or one value for all three (allowed by the MTL spec).
+  Status Color(Vec3f* out) {
+    RAYSTACK_RETURN_IF_ERROR(Float(&out->x));
+    if (NextTokenIsEmpty()) {
+      out->y = out->z = out->x;
+      return OkStatus();
+    }
+    RAYSTACK_RETURN_IF_ERROR(Float(&out->y));
+    return Float(&out->z);
+  }
+  Status Int(int* out) {
+    std::string_view token = NextToken(&rest_);
+    int64_t value = 0;
+    if (const char* why = ParseInt(token, &value))
+      return input_.LineError(std::string(why) + " '" + std::string(token) + "'");
+    if (value < 0 || value > 100) return input_.LineError("illum out of range");
+    *out = static_cast<int>(value);
+    return OkStatus();
+  }
+  std::string_view rest() const { return rest_; }
+
+ private:
+  bool NextTokenIsEmpty() const {
+    std::string_view copy = rest_;
+    return NextToken(&copy).empty();
+  }
+
+  BufferedInput& input_;
+  std::string_view rest_;
+};
+
+}  // namespace
+
+Status ReadMtl(BufferedInput& input, MaterialTable* table) {
+  Material scratch;  // receives statements outside any (or in a repeated) newmtl block
+  Material* current = &scratch;
+  std::set<std::string, std::less<>> warned;
+  std::string_view line;
+  while (input.NextLine(&line)) {
+    std::string_view rest = StripComment(line);
+    std::string_view key = NextToken(&rest);
+    if (key.empty()) continue;
+    MtlLine values(input, rest);
+    if (key == "newmtl") {
+      std::string_view name = Trim(rest);
+      if (name.empty()) return input.LineError("newmtl without a name");
+      current = table->Define(name);
+      if (!current) {
+        LOG_WARNING("import", "%s:%llu: material '%.*s' defined again; keeping the first",
+                    input.path().c_str(), static_cast<unsigned long long>(input.line_number()),
+                    static_cast<int>(name.size()), name.data());
+        current = &scratch;
+      }
+    } else if ((key == "Kd" || key == "Ks" || key == "Ke") &&
+               (Trim(rest).starts_with("spectral") || Trim(rest).starts_with("xyz"))) {
+      if (warned.insert(std::string(key) + " spectral/xyz").second)
+        LOG_WARNING("import", "%s:%llu: only rgb colours are supported; '%.*s' ignored",
+                    input.path().c_str(), static_cast<unsigned long long>(input.line_number()),
+                    static_cast<int>(key.size()), key.data());
+    } else if (key == "Kd") {
+      RAYSTACK_RETURN_IF_ERROR(values.Color(&current->kd));
+    } else if (key == "Ks") {
+      RAYSTACK_RETURN_IF_ERROR(values.Color(&current->ks));
+    } else if (key == "Ke") {
+      RAYSTACK_RETURN_IF_ERROR(values.Color(&current->ke));
+    } else if (key == "Ni") {
+      RAYSTACK_RETURN_IF_ERROR(values.Float(&current->ni));
+    } else if (key == "d") {
+      RAYSTACK_RETURN_IF_ERROR(values.Float(&current->d));
+    } else if (key == "Tr") {  // transparency, the complement of d
+      float tr = 0;
+      RAYSTACK_RETURN_IF_ERROR(values.Float(&tr));
+      current->d = 1.0f - tr;
+    } else if (key == "illum") {
+      RAYSTACK_RETURN_IF_ERROR(values.Int(&current->illum));
+    }
+  }
+  return input.status();
+}
+
+}  // namespace raystack::import

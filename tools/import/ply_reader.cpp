@@ -1,0 +1,199 @@
+#include "tools/import/ply_reader.h"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/base/log.h"
+#include "tools/import/ply_header.h"
+#include "tools/import/ply_values.h"
+#include "tools/import/triangle_batcher.h"
+#include "tools/import/vertex_table.h"
+
+namespace raystack::import {
+namespace {
+
+// Larger polygons do not occur in scanned or modelled meshes; a larger count is damage, and
+// the cap keeps the corner buffer small.
+constexpr int64_t kMaxFaceVertices = 1024;
+
+// Where each vertex property lands in a vertex-table record (-1: read and dropped).
+struct VertexLayout {
+  std::vector<int> slot_of_property;
+  int floats = 3;  // x y z [nx ny nz] [u v]
+  bool has_normals = false;
+  bool has_uvs = false;
+};
+
+class PlyReader {
+ public:
+  PlyReader(BufferedInput& input, const ReadOptions& options, TriangleSink& sink,
+            ModelInfo* info)
+      : input_(input), options_(options), info_(info), budget_(options.vertex_memory_bytes),
+        batcher_(sink, info, options.max_triangles) {}
+
+  Status Read();
+
+ private:
+  Status MakeVertexLayout(const PlyElement& element, VertexLayout* layout) const;
+  Status ReadVertices(const PlyElement& element);
+  Status ReadFaces(const PlyElement& element);
+  Status ReadFaceCorners(const PlyProperty& list);
+  Status SkipElement(const PlyElement& element);
+  Status SkipProperty(const PlyProperty& property);
+
+  BufferedInput& input_;
+  const ReadOptions& options_;
+  ModelInfo* info_;
+  MemoryBudget budget_;
+  TriangleBatcher batcher_;
+  std::unique_ptr<PlyValueReader> values_;
+  std::unique_ptr<VertexTable> vertices_;  // created by the vertex element
+  VertexLayout layout_;
+  std::vector<FanCorner> corners_;  // of the current face; reused
+};
+
+Status PlyReader::Read() {
+  Expected<PlyHeader> header = ReadPlyHeader(input_);
+  if (!header.ok()) return header.status();
+  values_ = std::make_unique<PlyValueReader>(input_, header->format);
+  for (const PlyElement& element : header->elements) {
+    if (element.name == "vertex") {
+      RAYSTACK_RETURN_IF_ERROR(ReadVertices(element));
+    } else if (element.name == "face") {
+      if (!vertices_)
+        return input_.LineError("PLY face element before the vertex element is not supported");
+      RAYSTACK_RETURN_IF_ERROR(ReadFaces(element));
+    } else {
+      RAYSTACK_RETURN_IF_ERROR(SkipElement(element));
+    }
+  }
+  if (!vertices_) return input_.LineError("PLY file has no vertex element");
+  return batcher_.Finish(input_.path());
+}
+
+Status PlyReader::MakeVertexLayout(const PlyElement& element, VertexLayout* layout) const {
+  auto find_scalar = [&](std::initializer_list<const char*> names) {
+    for (const char* name : names) {
+      int index = element.Find(name);
+      if (index >= 0 && !element.properties[static_cast<size_t>(index)].is_list) return index;
+    }
+    return -1;
+  };
+  int x = find_scalar({"x"}), y = find_scalar({"y"}), z = find_scalar({"z"});
+  if (x < 0 || y < 0 || z < 0)
+    return input_.LineError("PLY vertex element lacks scalar x, y and z properties");
+  int nx = find_scalar({"nx"}), ny = find_scalar({"ny"}), nz = find_scalar({"nz"});
+  int u = find_scalar({"u", "s", "texture_u", "texture_s"});
+  int v = find_scalar({"v", "t", "texture_v", "texture_t"});
+  layout->slot_of_property.assign(element.properties.size(), -1);
+  auto place = [&](int property) {
+    layout->slot_of_property[static_cast<size_t>(property)] = layout->floats++;
+  };
+  layout->floats = 0;
+  place(x), place(y), place(z);
+  layout->has_normals = nx >= 0 && ny >= 0 && nz >= 0;
+  if (layout->has_normals) place(nx), place(ny), place(nz);
+  layout->has_uvs = u >= 0 && v >= 0;
+  if (layout->has_uvs) place(u), place(v);
+  return OkStatus();
+}
+
+Status PlyReader::ReadVertices(const PlyElement& element) {
+  RAYSTACK_RETURN_IF_ERROR(MakeVertexLayout(element, &layout_));
+  vertices_ = std::make_unique<VertexTable>(layout_.floats, &budget_, options_.temp_dir);
+  float record[VertexTable::kMaxFloatsPerVertex];
+  // `element.count` comes from the file: it bounds the loop, never an allocation.
+  for (uint64_t i = 0; i < element.count; ++i) {
+    RAYSTACK_RETURN_IF_ERROR(values_->BeginRecord(element.name));
+    for (size_t p = 0; p < element.properties.size(); ++p) {
+      const PlyProperty& property = element.properties[p];
+      int slot = layout_.slot_of_property[p];
+      if (slot >= 0) RAYSTACK_RETURN_IF_ERROR(values_->ReadFloat(property.type, &record[slot]));
+      else RAYSTACK_RETURN_IF_ERROR(SkipProperty(property));
+    }
+    RAYSTACK_RETURN_IF_ERROR(values_->EndRecord());
+    info_->bounds.Extend(Vec3f{record[0], record[1], record[2]});
+    RAYSTACK_RETURN_IF_ERROR(vertices_->Append(record));
+    ++info_->vertices;
+  }
+  return OkStatus();
+}
+
+Status PlyReader::ReadFaces(const PlyElement& element) {
+  int list = element.Find("vertex_indices");
+  if (list < 0) list = element.Find("vertex_index");
+  if (list < 0) return input_.LineError("PLY face element has no vertex_indices list");
+  const PlyProperty& indices = element.properties[static_cast<size_t>(list)];
+  if (!indices.is_list || !IsIntegerType(indices.type))
+    return input_.LineError("PLY " + indices.name + " must be a list of integers");
+  for (uint64_t i = 0; i < element.count; ++i) {
+    RAYSTACK_RETURN_IF_ERROR(values_->BeginRecord(element.name));
+    for (size_t p = 0; p < element.properties.size(); ++p) {
+      if (p == static_cast<size_t>(list)) RAYSTACK_RETURN_IF_ERROR(ReadFaceCorners(indices));
+      else RAYSTACK_RETURN_IF_ERROR(SkipProperty(element.properties[p]));
+    }
+    RAYSTACK_RETURN_IF_ERROR(values_->EndRecord());
+    ++info_->faces;
+    if (batcher_.WouldExceedLimit(corners_.size() - 2))
+      return values_->Error(StrFormat("more than %llu triangles",
+                                      static_cast<unsigned long long>(batcher_.max_triangles())));
+    RAYSTACK_RETURN_IF_ERROR(batcher_.AddFan(corners_, kNoMaterial));
+  }
+  return OkStatus();
+}
+
+Status PlyReader::ReadFaceCorners(const PlyProperty& list) {
+  int64_t count = 0;
+  RAYSTACK_RETURN_IF_ERROR(values_->ReadInteger(list.count_type, &count));
+  if (count < 3 || count > kMaxFaceVertices)
+    return values_->Error(StrFormat("face with %lld vertices (3 to %lld supported)",
+                                    static_cast<long long>(count),
+                                    static_cast<long long>(kMaxFaceVertices)));
+  corners_.resize(static_cast<size_t>(count));
+  float record[VertexTable::kMaxFloatsPerVertex];
+  for (FanCorner& corner : corners_) {
+    int64_t index = 0;
+    RAYSTACK_RETURN_IF_ERROR(values_->ReadInteger(list.type, &index));
+    if (index < 0 || static_cast<uint64_t>(index) >= vertices_->size())
+      return values_->Error(StrFormat("face index %lld out of range (file has %llu vertices)",
+                                      static_cast<long long>(index),
+                                      static_cast<unsigned long long>(vertices_->size())));
+    RAYSTACK_RETURN_IF_ERROR(vertices_->Get(static_cast<uint64_t>(index), record));
+    corner.p = {record[0], record[1], record[2]};
+    int next = 3;
+    corner.has_normal = layout_.has_normals;
+    if (corner.has_normal) {
+      corner.n = {record[next], record[next + 1], record[next + 2]};
+      next += 3;
+    }
+    corner.has_uv = layout_.has_uvs;
+    if (corner.has_uv) corner.uv[0] = record[next], corner.uv[1] = record[next + 1];
+  }
+  return OkStatus();
+}
+
+Status PlyReader::SkipElement(const PlyElement& element) {
+  for (uint64_t i = 0; i < element.count; ++i) {
+    RAYSTACK_RETURN_IF_ERROR(values_->BeginRecord(element.name));
+    for (const PlyProperty& property : element.properties)
+      RAYSTACK_RETURN_IF_ERROR(SkipProperty(property));
+    RAYSTACK_RETURN_IF_ERROR(values_->EndRecord());
+  }
+  return OkStatus();
+}
+
+Status PlyReader::SkipProperty(const PlyProperty& property) {
+  return property.is_list ? values_->SkipList(property.count_type, property.type)
+                          : values_->Skip(property.type);
+}
+
+}  // namespace
+
+Status ReadPly(BufferedInput& input, const ReadOptions& options, TriangleSink& sink,
+               ModelInfo* info) {
+  PlyReader reader(input, options, sink, info);
+  return reader.Read();
+}
+
+}  // namespace raystack::import

@@ -1,0 +1,70 @@
+#include "tools/import/triangle_batcher.h"
+
+#include "common/base/log.h"
+
+namespace raystack::import {
+namespace {
+
+// Exactly zero in float: repeated or collinear corners. Such triangles can never be hit and
+// would only cost the BVH build; tiny but non-zero ones are kept.
+bool HasZeroArea(const SourceTriangle& t) {
+  Vec3f c = Cross(t.p[1] - t.p[0], t.p[2] - t.p[0]);
+  return c.x == 0.0f && c.y == 0.0f && c.z == 0.0f;
+}
+
+}  // namespace
+
+TriangleBatcher::TriangleBatcher(TriangleSink& sink, ModelInfo* info, uint64_t max_triangles)
+    : sink_(sink), info_(info), max_triangles_(max_triangles) {
+  batch_.reserve(kBatchTriangles);
+}
+
+Status TriangleBatcher::Add(const SourceTriangle& triangle) {
+  ++info_->triangles;
+  if (HasZeroArea(triangle)) {
+    ++info_->zero_area_dropped;
+    return OkStatus();
+  }
+  info_->has_normals |= triangle.has_normals;
+  info_->has_uvs |= triangle.has_uvs;
+  batch_.push_back(triangle);
+  if (batch_.size() == kBatchTriangles) return Flush();
+  return OkStatus();
+}
+
+Status TriangleBatcher::AddFan(std::span<const FanCorner> corners, uint32_t material) {
+  SourceTriangle triangle;
+  triangle.material = material;
+  for (size_t i = 1; i + 1 < corners.size(); ++i) {
+    const FanCorner* fan[3] = {&corners[0], &corners[i], &corners[i + 1]};
+    triangle.has_normals = triangle.has_uvs = true;
+    for (int k = 0; k < 3; ++k) {
+      triangle.p[k] = fan[k]->p;
+      triangle.n[k] = fan[k]->n;
+      triangle.uv[k][0] = fan[k]->uv[0];
+      triangle.uv[k][1] = fan[k]->uv[1];
+      triangle.has_normals &= fan[k]->has_normal;
+      triangle.has_uvs &= fan[k]->has_uv;
+    }
+    RAYSTACK_RETURN_IF_ERROR(Add(triangle));
+  }
+  return OkStatus();
+}
+
+Status TriangleBatcher::Flush() {
+  if (batch_.empty()) return OkStatus();
+  Status status = sink_.Consume(batch_);
+  batch_.clear();
+  return status;
+}
+
+Status TriangleBatcher::Finish(const std::string& path) {
+  RAYSTACK_RETURN_IF_ERROR(Flush());
+  if (info_->zero_area_dropped > 0)
+    LOG_WARNING("import", "%s: dropped %llu zero-area triangles (of %llu)", path.c_str(),
+                static_cast<unsigned long long>(info_->zero_area_dropped),
+                static_cast<unsigned long long>(info_->triangles));
+  return OkStatus();
+}
+
+}  // namespace raystack::import
