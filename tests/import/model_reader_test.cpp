@@ -8,7 +8,7 @@
 namespace raystack::import {
 namespace {
 
-const std::string kCornellBox = std::string(RAYSTACK_IMPORT_TEST_DATA) + "/CornellBox-Original.obj";
+const std::string kCornellBox = std::string(RAYSTACK_TEST_DATA) + "/CornellBox-Original.obj";
 
 TEST(ModelReader, CornellBoxHasItsMaterialsAndAnEmitter) {
   CollectingSink sink;
