@@ -37,7 +37,9 @@ struct RayTriangleSetup {
 };
 
 // Returns true and fills t (in (tmin, tmax)), u, v (barycentrics of p1, p2) on a hit. Both
-// faces count (no culling). Degenerate triangles never hit.
+// faces count (no culling). A triangle with coincident vertices never hits. One with distinct
+// but collinear vertices can, on its segment: the float shear makes it a sliver of rounding
+// width, so zero-area triangles are dropped when a model is converted.
 inline bool IntersectTriangle(const RayTriangleSetup& s, Vec3f p0, Vec3f p1, Vec3f p2, float tmin,
                               float tmax, float* t_out, float* u_out, float* v_out) {
   const Vec3f a = p0 - s.origin, b = p1 - s.origin, c = p2 - s.origin;
@@ -49,9 +51,10 @@ inline bool IntersectTriangle(const RayTriangleSetup& s, Vec3f p0, Vec3f p1, Vec
   float v = ax * cy - ay * cx;
   float w = bx * ay - by * ax;
   if (u == 0.0f || v == 0.0f || w == 0.0f) {  // on an edge in float: decide in double
-    u = static_cast<float>(static_cast<double>(cx) * by - static_cast<double>(cy) * bx);
-    v = static_cast<float>(static_cast<double>(ax) * cy - static_cast<double>(ay) * cx);
-    w = static_cast<float>(static_cast<double>(bx) * ay - static_cast<double>(by) * ax);
+    using D = double;
+    u = static_cast<float>(D{cx} * D{by} - D{cy} * D{bx});
+    v = static_cast<float>(D{ax} * D{cy} - D{ay} * D{cx});
+    w = static_cast<float>(D{bx} * D{ay} - D{by} * D{ax});
   }
   if ((u < 0 || v < 0 || w < 0) && (u > 0 || v > 0 || w > 0)) return false;
   const float det = u + v + w;

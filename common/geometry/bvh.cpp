@@ -1,0 +1,259 @@
+// Binned-SAH BVH builder (Wald 2007, "On fast Construction of SAH-based Bounding Volume
+// Hierarchies"). One call builds one block's tree of a few thousand primitives; the converter
+// makes millions of calls, so the builder allocates only its outputs and keeps its scratch on
+// the stack.
+
+#include "common/geometry/bvh.h"
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <limits>
+
+#include "common/base/check.h"
+
+namespace raystack {
+namespace {
+
+constexpr uint32_t kNoParent = std::numeric_limits<uint32_t>::max();
+
+// A range of `order` that still needs a node. `patch` is the parent whose `offset` must point
+// at this node: set for second children only, since a first child sits right after its parent.
+struct BuildTask {
+  uint32_t begin;
+  uint32_t end;
+  uint32_t patch;
+  int depth;
+};
+
+struct Bin {
+  Bounds3f bounds;
+  uint32_t count = 0;
+};
+
+// Half the sum keeps the centroid finite for boxes near the float range limit.
+inline Vec3f Centroid(const Bounds3f& b) { return b.lower * 0.5f + b.upper * 0.5f; }
+
+// Levels of median splits that bring `count` primitives down to leaves of `max_leaf`.
+int MedianSplitLevels(uint32_t count, uint32_t max_leaf) {
+  int levels = 0;
+  for (uint64_t capacity = max_leaf; capacity < count; capacity *= 2) ++levels;
+  return levels;
+}
+
+// Maps centroids to bins along one axis. Every caller uses this one function, so binning for
+// the cost sweep and binning for the partition agree bit for bit.
+struct AxisBinning {
+  float lower = 0;
+  float scale = 0;  // bins per unit length; 0 marks an axis that cannot be split
+  int last_bin = 0;
+
+  int BinOf(float c) const {
+    const float f = (c - lower) * scale;
+    // Written so that NaN (impossible for finite input, but cheap to rule out) lands in the
+    // last bin instead of reaching an undefined float-to-int conversion.
+    return f < static_cast<float>(last_bin) ? static_cast<int>(f) : last_bin;
+  }
+};
+
+struct SplitChoice {
+  int axis = -1;  // -1: no split separates the primitives
+  int bin = 0;    // left side holds bins [0, bin]
+  float cost = std::numeric_limits<float>::infinity();  // sum of area * count over both sides
+};
+
+class BvhBuilder {
+ public:
+  BvhBuilder(std::span<const BvhBuildPrimitive> prims, const BvhBuildOptions& options,
+             std::vector<uint32_t>* order, std::vector<BvhNode>* nodes)
+      : prims_(prims), options_(options), order_(*order), nodes_(*nodes) {}
+
+  void Build() {
+    const auto count = static_cast<uint32_t>(prims_.size());
+    std::array<BuildTask, kBvhMaxDepth + 2> stack;  // pending tasks never exceed depth + 1
+    int size = 0;
+    stack[size++] = {0, count, kNoParent, 0};
+    while (size > 0) {
+      const BuildTask task = stack[--size];
+      const auto index = static_cast<uint32_t>(nodes_.size());
+      if (task.patch != kNoParent) nodes_[task.patch].offset = index;
+      nodes_.push_back(BvhNode{});
+      const uint32_t mid = BuildNode(task, index);
+      if (mid == 0) continue;  // leaf
+      // Second child first onto the stack so the first child is built next, at index + 1.
+      stack[size++] = {mid, task.end, index, task.depth + 1};
+      stack[size++] = {task.begin, mid, kNoParent, task.depth + 1};
+      DCHECK(size <= static_cast<int>(stack.size()));
+    }
+  }
+
+ private:
+  // Fills nodes_[index] for the range of `task`. Returns the split position for an inner node,
+  // 0 for a leaf (a split never lands on 0: both sides are non-empty).
+  uint32_t BuildNode(const BuildTask& task, uint32_t index) {
+    Bounds3f bounds, centroid_bounds;
+    for (uint32_t i = task.begin; i < task.end; ++i) {
+      const Bounds3f& b = prims_[order_[i]].bounds;
+      bounds.Extend(b);
+      centroid_bounds.Extend(Centroid(b));
+    }
+    BvhNode& node = nodes_[index];
+    for (int a = 0; a < 3; ++a) {
+      node.lower[a] = bounds.lower[a];
+      node.upper[a] = bounds.upper[a];
+    }
+
+    const uint32_t count = task.end - task.begin;
+    const auto max_leaf = static_cast<uint32_t>(options_.max_leaf_size);
+    const bool may_be_leaf = count <= max_leaf;
+    // Invariant: depth + MedianSplitLevels(count) <= kBvhMaxDepth. Once SAH could break it,
+    // only median splits are left, and each of them takes one level off the remaining need.
+    const bool depth_forces_median =
+        task.depth + MedianSplitLevels(count, max_leaf) >= kBvhMaxDepth;
+
+    if (count == 1 || (may_be_leaf && depth_forces_median)) return MakeLeaf(node, task);
+    if (centroid_bounds.lower == centroid_bounds.upper) {
+      // Identical centroids: no plane separates them, so any split is as good as any other.
+      if (may_be_leaf) return MakeLeaf(node, task);
+      return MakeInner(node, task.begin + count / 2, bounds.MaxAxis());
+    }
+    if (!depth_forces_median) {
+      const SplitChoice split = FindSahSplit(task, centroid_bounds);
+      if (split.axis >= 0) {
+        // Costs scaled by the node's half area, so a node of zero area needs no division.
+        const float area = bounds.HalfArea();
+        const float leaf_cost = options_.intersection_cost * static_cast<float>(count) * area;
+        const float split_cost =
+            options_.traversal_cost * area + options_.intersection_cost * split.cost;
+        if (may_be_leaf && leaf_cost <= split_cost) return MakeLeaf(node, task);
+        return MakeInner(node, PartitionAtBin(task, centroid_bounds, split), split.axis);
+      }
+      if (may_be_leaf) return MakeLeaf(node, task);
+    }
+    return MakeInner(node, MedianSplit(task, centroid_bounds), centroid_bounds.MaxAxis());
+  }
+
+  uint32_t MakeLeaf(BvhNode& node, const BuildTask& task) const {
+    node.offset = task.begin;
+    node.count = static_cast<uint16_t>(task.end - task.begin);
+    return 0;
+  }
+
+  static uint32_t MakeInner(BvhNode& node, uint32_t mid, int axis) {
+    node.count = 0;
+    node.axis = static_cast<uint8_t>(axis);
+    return mid;  // offset is patched when the second child is emitted
+  }
+
+  AxisBinning Binning(const Bounds3f& centroid_bounds, int axis) const {
+    AxisBinning binning;
+    binning.lower = centroid_bounds.lower[axis];
+    binning.last_bin = options_.bins - 1;
+    const float extent = centroid_bounds.upper[axis] - binning.lower;
+    const float scale = static_cast<float>(options_.bins) / extent;
+    // A zero, subnormal or overflowing extent gives no usable scale: leave the axis unsplit.
+    if (extent > 0 && std::isfinite(extent) && std::isfinite(scale)) binning.scale = scale;
+    return binning;
+  }
+
+  SplitChoice FindSahSplit(const BuildTask& task, const Bounds3f& centroid_bounds) {
+    const int bins = options_.bins;
+    auto& bin = bins_;
+    for (auto& axis_bins : bin) std::fill_n(axis_bins.begin(), bins, Bin{});
+    std::array<AxisBinning, 3> binning;
+    for (int a = 0; a < 3; ++a) binning[a] = Binning(centroid_bounds, a);
+
+    for (uint32_t i = task.begin; i < task.end; ++i) {
+      const Bounds3f& b = prims_[order_[i]].bounds;
+      const Vec3f c = Centroid(b);
+      for (int a = 0; a < 3; ++a) {
+        Bin& target = bin[a][binning[a].BinOf(c[a])];
+        target.bounds.Extend(b);
+        ++target.count;
+      }
+    }
+
+    SplitChoice best;
+    std::array<float, kBvhMaxBins> right_cost;
+    for (int a = 0; a < 3; ++a) {
+      if (binning[a].scale == 0) continue;
+      // right_cost[k]: area * count of bins (k, bins); 0 when they are all empty.
+      Bounds3f right;
+      uint32_t right_count = 0;
+      for (int k = bins - 1; k > 0; --k) {
+        right.Extend(bin[a][k].bounds);
+        right_count += bin[a][k].count;
+        right_cost[k - 1] = right_count == 0 ? 0.0f
+                                             : right.HalfArea() * static_cast<float>(right_count);
+      }
+      Bounds3f left;
+      uint32_t left_count = 0;
+      const uint32_t total = task.end - task.begin;
+      for (int k = 0; k < bins - 1; ++k) {
+        left.Extend(bin[a][k].bounds);
+        left_count += bin[a][k].count;
+        if (left_count == 0 || left_count == total) continue;
+        const float cost = left.HalfArea() * static_cast<float>(left_count) + right_cost[k];
+        if (cost < best.cost) best = {a, k, cost};  // strict: ties keep the first, for determinism
+      }
+    }
+    return best;
+  }
+
+  uint32_t PartitionAtBin(const BuildTask& task, const Bounds3f& centroid_bounds,
+                          const SplitChoice& split) {
+    const AxisBinning binning = Binning(centroid_bounds, split.axis);
+    const auto first = order_.begin() + task.begin;
+    const auto last = order_.begin() + task.end;
+    const auto mid = std::partition(first, last, [&](uint32_t p) {
+      return binning.BinOf(Centroid(prims_[p].bounds)[split.axis]) <= split.bin;
+    });
+    const auto result = static_cast<uint32_t>(mid - order_.begin());
+    CHECK(result > task.begin && result < task.end);
+    return result;
+  }
+
+  // Object median along the widest centroid axis; ties broken by primitive index so the
+  // result does not depend on the order the range happens to be in.
+  uint32_t MedianSplit(const BuildTask& task, const Bounds3f& centroid_bounds) {
+    const int axis = centroid_bounds.MaxAxis();
+    const uint32_t mid = task.begin + (task.end - task.begin) / 2;
+    std::nth_element(order_.begin() + task.begin, order_.begin() + mid, order_.begin() + task.end,
+                     [&](uint32_t p, uint32_t q) {
+                       const float cp = Centroid(prims_[p].bounds)[axis];
+                       const float cq = Centroid(prims_[q].bounds)[axis];
+                       return cp < cq || (cp == cq && p < q);
+                     });
+    return mid;
+  }
+
+  std::span<const BvhBuildPrimitive> prims_;
+  const BvhBuildOptions& options_;
+  std::vector<uint32_t>& order_;
+  std::vector<BvhNode>& nodes_;
+  // Reused by every node; only the first options_.bins entries per axis are ever touched.
+  std::array<std::array<Bin, kBvhMaxBins>, 3> bins_;
+};
+
+}  // namespace
+
+std::vector<BvhNode> BuildBvh(std::span<const BvhBuildPrimitive> prims,
+                              const BvhBuildOptions& options, std::vector<uint32_t>* order) {
+  CHECK(order != nullptr);
+  CHECK(options.max_leaf_size >= 1 && options.max_leaf_size <= 65535);
+  CHECK(options.bins >= 2 && options.bins <= kBvhMaxBins);
+  CHECK(prims.size() < std::numeric_limits<uint32_t>::max());
+  order->resize(prims.size());
+  for (uint32_t i = 0; i < order->size(); ++i) {
+    const Bounds3f& b = prims[i].bounds;
+    CHECK(!b.Empty() && IsFinite(b.lower) && IsFinite(b.upper));
+    (*order)[i] = i;
+  }
+  std::vector<BvhNode> nodes;
+  if (prims.empty()) return nodes;
+  nodes.reserve(2 * prims.size() - 1);
+  BvhBuilder(prims, options, order, &nodes).Build();
+  return nodes;
+}
+
+}  // namespace raystack
