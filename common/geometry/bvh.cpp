@@ -66,7 +66,10 @@ class BvhBuilder {
  public:
   BvhBuilder(std::span<const BvhBuildPrimitive> prims, const BvhBuildOptions& options,
              std::vector<uint32_t>* order, std::vector<BvhNode>* nodes)
-      : prims_(prims), options_(options), order_(*order), nodes_(*nodes) {}
+      : prims_(prims), options_(options), order_(*order), nodes_(*nodes) {
+    centroids_.reserve(prims.size());
+    for (const BvhBuildPrimitive& p : prims) centroids_.push_back(Centroid(p.bounds));
+  }
 
   void Build() {
     const auto count = static_cast<uint32_t>(prims_.size());
@@ -95,7 +98,7 @@ class BvhBuilder {
     for (uint32_t i = task.begin; i < task.end; ++i) {
       const Bounds3f& b = prims_[order_[i]].bounds;
       bounds.Extend(b);
-      centroid_bounds.Extend(Centroid(b));
+      centroid_bounds.Extend(centroids_[order_[i]]);
     }
     BvhNode& node = nodes_[index];
     for (int a = 0; a < 3; ++a) {
@@ -145,27 +148,35 @@ class BvhBuilder {
     return mid;  // offset is patched when the second child is emitted
   }
 
-  AxisBinning Binning(const Bounds3f& centroid_bounds, int axis) const {
+  // Small nodes get fewer bins: a bin per primitive already separates them about as well, and
+  // the fixed cost of sweeping 16 bins per axis would dominate the thousands of tiny nodes.
+  int BinCount(uint32_t count) const {
+    return static_cast<int>(std::min<uint32_t>(static_cast<uint32_t>(options_.bins),
+                                               std::max<uint32_t>(count, 2)));
+  }
+
+  AxisBinning Binning(const Bounds3f& centroid_bounds, int axis, int bins) const {
     AxisBinning binning;
     binning.lower = centroid_bounds.lower[axis];
-    binning.last_bin = options_.bins - 1;
+    binning.last_bin = bins - 1;
     const float extent = centroid_bounds.upper[axis] - binning.lower;
-    const float scale = static_cast<float>(options_.bins) / extent;
+    const float scale = static_cast<float>(bins) / extent;
     // A zero, subnormal or overflowing extent gives no usable scale: leave the axis unsplit.
     if (extent > 0 && std::isfinite(extent) && std::isfinite(scale)) binning.scale = scale;
     return binning;
   }
 
   SplitChoice FindSahSplit(const BuildTask& task, const Bounds3f& centroid_bounds) {
-    const int bins = options_.bins;
+    const int bins = BinCount(task.end - task.begin);
     auto& bin = bins_;
     for (auto& axis_bins : bin) std::fill_n(axis_bins.begin(), bins, Bin{});
     std::array<AxisBinning, 3> binning;
-    for (int a = 0; a < 3; ++a) binning[a] = Binning(centroid_bounds, a);
+    for (int a = 0; a < 3; ++a) binning[a] = Binning(centroid_bounds, a, bins);
 
     for (uint32_t i = task.begin; i < task.end; ++i) {
-      const Bounds3f& b = prims_[order_[i]].bounds;
-      const Vec3f c = Centroid(b);
+      const uint32_t p = order_[i];
+      const Bounds3f& b = prims_[p].bounds;
+      const Vec3f c = centroids_[p];
       for (int a = 0; a < 3; ++a) {
         Bin& target = bin[a][binning[a].BinOf(c[a])];
         target.bounds.Extend(b);
@@ -202,11 +213,12 @@ class BvhBuilder {
 
   uint32_t PartitionAtBin(const BuildTask& task, const Bounds3f& centroid_bounds,
                           const SplitChoice& split) {
-    const AxisBinning binning = Binning(centroid_bounds, split.axis);
+    const AxisBinning binning =
+        Binning(centroid_bounds, split.axis, BinCount(task.end - task.begin));
     const auto first = order_.begin() + task.begin;
     const auto last = order_.begin() + task.end;
     const auto mid = std::partition(first, last, [&](uint32_t p) {
-      return binning.BinOf(Centroid(prims_[p].bounds)[split.axis]) <= split.bin;
+      return binning.BinOf(centroids_[p][split.axis]) <= split.bin;
     });
     const auto result = static_cast<uint32_t>(mid - order_.begin());
     CHECK(result > task.begin && result < task.end);
@@ -220,8 +232,8 @@ class BvhBuilder {
     const uint32_t mid = task.begin + (task.end - task.begin) / 2;
     std::nth_element(order_.begin() + task.begin, order_.begin() + mid, order_.begin() + task.end,
                      [&](uint32_t p, uint32_t q) {
-                       const float cp = Centroid(prims_[p].bounds)[axis];
-                       const float cq = Centroid(prims_[q].bounds)[axis];
+                       const float cp = centroids_[p][axis];
+                       const float cq = centroids_[q][axis];
                        return cp < cq || (cp == cq && p < q);
                      });
     return mid;
@@ -231,6 +243,7 @@ class BvhBuilder {
   const BvhBuildOptions& options_;
   std::vector<uint32_t>& order_;
   std::vector<BvhNode>& nodes_;
+  std::vector<Vec3f> centroids_;  // by primitive index, computed once
   // Reused by every node; only the first options_.bins entries per axis are ever touched.
   std::array<std::array<Bin, kBvhMaxBins>, 3> bins_;
 };
