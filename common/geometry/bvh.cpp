@@ -19,11 +19,15 @@ constexpr uint32_t kNoParent = std::numeric_limits<uint32_t>::max();
 
 // A range of `order` that still needs a node. `patch` is the parent whose `offset` must point
 // at this node: set for second children only, since a first child sits right after its parent.
+// Carries its bounds so they are computed while partitioning the parent, not in a pass of
+// their own.
 struct BuildTask {
-  uint32_t begin;
-  uint32_t end;
-  uint32_t patch;
-  int depth;
+  uint32_t begin = 0;
+  uint32_t end = 0;
+  uint32_t patch = kNoParent;
+  int depth = 0;
+  Bounds3f bounds;
+  Bounds3f centroid_bounds;
 };
 
 struct Bin {
@@ -75,31 +79,39 @@ class BvhBuilder {
     const auto count = static_cast<uint32_t>(prims_.size());
     std::array<BuildTask, kBvhMaxDepth + 2> stack;  // pending tasks never exceed depth + 1
     int size = 0;
-    stack[size++] = {0, count, kNoParent, 0};
+    BuildTask& root = stack[size++];
+    root.begin = 0;
+    root.end = count;
+    RangeBounds(&root);
     while (size > 0) {
       const BuildTask task = stack[--size];
       const auto index = static_cast<uint32_t>(nodes_.size());
       if (task.patch != kNoParent) nodes_[task.patch].offset = index;
       nodes_.push_back(BvhNode{});
-      const uint32_t mid = BuildNode(task, index);
-      if (mid == 0) continue;  // leaf
+      BuildTask left, right;
+      if (!BuildNode(task, index, &left, &right)) continue;  // leaf
+      left.depth = right.depth = task.depth + 1;
+      right.patch = index;
       // Second child first onto the stack so the first child is built next, at index + 1.
-      stack[size++] = {mid, task.end, index, task.depth + 1};
-      stack[size++] = {task.begin, mid, kNoParent, task.depth + 1};
+      stack[size++] = right;
+      stack[size++] = left;
       DCHECK(size <= static_cast<int>(stack.size()));
     }
   }
 
  private:
-  // Fills nodes_[index] for the range of `task`. Returns the split position for an inner node,
-  // 0 for a leaf (a split never lands on 0: both sides are non-empty).
-  uint32_t BuildNode(const BuildTask& task, uint32_t index) {
-    Bounds3f bounds, centroid_bounds;
-    for (uint32_t i = task.begin; i < task.end; ++i) {
-      const Bounds3f& b = prims_[order_[i]].bounds;
-      bounds.Extend(b);
-      centroid_bounds.Extend(centroids_[order_[i]]);
+  void RangeBounds(BuildTask* task) const {
+    for (uint32_t i = task->begin; i < task->end; ++i) {
+      task->bounds.Extend(prims_[order_[i]].bounds);
+      task->centroid_bounds.Extend(centroids_[order_[i]]);
     }
+  }
+
+  // Fills nodes_[index] for the range of `task`. For an inner node, returns true and sets the
+  // children's ranges and bounds; both are non-empty.
+  bool BuildNode(const BuildTask& task, uint32_t index, BuildTask* left, BuildTask* right) {
+    const Bounds3f& bounds = task.bounds;
+    const Bounds3f& centroid_bounds = task.centroid_bounds;
     BvhNode& node = nodes_[index];
     for (int a = 0; a < 3; ++a) {
       node.lower[a] = bounds.lower[a];
@@ -118,7 +130,7 @@ class BvhBuilder {
     if (centroid_bounds.lower == centroid_bounds.upper) {
       // Identical centroids: no plane separates them, so any split is as good as any other.
       if (may_be_leaf) return MakeLeaf(node, task);
-      return MakeInner(node, task.begin + count / 2, bounds.MaxAxis());
+      return MakeInner(node, bounds.MaxAxis(), task, task.begin + count / 2, left, right);
     }
     if (!depth_forces_median) {
       const SplitChoice split = FindSahSplit(task, centroid_bounds);
@@ -129,23 +141,31 @@ class BvhBuilder {
         const float split_cost =
             options_.traversal_cost * area + options_.intersection_cost * split.cost;
         if (may_be_leaf && leaf_cost <= split_cost) return MakeLeaf(node, task);
-        return MakeInner(node, PartitionAtBin(task, centroid_bounds, split), split.axis);
+        PartitionAtBin(task, split, left, right);
+        node.axis = static_cast<uint8_t>(split.axis);
+        return true;
       }
       if (may_be_leaf) return MakeLeaf(node, task);
     }
-    return MakeInner(node, MedianSplit(task, centroid_bounds), centroid_bounds.MaxAxis());
+    return MakeInner(node, centroid_bounds.MaxAxis(), task, MedianSplit(task), left, right);
   }
 
-  uint32_t MakeLeaf(BvhNode& node, const BuildTask& task) const {
+  static bool MakeLeaf(BvhNode& node, const BuildTask& task) {
     node.offset = task.begin;
     node.count = static_cast<uint16_t>(task.end - task.begin);
-    return 0;
+    return false;
   }
 
-  static uint32_t MakeInner(BvhNode& node, uint32_t mid, int axis) {
-    node.count = 0;
-    node.axis = static_cast<uint8_t>(axis);
-    return mid;  // offset is patched when the second child is emitted
+  // An inner node split at `mid` by position (no binning to reuse): children's bounds by a pass.
+  bool MakeInner(BvhNode& node, int axis, const BuildTask& task, uint32_t mid, BuildTask* left,
+                 BuildTask* right) const {
+    node.axis = static_cast<uint8_t>(axis);  // offset is patched when the second child is built
+    left->begin = task.begin;
+    left->end = right->begin = mid;
+    right->end = task.end;
+    RangeBounds(left);
+    RangeBounds(right);
+    return true;
   }
 
   // Small nodes get fewer bins: a bin per primitive already separates them about as well, and
@@ -211,24 +231,35 @@ class BvhBuilder {
     return best;
   }
 
-  uint32_t PartitionAtBin(const BuildTask& task, const Bounds3f& centroid_bounds,
-                          const SplitChoice& split) {
+  // Hoare partition that gathers each side's bounds on the way, so children need no pass.
+  void PartitionAtBin(const BuildTask& task, const SplitChoice& split, BuildTask* left,
+                      BuildTask* right) {
     const AxisBinning binning =
-        Binning(centroid_bounds, split.axis, BinCount(task.end - task.begin));
-    const auto first = order_.begin() + task.begin;
-    const auto last = order_.begin() + task.end;
-    const auto mid = std::partition(first, last, [&](uint32_t p) {
+        Binning(task.centroid_bounds, split.axis, BinCount(task.end - task.begin));
+    auto goes_left = [&](uint32_t p) {
       return binning.BinOf(centroids_[p][split.axis]) <= split.bin;
-    });
-    const auto result = static_cast<uint32_t>(mid - order_.begin());
-    CHECK(result > task.begin && result < task.end);
-    return result;
+    };
+    auto add = [&](BuildTask* side, uint32_t p) {
+      side->bounds.Extend(prims_[p].bounds);
+      side->centroid_bounds.Extend(centroids_[p]);
+    };
+    uint32_t i = task.begin, j = task.end;
+    while (true) {
+      while (i < j && goes_left(order_[i])) add(left, order_[i++]);
+      while (i < j && !goes_left(order_[j - 1])) add(right, order_[--j]);
+      if (i == j) break;
+      std::swap(order_[i], order_[j - 1]);
+    }
+    CHECK(i > task.begin && i < task.end);
+    left->begin = task.begin;
+    left->end = right->begin = i;
+    right->end = task.end;
   }
 
   // Object median along the widest centroid axis; ties broken by primitive index so the
   // result does not depend on the order the range happens to be in.
-  uint32_t MedianSplit(const BuildTask& task, const Bounds3f& centroid_bounds) {
-    const int axis = centroid_bounds.MaxAxis();
+  uint32_t MedianSplit(const BuildTask& task) {
+    const int axis = task.centroid_bounds.MaxAxis();
     const uint32_t mid = task.begin + (task.end - task.begin) / 2;
     std::nth_element(order_.begin() + task.begin, order_.begin() + mid, order_.begin() + task.end,
                      [&](uint32_t p, uint32_t q) {
