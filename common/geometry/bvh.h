@@ -23,13 +23,21 @@ struct BvhNode {
 };
 static_assert(sizeof(BvhNode) == 32, "BvhNode is stored on disk");
 
+// Traversal keeps a fixed stack of this many entries, so the builder guarantees that no leaf
+// is deeper than this (root at depth 0). 64 levels hold any tree over 2^32 primitives even
+// when half of them come from median splits forced by the bound.
+inline constexpr int kBvhMaxDepth = 64;
+
+// Upper bound on BvhBuildOptions::bins: the bins live on the builder's stack.
+inline constexpr int kBvhMaxBins = 64;
+
 struct BvhBuildPrimitive {
   Bounds3f bounds;  // may be clipped to a cell: tighter than the primitive's own box
 };
 
 struct BvhBuildOptions {
   int max_leaf_size = 4;  // leaves hold at most this many primitives (1..65535)
-  int bins = 16;          // SAH bins per axis
+  int bins = 16;          // SAH bins per axis (2..kBvhMaxBins)
   float traversal_cost = 1.0f;
   float intersection_cost = 1.0f;
 };
@@ -37,7 +45,8 @@ struct BvhBuildOptions {
 // Builds the BVH. On return, leaf primitives are `order[offset .. offset + count)`, where
 // `order` is a permutation of 0..prims.size()-1. Empty input gives no nodes. Deterministic:
 // the same input gives the same nodes. Terminates on degenerate input (all boxes equal, zero
-// extent): such sets are split by index.
+// extent): such sets are split by index. Primitive bounds must be non-empty and finite (the
+// importer rejects NaN and Inf); zero extent is fine. No leaf is deeper than kBvhMaxDepth.
 std::vector<BvhNode> BuildBvh(std::span<const BvhBuildPrimitive> prims,
                               const BvhBuildOptions& options, std::vector<uint32_t>* order);
 

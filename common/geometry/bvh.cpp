@@ -1,0 +1,303 @@
+// Binned-SAH BVH builder (Wald 2007, "On fast Construction of SAH-based Bounding Volume
+// Hierarchies"). One call builds one block's tree of a few thousand primitives; the converter
+// makes millions of calls, so the builder allocates only its outputs and keeps its scratch on
+// the stack.
+
+#include "common/geometry/bvh.h"
+
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <limits>
+
+#include "common/base/check.h"
+
+namespace raystack {
+namespace {
+
+constexpr uint32_t kNoParent = std::numeric_limits<uint32_t>::max();
+
+// A range of `order` that still needs a node. `patch` is the parent whose `offset` must point
+// at this node: set for second children only, since a first child sits right after its parent.
+// Carries its bounds so they are computed while partitioning the parent, not in a pass of
+// their own.
+struct BuildTask {
+  uint32_t begin = 0;
+  uint32_t end = 0;
+  uint32_t patch = kNoParent;
+  int depth = 0;
+  Bounds3f bounds;
+  Bounds3f centroid_bounds;
+};
+
+struct Bin {
+  Bounds3f bounds;
+  uint32_t count = 0;
+};
+
+// Half the sum keeps the centroid finite for boxes near the float range limit.
+inline Vec3f Centroid(const Bounds3f& b) { return b.lower * 0.5f + b.upper * 0.5f; }
+
+// Levels of median splits that bring `count` primitives down to leaves of `max_leaf`.
+int MedianSplitLevels(uint32_t count, uint32_t max_leaf) {
+  int levels = 0;
+  for (uint64_t capacity = max_leaf; capacity < count; capacity *= 2) ++levels;
+  return levels;
+}
+
+// Maps centroids to bins along one axis. Every caller uses this one function, so binning for
+// the cost sweep and binning for the partition agree bit for bit.
+struct AxisBinning {
+  float lower = 0;
+  float scale = 0;  // bins per unit length; 0 marks an axis that cannot be split
+  int last_bin = 0;
+
+  int BinOf(float c) const {
+    const float f = (c - lower) * scale;
+    // Written so that NaN (impossible for finite input, but cheap to rule out) lands in the
+    // last bin instead of reaching an undefined float-to-int conversion.
+    return f < static_cast<float>(last_bin) ? static_cast<int>(f) : last_bin;
+  }
+};
+
+struct SplitChoice {
+  int axis = -1;  // -1: no split separates the primitives
+  int bin = 0;    // left side holds bins [0, bin]
+  float cost = std::numeric_limits<float>::infinity();  // sum of area * count over both sides
+};
+
+class BvhBuilder {
+ public:
+  BvhBuilder(std::span<const BvhBuildPrimitive> prims, const BvhBuildOptions& options,
+             std::vector<uint32_t>* order, std::vector<BvhNode>* nodes)
+      : prims_(prims), options_(options), order_(*order), nodes_(*nodes) {
+    centroids_.reserve(prims.size());
+    for (const BvhBuildPrimitive& p : prims) centroids_.push_back(Centroid(p.bounds));
+  }
+
+  void Build() {
+    const auto count = static_cast<uint32_t>(prims_.size());
+    std::array<BuildTask, kBvhMaxDepth + 2> stack;  // pending tasks never exceed depth + 1
+    int size = 0;
+    BuildTask& root = stack[size++];
+    root.begin = 0;
+    root.end = count;
+    RangeBounds(&root);
+    while (size > 0) {
+      const BuildTask task = stack[--size];
+      const auto index = static_cast<uint32_t>(nodes_.size());
+      if (task.patch != kNoParent) nodes_[task.patch].offset = index;
+      nodes_.push_back(BvhNode{});
+      BuildTask left, right;
+      if (!BuildNode(task, index, &left, &right)) continue;  // leaf
+      left.depth = right.depth = task.depth + 1;
+      right.patch = index;
+      // Second child first onto the stack so the first child is built next, at index + 1.
+      stack[size++] = right;
+      stack[size++] = left;
+      DCHECK(size <= static_cast<int>(stack.size()));
+    }
+  }
+
+ private:
+  void RangeBounds(BuildTask* task) const {
+    for (uint32_t i = task->begin; i < task->end; ++i) {
+      task->bounds.Extend(prims_[order_[i]].bounds);
+      task->centroid_bounds.Extend(centroids_[order_[i]]);
+    }
+  }
+
+  // Fills nodes_[index] for the range of `task`. For an inner node, returns true and sets the
+  // children's ranges and bounds; both are non-empty.
+  bool BuildNode(const BuildTask& task, uint32_t index, BuildTask* left, BuildTask* right) {
+    const Bounds3f& bounds = task.bounds;
+    const Bounds3f& centroid_bounds = task.centroid_bounds;
+    BvhNode& node = nodes_[index];
+    for (int a = 0; a < 3; ++a) {
+      node.lower[a] = bounds.lower[a];
+      node.upper[a] = bounds.upper[a];
+    }
+
+    const uint32_t count = task.end - task.begin;
+    const auto max_leaf = static_cast<uint32_t>(options_.max_leaf_size);
+    const bool may_be_leaf = count <= max_leaf;
+    // Invariant: depth + MedianSplitLevels(count) <= kBvhMaxDepth. Once SAH could break it,
+    // only median splits are left, and each of them takes one level off the remaining need.
+    const bool depth_forces_median =
+        task.depth + MedianSplitLevels(count, max_leaf) >= kBvhMaxDepth;
+
+    if (count == 1 || (may_be_leaf && depth_forces_median)) return MakeLeaf(node, task);
+    if (centroid_bounds.lower == centroid_bounds.upper) {
+      // Identical centroids: no plane separates them, so any split is as good as any other.
+      if (may_be_leaf) return MakeLeaf(node, task);
+      return MakeInner(node, bounds.MaxAxis(), task, task.begin + count / 2, left, right);
+    }
+    if (!depth_forces_median) {
+      const SplitChoice split = FindSahSplit(task, centroid_bounds);
+      if (split.axis >= 0) {
+        // Costs scaled by the node's half area, so a node of zero area needs no division.
+        const float area = bounds.HalfArea();
+        const float leaf_cost = options_.intersection_cost * static_cast<float>(count) * area;
+        const float split_cost =
+            options_.traversal_cost * area + options_.intersection_cost * split.cost;
+        if (may_be_leaf && leaf_cost <= split_cost) return MakeLeaf(node, task);
+        PartitionAtBin(task, split, left, right);
+        node.axis = static_cast<uint8_t>(split.axis);
+        return true;
+      }
+      if (may_be_leaf) return MakeLeaf(node, task);
+    }
+    return MakeInner(node, centroid_bounds.MaxAxis(), task, MedianSplit(task), left, right);
+  }
+
+  static bool MakeLeaf(BvhNode& node, const BuildTask& task) {
+    node.offset = task.begin;
+    node.count = static_cast<uint16_t>(task.end - task.begin);
+    return false;
+  }
+
+  // An inner node split at `mid` by position (no binning to reuse): children's bounds by a pass.
+  bool MakeInner(BvhNode& node, int axis, const BuildTask& task, uint32_t mid, BuildTask* left,
+                 BuildTask* right) const {
+    node.axis = static_cast<uint8_t>(axis);  // offset is patched when the second child is built
+    left->begin = task.begin;
+    left->end = right->begin = mid;
+    right->end = task.end;
+    RangeBounds(left);
+    RangeBounds(right);
+    return true;
+  }
+
+  // Small nodes get fewer bins: a bin per primitive already separates them about as well, and
+  // the fixed cost of sweeping 16 bins per axis would dominate the thousands of tiny nodes.
+  int BinCount(uint32_t count) const {
+    return static_cast<int>(std::min<uint32_t>(static_cast<uint32_t>(options_.bins),
+                                               std::max<uint32_t>(count, 2)));
+  }
+
+  AxisBinning Binning(const Bounds3f& centroid_bounds, int axis, int bins) const {
+    AxisBinning binning;
+    binning.lower = centroid_bounds.lower[axis];
+    binning.last_bin = bins - 1;
+    const float extent = centroid_bounds.upper[axis] - binning.lower;
+    const float scale = static_cast<float>(bins) / extent;
+    // A zero, subnormal or overflowing extent gives no usable scale: leave the axis unsplit.
+    if (extent > 0 && std::isfinite(extent) && std::isfinite(scale)) binning.scale = scale;
+    return binning;
+  }
+
+  SplitChoice FindSahSplit(const BuildTask& task, const Bounds3f& centroid_bounds) {
+    const int bins = BinCount(task.end - task.begin);
+    auto& bin = bins_;
+    for (auto& axis_bins : bin) std::fill_n(axis_bins.begin(), bins, Bin{});
+    std::array<AxisBinning, 3> binning;
+    for (int a = 0; a < 3; ++a) binning[a] = Binning(centroid_bounds, a, bins);
+
+    for (uint32_t i = task.begin; i < task.end; ++i) {
+      const uint32_t p = order_[i];
+      const Bounds3f& b = prims_[p].bounds;
+      const Vec3f c = centroids_[p];
+      for (int a = 0; a < 3; ++a) {
+        Bin& target = bin[a][binning[a].BinOf(c[a])];
+        target.bounds.Extend(b);
+        ++target.count;
+      }
+    }
+
+    SplitChoice best;
+    std::array<float, kBvhMaxBins> right_cost;
+    for (int a = 0; a < 3; ++a) {
+      if (binning[a].scale == 0) continue;
+      // right_cost[k]: area * count of bins (k, bins); 0 when they are all empty.
+      Bounds3f right;
+      uint32_t right_count = 0;
+      for (int k = bins - 1; k > 0; --k) {
+        right.Extend(bin[a][k].bounds);
+        right_count += bin[a][k].count;
+        right_cost[k - 1] = right_count == 0 ? 0.0f
+                                             : right.HalfArea() * static_cast<float>(right_count);
+      }
+      Bounds3f left;
+      uint32_t left_count = 0;
+      const uint32_t total = task.end - task.begin;
+      for (int k = 0; k < bins - 1; ++k) {
+        left.Extend(bin[a][k].bounds);
+        left_count += bin[a][k].count;
+        if (left_count == 0 || left_count == total) continue;
+        const float cost = left.HalfArea() * static_cast<float>(left_count) + right_cost[k];
+        if (cost < best.cost) best = {a, k, cost};  // strict: ties keep the first, for determinism
+      }
+    }
+    return best;
+  }
+
+  // Hoare partition that gathers each side's bounds on the way, so children need no pass.
+  void PartitionAtBin(const BuildTask& task, const SplitChoice& split, BuildTask* left,
+                      BuildTask* right) {
+    const AxisBinning binning =
+        Binning(task.centroid_bounds, split.axis, BinCount(task.end - task.begin));
+    auto goes_left = [&](uint32_t p) {
+      return binning.BinOf(centroids_[p][split.axis]) <= split.bin;
+    };
+    auto add = [&](BuildTask* side, uint32_t p) {
+      side->bounds.Extend(prims_[p].bounds);
+      side->centroid_bounds.Extend(centroids_[p]);
+    };
+    uint32_t i = task.begin, j = task.end;
+    while (true) {
+      while (i < j && goes_left(order_[i])) add(left, order_[i++]);
+      while (i < j && !goes_left(order_[j - 1])) add(right, order_[--j]);
+      if (i == j) break;
+      std::swap(order_[i], order_[j - 1]);
+    }
+    CHECK(i > task.begin && i < task.end);
+    left->begin = task.begin;
+    left->end = right->begin = i;
+    right->end = task.end;
+  }
+
+  // Object median along the widest centroid axis; ties broken by primitive index so the
+  // result does not depend on the order the range happens to be in.
+  uint32_t MedianSplit(const BuildTask& task) {
+    const int axis = task.centroid_bounds.MaxAxis();
+    const uint32_t mid = task.begin + (task.end - task.begin) / 2;
+    std::nth_element(order_.begin() + task.begin, order_.begin() + mid, order_.begin() + task.end,
+                     [&](uint32_t p, uint32_t q) {
+                       const float cp = centroids_[p][axis];
+                       const float cq = centroids_[q][axis];
+                       return cp < cq || (cp == cq && p < q);
+                     });
+    return mid;
+  }
+
+  std::span<const BvhBuildPrimitive> prims_;
+  const BvhBuildOptions& options_;
+  std::vector<uint32_t>& order_;
+  std::vector<BvhNode>& nodes_;
+  std::vector<Vec3f> centroids_;  // by primitive index, computed once
+  // Reused by every node; only the first options_.bins entries per axis are ever touched.
+  std::array<std::array<Bin, kBvhMaxBins>, 3> bins_;
+};
+
+}  // namespace
+
+std::vector<BvhNode> BuildBvh(std::span<const BvhBuildPrimitive> prims,
+                              const BvhBuildOptions& options, std::vector<uint32_t>* order) {
+  CHECK(order != nullptr);
+  CHECK(options.max_leaf_size >= 1 && options.max_leaf_size <= 65535);
+  CHECK(options.bins >= 2 && options.bins <= kBvhMaxBins);
+  CHECK(prims.size() < std::numeric_limits<uint32_t>::max());
+  order->resize(prims.size());
+  for (uint32_t i = 0; i < order->size(); ++i) {
+    const Bounds3f& b = prims[i].bounds;
+    CHECK(!b.Empty() && IsFinite(b.lower) && IsFinite(b.upper));
+    (*order)[i] = i;
+  }
+  std::vector<BvhNode> nodes;
+  if (prims.empty()) return nodes;
+  nodes.reserve(2 * prims.size() - 1);
+  BvhBuilder(prims, options, order, &nodes).Build();
+  return nodes;
+}
+
+}  // namespace raystack

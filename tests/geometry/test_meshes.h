@@ -1,0 +1,29 @@
+#pragma once
+// Closed triangle meshes for watertightness tests, shared by the triangle and BVH tests.
+
+#include <vector>
+
+#include "common/geometry/vec.h"
+
+namespace raystack::geometry_test {
+
+struct Triangle {
+  Vec3f p[3];
+};
+
+enum class MeshShape { kCube, kSphere };
+
+// A closed mesh: the surface of [-1, 1]^3 (or the unit sphere projected from it) cut into
+// `cells` x `cells` squares per face, then scaled and translated (in double, rounded once to
+// float). A shared vertex is computed by one function of its lattice point, so its float
+// coordinates are the same in every triangle that uses it: the mesh has no cracks in float.
+struct ClosedMesh {
+  std::vector<Triangle> triangles;
+  std::vector<Vec3f> vertices;  // each lattice vertex once
+  Vec3f center;                 // rounded translation: strictly inside the mesh
+  double scale = 1;
+};
+
+ClosedMesh MakeClosedMesh(MeshShape shape, int cells, double scale, double translate);
+
+}  // namespace raystack::geometry_test
