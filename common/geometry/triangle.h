@@ -37,7 +37,9 @@ struct RayTriangleSetup {
 };
 
 // Returns true and fills t (in (tmin, tmax)), u, v (barycentrics of p1, p2) on a hit. Both
-// faces count (no culling). Degenerate triangles never hit.
+// faces count (no culling). A triangle with coincident vertices never hits. One with distinct
+// but collinear vertices can, on its segment: the float shear makes it a sliver of rounding
+// width, so zero-area triangles are dropped when a model is converted.
 inline bool IntersectTriangle(const RayTriangleSetup& s, Vec3f p0, Vec3f p1, Vec3f p2, float tmin,
                               float tmax, float* t_out, float* u_out, float* v_out) {
   const Vec3f a = p0 - s.origin, b = p1 - s.origin, c = p2 - s.origin;

@@ -27,7 +27,7 @@ struct Built {
   std::unique_ptr<store::StoreReader> store;
 };
 
-Built Convert(const prep::ConvertOptions& base) {
+Built ConvertToStore(const prep::ConvertOptions& base) {
   Expected<TempDir> dir = TempDir::Create();
   EXPECT_TRUE(dir.ok());
   prep::ConvertOptions options = base;
@@ -129,7 +129,7 @@ void CheckRays(const store::StoreReader& s, const std::vector<Tri>& tris, int n)
 TEST(StoreModel, GeneratedSphere) {
   prep::ConvertOptions o;
   o.generate = "sphere:50000";
-  Built b = Convert(o);
+  Built b = ConvertToStore(o);
   ASSERT_TRUE(b.store);
   const std::vector<Tri> tris = testing::GenerateTriangles(o.generate);
   CheckPlacement(*b.store, tris);
@@ -141,7 +141,7 @@ TEST(StoreModel, GeneratedSoupWithSmallBlocks) {
   o.generate = "soup:20000";
   o.target_block_bytes = 4096;
   o.max_block_bytes = 16384;
-  Built b = Convert(o);
+  Built b = ConvertToStore(o);
   ASSERT_TRUE(b.store);
   for (const store::BlockEntry& e : b.store->blocks()) EXPECT_LE(e.raw_bytes, 16384u);
   const std::vector<Tri> tris = testing::GenerateTriangles(o.generate);
@@ -155,7 +155,7 @@ TEST(StoreModel, PartitionedOnDiskMatchesInMemory) {
   prep::ConvertOptions o;
   o.generate = "spheres:200000";
   o.memory_limit_bytes = 64ull << 20;
-  Built b = Convert(o);
+  Built b = ConvertToStore(o);
   ASSERT_TRUE(b.store);
   const std::vector<Tri> tris = testing::GenerateTriangles(o.generate);
   CheckPlacement(*b.store, tris);
@@ -171,7 +171,7 @@ TEST_P(SharedModelTest, HitsEqualBruteForce) {
   const std::string path = dir + "/" + GetParam();
   prep::ConvertOptions o;
   o.inputs = {path};
-  Built b = Convert(o);
+  Built b = ConvertToStore(o);
   ASSERT_TRUE(b.store);
   const std::vector<Tri> tris = testing::LoadTriangles(path);
   ASSERT_FALSE(tris.empty());
@@ -182,8 +182,8 @@ TEST_P(SharedModelTest, HitsEqualBruteForce) {
 INSTANTIATE_TEST_SUITE_P(Models, SharedModelTest,
                          ::testing::Values("CornellBox-Original.obj", "bun_zipper.ply",
                                            "dragon_vrip.ply", "conference.obj", "motorBike.obj"),
-                         [](const auto& info) {
-                           std::string name = info.param;
+                         [](const auto& param_info) {
+                           std::string name = param_info.param;
                            for (char& c : name)
                              if (!isalnum(static_cast<unsigned char>(c))) c = '_';
                            return name;

@@ -38,10 +38,10 @@ Bounds3f ClipTriangleToCell(const Vec3f p[3], const Bounds3f& cell) {
   // Widen the cell by a few ulps of its size so touching counts as overlapping.
   double lo[3], hi[3];
   for (int a = 0; a < 3; ++a) {
-    const double pad = 1e-6 * (static_cast<double>(cell.upper[a]) - cell.lower[a]) +
-                       1e-30 + 1e-7 * std::fabs(static_cast<double>(cell.upper[a]));
-    lo[a] = cell.lower[a] - pad;
-    hi[a] = cell.upper[a] + pad;
+    const double lower = cell.lower[a], upper = cell.upper[a];
+    const double pad = 1e-6 * (upper - lower) + 1e-30 + 1e-7 * std::fabs(upper);
+    lo[a] = lower - pad;
+    hi[a] = upper + pad;
   }
   const Bounds3f widened{{static_cast<float>(lo[0]), static_cast<float>(lo[1]),
                           static_cast<float>(lo[2])},
@@ -70,8 +70,11 @@ Bounds3f ClipTriangleToCell(const Vec3f p[3], const Bounds3f& cell) {
     // Round outward, then never beyond the triangle's own box (which is exact).
     float lo_f = std::nextafter(static_cast<float>(mn[k]), -std::numeric_limits<float>::infinity());
     float hi_f = std::nextafter(static_cast<float>(mx[k]), std::numeric_limits<float>::infinity());
-    out.lower[k] = std::fmax(lo_f, tri.lower[k]);
-    out.upper[k] = std::fmin(hi_f, tri.upper[k]);
+    // ... nor beyond the cell: blocks lie inside their cells. Points of the triangle within
+    // the widening but outside the cell belong to the neighbour, which has the triangle too.
+    out.lower[k] = std::fmax(std::fmax(lo_f, tri.lower[k]), cell.lower[k]);
+    out.upper[k] = std::fmin(std::fmin(hi_f, tri.upper[k]), cell.upper[k]);
+    if (out.lower[k] > out.upper[k]) return Bounds3f{};
   }
   return out;
 }

@@ -1,0 +1,136 @@
+// A damaged store is an error that names the file and the block, never a crash or a wrong
+// image: flipped bytes, truncation, a wrong version, missing files.
+
+#include "common/store/store_reader.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "common/base/temp_dir.h"
+#include "common/store/store_tracer.h"
+#include "tools/prep/convert.h"
+
+namespace raystack::store {
+namespace {
+
+class StoreReaderTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Expected<TempDir> dir = TempDir::Create();
+    ASSERT_TRUE(dir.ok());
+    dir_ = std::make_unique<TempDir>(std::move(*dir));
+    path_ = dir_->File("store");
+    prep::ConvertOptions o;
+    o.generate = "sphere:20000";
+    o.output = path_;
+    o.quiet = true;
+    o.target_block_bytes = 8 * 1024;
+    Expected<prep::ConvertReport> r = prep::Convert(o);
+    ASSERT_TRUE(r.ok()) << r.status().message();
+  }
+
+  void FlipByte(const std::string& file, uint64_t offset) {
+    std::fstream f(path_ + "/" + file, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(static_cast<std::streamoff>(offset));
+    char c = 0;
+    f.read(&c, 1);
+    c = static_cast<char>(c ^ 0x10);
+    f.seekp(static_cast<std::streamoff>(offset));
+    f.write(&c, 1);
+  }
+
+  std::unique_ptr<TempDir> dir_;
+  std::string path_;
+};
+
+TEST_F(StoreReaderTest, OpensAndEveryBlockVerifies) {
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_TRUE(s.ok()) << s.status().message();
+  ASSERT_GT((*s)->blocks().size(), 4u);
+  std::vector<uint8_t> stored;
+  AlignedBuffer scratch, raw;
+  uint64_t references = 0;
+  for (uint32_t b = 0; b < (*s)->blocks().size(); ++b) {
+    Expected<BlockView> v = (*s)->Load(b, &stored, &scratch, &raw);
+    ASSERT_TRUE(v.ok()) << v.status().message();
+    references += v->triangle_count();
+  }
+  EXPECT_EQ(references, (*s)->summary().references);
+  EXPECT_GE(references, (*s)->summary().source_triangles);
+}
+
+TEST_F(StoreReaderTest, OneFlippedByteInABlockNamesThatBlock) {
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_TRUE(s.ok());
+  const uint32_t victim = static_cast<uint32_t>((*s)->blocks().size() / 2);
+  const BlockEntry e = (*s)->blocks()[victim];
+  s = Expected<std::unique_ptr<StoreReader>>(Status::Error("closed"));
+  FlipByte(kBlocksFile, e.offset + e.stored_bytes / 2);
+
+  Expected<std::unique_ptr<StoreReader>> damaged = StoreReader::Open(path_);
+  ASSERT_TRUE(damaged.ok());  // the index is intact; the damage shows when the block is read
+  std::vector<uint8_t> stored;
+  AlignedBuffer scratch, raw;
+  for (uint32_t b = 0; b < (*damaged)->blocks().size(); ++b) {
+    Expected<BlockView> v = (*damaged)->Load(b, &stored, &scratch, &raw);
+    if (b != victim) {
+      EXPECT_TRUE(v.ok()) << v.status().message();
+      continue;
+    }
+    ASSERT_FALSE(v.ok());
+    const std::string& m = v.status().message();
+    EXPECT_NE(m.find("block " + std::to_string(victim) + " "), std::string::npos) << m;
+    EXPECT_NE(m.find("blocks.bin"), std::string::npos) << m;
+  }
+  // The tracer reports it too, instead of returning a wrong hit.
+  StoreTracer tracer(**damaged);
+  EXPECT_FALSE(tracer.LoadAll().ok());
+}
+
+TEST_F(StoreReaderTest, DamagedIndexOrOctreeIsRefusedAtOpen) {
+  FlipByte(kIndexFile, 200);
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("index.bin"), std::string::npos) << s.status().message();
+  FlipByte(kIndexFile, 200);  // repair
+  FlipByte(kOctreeFile, 40);
+  s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("octree.bin"), std::string::npos) << s.status().message();
+}
+
+TEST_F(StoreReaderTest, WrongVersionIsNamed) {
+  FlipByte(kIndexFile, 8);  // FileHeader::version
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("version"), std::string::npos) << s.status().message();
+}
+
+TEST_F(StoreReaderTest, TruncatedBlockFileIsRefused) {
+  const std::string blocks = path_ + "/" + kBlocksFile;
+  std::filesystem::resize_file(blocks, std::filesystem::file_size(blocks) - 100);
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("truncated"), std::string::npos) << s.status().message();
+}
+
+TEST_F(StoreReaderTest, MissingStoreIsNamed) {
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_ + "-nope");
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("-nope/index.bin"), std::string::npos);
+}
+
+TEST_F(StoreReaderTest, EmptyFilesAreRefused) {
+  for (const char* file : {kIndexFile, kOctreeFile, kBlocksFile}) {
+    SetUp();
+    std::filesystem::resize_file(path_ + "/" + file, 0);
+    Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+    ASSERT_FALSE(s.ok()) << file;
+    EXPECT_NE(s.status().message().find(file), std::string::npos) << s.status().message();
+  }
+}
+
+}  // namespace
+}  // namespace raystack::store
