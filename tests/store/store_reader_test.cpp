@@ -80,7 +80,7 @@ TEST_F(StoreReaderTest, OneFlippedByteInABlockNamesThatBlock) {
       continue;
     }
     ASSERT_FALSE(v.ok());
-    const std::string& m = v.status().message();
+    const std::string m = v.status().message();
     EXPECT_NE(m.find("block " + std::to_string(victim) + " "), std::string::npos) << m;
     EXPECT_NE(m.find("blocks.bin"), std::string::npos) << m;
   }

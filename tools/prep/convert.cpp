@@ -104,6 +104,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   options.threads = args.threads;
   options.temp_dir = temp->path();
   options.shuffle = args.shuffle;
+  options.bvh = args.bvh;
   options.progress = &progress;
   if (vertices > 0 && sink.triangles() > 0)
     options.vertices_per_triangle = std::clamp(

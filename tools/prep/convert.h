@@ -9,8 +9,18 @@
 #include <vector>
 
 #include "common/base/status.h"
+#include "common/geometry/bvh.h"
 
 namespace raystack::prep {
+
+// The in-block BVH settings: see tools/bench/RESULTS.md for the measurements behind them.
+inline BvhBuildOptions DefaultBlockBvh() {
+  BvhBuildOptions o;
+  o.max_leaf_size = 4;
+  o.traversal_cost = 1.0f;
+  o.intersection_cost = 1.0f;
+  return o;
+}
 
 struct ConvertOptions {
   std::vector<std::string> inputs;  // OBJ/PLY files, merged in order
@@ -23,6 +33,7 @@ struct ConvertOptions {
   uint64_t memory_limit_bytes = 1024ull << 20;
   int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   bool shuffle = true;
+  BvhBuildOptions bvh = DefaultBlockBvh();  // each block's own BVH
   bool quiet = false;  // no progress output
 };
 

@@ -45,7 +45,7 @@ class Builder {
  public:
   Builder(const BuildOptions& options, store::StoreWriter* writer, bool attributes)
       : options_(options), attributes_(attributes),
-        pipeline_(options.threads, writer, options.shuffle),
+        pipeline_(options.threads, writer, options.shuffle, options.bvh),
         max_tris_(MaxTrianglesPerBlock(options.max_block_bytes, attributes)) {
     // Typical raw bytes per triangle: indices, id, shared vertices, ~0.7 BVH nodes.
     bytes_per_triangle_ = 6.0 + 4.0 + 32.0 * 0.7 +

@@ -20,6 +20,7 @@
 
 #include "common/base/status.h"
 #include "common/geometry/bounds.h"
+#include "common/geometry/bvh.h"
 #include "common/store/format.h"
 #include "common/store/store_writer.h"
 #include "tools/prep/triangle_spool.h"
@@ -37,6 +38,7 @@ struct BuildOptions {
   int threads = 2;
   std::string temp_dir;
   bool shuffle = true;
+  BvhBuildOptions bvh;
   float vertices_per_triangle = 0.6f;  // for size estimates (closed meshes ~0.5, soups 3)
   ProgressReporter* progress = nullptr;  // fed with references placed in blocks
 };

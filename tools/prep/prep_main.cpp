@@ -33,6 +33,8 @@ options:
   --threads N             encoding threads (default: all cores)
   --temp-dir DIR          where temporary files go (default: $TMPDIR or /tmp)
   --no-shuffle            plain lz4 without the byte shuffle (for measurement)
+  --bvh-leaf N            most triangles per leaf of a block's BVH (default 4)
+  --bvh-traversal-cost X  SAH cost of a BVH node relative to a triangle test (default 1)
   --stats-json FILE       also write the run's figures as JSON
   -q, --quiet             no progress output
   -h, --help              this text
@@ -98,6 +100,16 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       if (n != 3 || a->convert.replicate[0] < 1 || a->convert.replicate[1] < 1 || a->convert.replicate[2] < 1 ||
           a->convert.replicate[0] > 4096 || a->convert.replicate[1] > 4096 || a->convert.replicate[2] > 4096)
         return Status::Error("--replicate wants NX,NY,NZ with each from 1 to 4096, got '" + v + "'");
+    } else if (arg == "--bvh-leaf") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->convert.bvh.max_leaf_size, 1, 64));
+    } else if (arg == "--bvh-traversal-cost") {
+      std::string v;
+      RAYSTACK_RETURN_IF_ERROR(value(&v));
+      char* end = nullptr;
+      a->convert.bvh.traversal_cost = std::strtof(v.c_str(), &end);
+      if (*end != '\0' || !(a->convert.bvh.traversal_cost > 0.0f) ||
+          a->convert.bvh.traversal_cost > 100.0f)
+        return Status::Error("--bvh-traversal-cost wants a number in (0, 100], got '" + v + "'");
     } else if (arg == "--no-shuffle") {
       a->convert.shuffle = false;
     } else if (arg == "-q" || arg == "--quiet") {
