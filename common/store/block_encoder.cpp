@@ -104,7 +104,6 @@ uint32_t BlockEncoder::Encode(const EncodeInput& in, std::vector<uint8_t>* raw) 
   h.triangle_count = n;
   h.node_count = static_cast<uint32_t>(nodes.size());
   h.constant_material = per_triangle_material ? kNoMaterial : first_material;
-  h.block_id = in.block_id;
   for (int a = 0; a < 3; ++a) {
     h.cell_lower[a] = in.cell.lower[a];
     h.cell_upper[a] = in.cell.upper[a];

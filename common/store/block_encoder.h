@@ -42,7 +42,6 @@ struct EncodeInput {
   std::span<const uint32_t> refs;          // indices into `triangles`: this block's triangles
   std::span<const Bounds3f> ref_bounds;    // their bounds clipped to the cell (parallel to refs)
   Bounds3f cell;
-  uint32_t block_id = 0;
 };
 
 // Reusable scratch for one encoding thread, so encoding allocates only while buffers grow.

@@ -59,12 +59,12 @@ Expected<BlockView> BlockView::Parse(const uint8_t* raw, uint64_t size, uint32_t
   if (reinterpret_cast<uintptr_t>(raw) % 16 != 0) return Bad(block_id, "buffer not aligned");
   if (size < sizeof(BlockHeader)) return Bad(block_id, "shorter than its header");
   BlockView v;
+  v.id_ = block_id;
   v.header_ = reinterpret_cast<const BlockHeader*>(raw);
   const BlockHeader& h = *v.header_;
   if (h.magic != kBlockMagic) return Bad(block_id, "bad magic");
   if (h.version != kFormatVersion)
     return Bad(block_id, StrFormat("version %u, expected %u", h.version, kFormatVersion));
-  if (h.block_id != block_id) return Bad(block_id, StrFormat("says it is block %u", h.block_id));
   if (h.flags & ~uint16_t{0xf}) return Bad(block_id, "unknown flags");
   const BlockLayout layout = BlockLayout::For(h);
   if (layout.total != size)
@@ -128,7 +128,7 @@ bool BlockView::Intersect(const Ray& ray, Hit* hit) const {
         hit->v = w;
         hit->triangle_id = ids_[i];
         hit->local_triangle = i;
-        hit->block_id = header_->block_id;
+        hit->block_id = id_;
         tmax = std::nextafter(t, std::numeric_limits<float>::infinity());
         found = true;
       }

@@ -22,10 +22,12 @@ class BlockView {
  public:
   BlockView() = default;
 
-  // Checks `raw` (size bytes) as the raw form of block `block_id`. Errors name the block.
+  // Checks `raw` (size bytes) as the raw form of block `block_id` (the id names it in errors
+  // and hits).
   static Expected<BlockView> Parse(const uint8_t* raw, uint64_t size, uint32_t block_id);
 
   const BlockHeader& header() const { return *header_; }
+  uint32_t id() const { return id_; }
   uint32_t triangle_count() const { return header_->triangle_count; }
   uint32_t vertex_count() const { return header_->vertex_count; }
   Bounds3f cell() const;
@@ -48,6 +50,7 @@ class BlockView {
   bool Occluded(const Ray& ray) const;
 
  private:
+  uint32_t id_ = 0;
   const BlockHeader* header_ = nullptr;
   const BvhNode* nodes_ = nullptr;
   const float *x_ = nullptr, *y_ = nullptr, *z_ = nullptr;

@@ -113,8 +113,7 @@ struct BlockHeader {
   uint32_t triangle_count;
   uint32_t node_count;
   uint32_t constant_material;  // material of every triangle when not per-triangle (~0 = none)
-  uint32_t block_id;
-  uint32_t reserved[3];
+  uint32_t reserved[4];        // zero. (No block id here: the index's checksum ties bytes to ids.)
   float cell_lower[3], cell_upper[3];
 };
 static_assert(sizeof(BlockHeader) == 64, "sections start 16-byte aligned after the header");

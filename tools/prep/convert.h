@@ -16,8 +16,8 @@ namespace raystack::prep {
 // The in-block BVH settings: see tools/bench/RESULTS.md for the measurements behind them.
 inline BvhBuildOptions DefaultBlockBvh() {
   BvhBuildOptions o;
-  o.max_leaf_size = 4;
-  o.traversal_cost = 1.0f;
+  o.max_leaf_size = 8;
+  o.traversal_cost = 4.0f;
   o.intersection_cost = 1.0f;
   return o;
 }

@@ -8,9 +8,10 @@
 // disk along a Z-order curve: neighbours in space are neighbours in blocks.bin.
 //
 // Subdivision stops at a cell whose block size estimate is closer (in ratio) to the target
-// than its children's mean would be; the cap is never exceeded (a worst-case bound decides
-// "must split"). A cell that cannot be split (all triangles at one point, depth limit) becomes
-// a leaf with several blocks, so depth and block count stay bounded on degenerate input.
+// than its children's mean would be. The cap is never exceeded: the encoding pipeline splits
+// any block that comes out above it. A cell that cannot be split (all triangles at one point,
+// depth limit) becomes a leaf with several blocks, so depth and block count stay bounded on
+// degenerate input.
 
 #include <cstdint>
 #include <functional>
@@ -57,7 +58,7 @@ class TriangleSource {
 struct BuildResult {
   std::vector<store::OctreeNode> octree;
   Bounds3f root_cell;
-  uint64_t references = 0, blocks = 0, raw_bytes = 0, stored_bytes = 0, vertices = 0;
+  uint64_t references = 0, blocks = 0, raw_bytes = 0, stored_bytes = 0, cap_splits = 0;
   uint32_t largest_raw_bytes = 0, max_depth = 0, multi_block_leaves = 0, partition_passes = 0;
 };
 

@@ -33,8 +33,8 @@ options:
   --threads N             encoding threads (default: all cores)
   --temp-dir DIR          where temporary files go (default: $TMPDIR or /tmp)
   --no-shuffle            plain lz4 without the byte shuffle (for measurement)
-  --bvh-leaf N            most triangles per leaf of a block's BVH (default 4)
-  --bvh-traversal-cost X  SAH cost of a BVH node relative to a triangle test (default 1)
+  --bvh-leaf N            most triangles per leaf of a block's BVH (default 8)
+  --bvh-traversal-cost X  SAH cost of a BVH node relative to a triangle test (default 4)
   --stats-json FILE       also write the run's figures as JSON
   -q, --quiet             no progress output
   -h, --help              this text
