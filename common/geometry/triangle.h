@@ -16,10 +16,11 @@ namespace raystack {
 // Per-ray constants, computed once per ray and reused for every triangle it meets.
 struct RayTriangleSetup {
   Vec3f origin;
+  Vec3f direction;
   int kx, ky, kz;    // axis permutation: kz is the ray's dominant axis
   float sx, sy, sz;  // shear
 
-  explicit RayTriangleSetup(const Ray& ray) : origin(ray.origin) {
+  explicit RayTriangleSetup(const Ray& ray) : origin(ray.origin), direction(ray.direction) {
     Vec3f d = ray.direction;
     float ax = std::fabs(d.x), ay = std::fabs(d.y), az = std::fabs(d.z);
     kz = ax > ay ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
@@ -60,11 +61,22 @@ inline bool IntersectTriangle(const RayTriangleSetup& s, Vec3f p0, Vec3f p1, Vec
   const float det = u + v + w;
   if (det == 0.0f) return false;
 
-  const float az = s.sz * a[s.kz], bz = s.sz * b[s.kz], cz = s.sz * c[s.kz];
-  const float t_scaled = u * az + v * bz + w * cz;
-  const float inv_det = 1.0f / det;
-  const float t = t_scaled * inv_det;
+  // Distance from the plane equation in double. The sheared form (sum of weighted z over
+  // det) cancels badly when the hit is close relative to the triangle's size or distance from
+  // the origin (1-2% off on a wall of the conference room), which is enough for a box test to
+  // cull an equal or closer hit. In double the result is the correctly rounded distance to the
+  // exact plane, so every traversal order finds the same closest hit.
+  using D = double;
+  const D x0 = p0.x, y0 = p0.y, z0 = p0.z;
+  const D e1x = D{p1.x} - x0, e1y = D{p1.y} - y0, e1z = D{p1.z} - z0;
+  const D e2x = D{p2.x} - x0, e2y = D{p2.y} - y0, e2z = D{p2.z} - z0;
+  const D nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
+  const D denominator = nx * D{s.direction.x} + ny * D{s.direction.y} + nz * D{s.direction.z};
+  if (denominator == 0.0) return false;
+  const D numerator = nx * (x0 - D{s.origin.x}) + ny * (y0 - D{s.origin.y}) + nz * (z0 - D{s.origin.z});
+  const float t = static_cast<float>(numerator / denominator);
   if (!(t > tmin && t < tmax)) return false;  // also rejects NaN
+  const float inv_det = 1.0f / det;
   *t_out = t;
   *u_out = v * inv_det;
   *v_out = w * inv_det;

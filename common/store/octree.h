@@ -61,7 +61,8 @@ void OctreeView::VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const {
   stack[top++] = {0, root_, t0};
   while (top > 0) {
     const Item item = stack[--top];
-    if (item.t_enter > *tmax) continue;
+    // Same slack as IntersectBox: the best hit may have lowered *tmax since this was pushed.
+    if (item.t_enter > *tmax * bvh_internal::kFarScale) continue;
     const OctreeNode& node = nodes_[item.node];
     if (node.kind == kOctreeLeaf) {
       float t_exit = *tmax;
