@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages raystack builds and tests with, and nothing else.
+#   compiler and build:  build-essential cmake ninja-build pkg-config
+#   block store:         liblz4-dev (block compression) libxxhash-dev (block checksums)
+#   render job:          libopenmpi-dev openmpi-bin (ranks) libboost-dev (Asio/Beast preview)
+#                        libopenexr-dev (image output)
+#   tests:               libgtest-dev
+set -euo pipefail
+packages=(build-essential cmake ninja-build pkg-config liblz4-dev libxxhash-dev libopenmpi-dev
+          openmpi-bin libboost-dev libopenexr-dev libgtest-dev)
+sudo=""
+if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "install-deps: installing ${missing[*]}"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+else
+  echo "install-deps: all ${#packages[@]} packages already installed"
+fi
