@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <span>
 #include <thread>
@@ -25,9 +26,10 @@
 namespace raystack::prep {
 
 struct LeafJob {
-  // The bucket's triangles; they must outlive the job (the builder drains before freeing).
+  // The bucket's triangles, kept alive by keep_alive while the job is queued or encoding.
   std::span<const store::PackedTriangle> triangles;
   std::span<const store::TriangleAttributes> attributes;
+  std::shared_ptr<const void> keep_alive;  // owns what the spans point into
   std::vector<uint32_t> refs;
   std::vector<Bounds3f> ref_bounds;
   Bounds3f cell;

@@ -26,6 +26,12 @@ constexpr int kMaxStall = 4;
 // Memory one triangle costs while its bucket is subdivided (the triangle plus ~2.5 refs).
 constexpr uint64_t kBucketBytesPerTriangle = sizeof(PackedTriangle) + 3 * 28;
 
+// The triangles of one bucket (or of the whole model when it fits), shared by its jobs.
+struct Bucket {
+  std::vector<PackedTriangle> triangles;
+  std::vector<TriangleAttributes> attributes;  // empty when the model has none
+};
+
 struct Ref {
   uint32_t tri;
   Bounds3f bounds;  // clipped to the current cell
@@ -58,8 +64,9 @@ class Builder {
     // Leaves are cut into chunks expected to fit the cap; the pipeline splits any that do not.
     max_tris_ = static_cast<uint32_t>(std::max(
         1.0, (options.max_block_bytes - sizeof(store::BlockHeader)) / bytes_per_triangle_ * 0.9));
+    // Two buckets may be in memory at once (one loading, one still encoding).
     bucket_capacity_ = std::max<uint64_t>(
-        options.memory_bytes / (kBucketBytesPerTriangle + (attributes ? 60 : 0)), 4096);
+        options.memory_bytes / 2 / (kBucketBytesPerTriangle + (attributes ? 60 : 0)), 4096);
   }
 
   Status Run(const TriangleSource& source, BuildResult* result) {
@@ -107,25 +114,28 @@ class Builder {
   // Loads a whole source (small model or one bucket) and subdivides it.
   Status BuildInMemory(const TriangleSource& source, uint32_t node, const Bounds3f& cell,
                        int depth) {
-    triangles_.clear();
-    attributes_store_.clear();
-    triangles_.reserve(source.triangles());
-    if (attributes_) attributes_store_.reserve(source.triangles());
+    // Jobs of the previous bucket may still be encoding from its triangles: the new bucket
+    // gets its own arrays, and jobs share ownership of theirs (so loading this bucket overlaps
+    // encoding the last one; the bucket budget allows for two in memory).
+    auto bucket = std::make_shared<Bucket>();
+    bucket->triangles.reserve(source.triangles());
+    if (attributes_) bucket->attributes.reserve(source.triangles());
     RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
                                                 std::span<const TriangleAttributes> attrs) {
-      triangles_.insert(triangles_.end(), tris.begin(), tris.end());
-      if (attributes_) attributes_store_.insert(attributes_store_.end(), attrs.begin(), attrs.end());
+      bucket->triangles.insert(bucket->triangles.end(), tris.begin(), tris.end());
+      if (attributes_) bucket->attributes.insert(bucket->attributes.end(), attrs.begin(), attrs.end());
       return OkStatus();
     }));
+    bucket_ = bucket;
     std::vector<Ref> refs;
-    refs.reserve(triangles_.size());
-    for (uint32_t i = 0; i < triangles_.size(); ++i) {
-      const Bounds3f b = ClipTriangleToCell(triangles_[i].p, cell);
+    refs.reserve(bucket->triangles.size());
+    for (uint32_t i = 0; i < bucket->triangles.size(); ++i) {
+      const Bounds3f b = ClipTriangleToCell(bucket->triangles[i].p, cell);
       if (!b.Empty()) refs.push_back({i, b});
     }
     Subdivide(node, cell, std::move(refs), depth, 0);
-    // Jobs point into triangles_: let them finish before the next bucket replaces it.
-    return pipeline_.Drain();
+    bucket_.reset();
+    return OkStatus();
   }
 
   // Splits `refs` among the 8 children of `cell`; returns the size of the largest child.
@@ -147,7 +157,7 @@ class Builder {
           kids[i].push_back(r);  // wholly inside this child: its box stays as is
           continue;
         }
-        const Bounds3f b = ClipTriangleToCell(triangles_[r.tri].p, store::ChildCell(cell, i));
+        const Bounds3f b = ClipTriangleToCell(bucket_->triangles[r.tri].p, store::ChildCell(cell, i));
         if (!b.Empty()) kids[i].push_back({r.tri, b});
       }
     }
@@ -196,8 +206,9 @@ class Builder {
     nodes_[node] = {0, 0, store::kOctreeLeaf, 0};  // its blocks are filled in by Run()
     for (size_t c = 0; c < chunks; ++c) {
       LeafJob job;
-      job.triangles = triangles_;
-      if (attributes_) job.attributes = attributes_store_;
+      job.triangles = bucket_->triangles;
+      if (attributes_) job.attributes = bucket_->attributes;
+      job.keep_alive = bucket_;
       const size_t begin = c * refs.size() / chunks, end = (c + 1) * refs.size() / chunks;
       job.refs.reserve(end - begin);
       job.ref_bounds.reserve(end - begin);
@@ -224,8 +235,7 @@ class Builder {
   uint64_t bucket_capacity_;
   Bounds3f root_;
   std::vector<OctreeNode> nodes_;
-  std::vector<PackedTriangle> triangles_;
-  std::vector<TriangleAttributes> attributes_store_;
+  std::shared_ptr<const Bucket> bucket_;  // the one being subdivided
   int max_depth_ = 0;
   uint32_t multi_block_leaves_ = 0, partition_passes_ = 0;
 };
