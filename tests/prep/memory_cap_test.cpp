@@ -170,6 +170,14 @@ TEST(MemoryCap, ConvertsAModelLargerThanTheCap) {
   EXPECT_EQ(r.signal, 0) << "raystack-prep was killed by signal " << r.signal
                          << " (SIGKILL = the OOM killer); stderr: " << r.err;
   ASSERT_EQ(r.exit_code, 0) << r.err;
+  // Its own peak RSS (anonymous memory; the cgroup figure also counts page cache) keeps to
+  // --mem-limit.
+  std::smatch rss;
+  ASSERT_TRUE(std::regex_search(r.out, rss, std::regex("peak RSS ([0-9]+) MB"))) << r.out;
+  const int peak_rss_mb = std::stoi(rss[1].str());
+  ::testing::Test::RecordProperty("prep_peak_rss_mb", std::to_string(peak_rss_mb));
+  std::printf("memory cap: raystack-prep peak RSS %d MB (--mem-limit %d)\n", peak_rss_mb, kMemLimitMb);
+  EXPECT_LE(peak_rss_mb, kMemLimitMb);
   EXPECT_LE(oom_kills, 0) << "the OOM killer fired in " << group.path();
   EXPECT_GT(max_usage, 0u) << "nothing was charged to the group: the run was not capped";
   EXPECT_LE(max_usage, kCapBytes);
