@@ -75,7 +75,7 @@ class Builder {
     if (source.triangles() <= bucket_capacity_) {
       RAYSTACK_RETURN_IF_ERROR(BuildInMemory(source, 0, root_, 0));
     } else {
-      RAYSTACK_RETURN_IF_ERROR(Partition(source, 0, root_, 0));
+      RAYSTACK_RETURN_IF_ERROR(Partition(source, 0, root_, 0, 0));
     }
     RAYSTACK_RETURN_IF_ERROR(pipeline_.Drain());
     // Blocks got their ids as they were written: point each leaf at its range.
@@ -224,7 +224,12 @@ class Builder {
   }
 
   // Splits a source too large for memory into the cells `levels` levels down, on disk.
-  Status Partition(const TriangleSource& source, uint32_t node, const Bounds3f& cell, int depth);
+  // `stall` counts the levels in a row where one bucket kept every triangle of its source.
+  Status Partition(const TriangleSource& source, uint32_t node, const Bounds3f& cell, int depth,
+                   int stall);
+  // A source too large for memory that splitting cannot separate (coincident triangles, or the
+  // depth limit): one leaf of several blocks, streamed a block at a time.
+  Status StreamLeaf(const TriangleSource& source, uint32_t node, const Bounds3f& cell, int depth);
 
   const BuildOptions& options_;
   bool attributes_;
@@ -277,8 +282,60 @@ Status Classify(const PackedTriangle& t, const TriangleAttributes& a, const Boun
   return OkStatus();
 }
 
+Status Builder::StreamLeaf(const TriangleSource& source, uint32_t node, const Bounds3f& cell,
+                           int depth) {
+  max_depth_ = std::max(max_depth_, depth);
+  const uint32_t first = next_block_;
+  std::vector<Ref> refs;
+  triangles_.clear();
+  attributes_store_.clear();
+  auto flush = [&]() -> Status {
+    if (refs.empty()) return OkStatus();
+    if (next_block_ - first >= 0xffff)
+      return Status::Error(StrFormat("%llu triangles in one octree cell cannot be separated "
+                                     "(coincident?): more than 65535 blocks in one leaf",
+                                     static_cast<unsigned long long>(source.triangles())));
+    LeafJob job;
+    job.triangles = triangles_;
+    if (attributes_) job.attributes = attributes_store_;
+    for (const Ref& r : refs) {
+      job.refs.push_back(r.tri);
+      job.ref_bounds.push_back(r.bounds);
+    }
+    job.cell = cell;
+    job.block_id = next_block_++;
+    job.octree_leaf = node;
+    if (options_.progress) options_.progress->Update(refs.size());
+    pipeline_.Submit(std::move(job));
+    // The job points into triangles_: let it finish before the next block refills it.
+    RAYSTACK_RETURN_IF_ERROR(pipeline_.Drain());
+    refs.clear();
+    triangles_.clear();
+    attributes_store_.clear();
+    return OkStatus();
+  };
+  RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
+                                              std::span<const TriangleAttributes> attrs) {
+    for (size_t i = 0; i < tris.size(); ++i) {
+      const Bounds3f b = ClipTriangleToCell(tris[i].p, cell);
+      if (b.Empty()) continue;
+      refs.push_back({static_cast<uint32_t>(triangles_.size()), b});
+      triangles_.push_back(tris[i]);
+      if (attributes_) attributes_store_.push_back(attrs[i]);
+      if (refs.size() == max_tris_) RAYSTACK_RETURN_IF_ERROR(flush());
+    }
+    return OkStatus();
+  }));
+  RAYSTACK_RETURN_IF_ERROR(flush());
+  const uint32_t count = next_block_ - first;
+  if (count > 1) ++multi_block_leaves_;
+  nodes_[node] = count ? OctreeNode{first, static_cast<uint16_t>(count), store::kOctreeLeaf, 0}
+                       : OctreeNode{0, 0, store::kOctreeEmpty, 0};
+  return OkStatus();
+}
+
 Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bounds3f& cell,
-                          int depth) {
+                          int depth, int stall) {
   ++partition_passes_;
   // Enough levels that an even spread fits in memory with room for unevenness; at most 3
   // (512 open bucket files).
@@ -309,15 +366,22 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
   struct Walk {
     Builder* self;
     std::vector<TriangleSpool>* buckets;
-    int levels, base_depth;
+    int levels, base_depth, stall;
+    uint64_t source_triangles;
     Status Go(uint32_t n, const Bounds3f& c, int level, uint32_t morton) {
       if (level == levels) {
         TriangleSpool& spool = (*buckets)[morton];
         if (spool.triangles() == 0) return OkStatus();
         SpoolSource sub(spool, c, self->attributes_);
+        const int depth = base_depth + level;
+        // Without this, coincident triangles beyond the bucket capacity were partitioned
+        // again and again, one level deeper each time, forever.
+        const int next_stall = spool.triangles() >= source_triangles ? stall + levels : 0;
         Status s = spool.triangles() <= self->bucket_capacity_
-                       ? self->BuildInMemory(sub, n, c, base_depth + level)
-                       : self->Partition(sub, n, c, base_depth + level);
+                       ? self->BuildInMemory(sub, n, c, depth)
+                   : depth >= kMaxDepth || next_stall >= kMaxStall
+                       ? self->StreamLeaf(sub, n, c, depth)
+                       : self->Partition(sub, n, c, depth, next_stall);
         spool.Clear();
         return s;
       }
@@ -332,7 +396,7 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
       if (!any) self->nodes_[n] = {0, 0, store::kOctreeEmpty, 0};
       return OkStatus();
     }
-  } walk{this, &buckets, levels, depth};
+  } walk{this, &buckets, levels, depth, stall, source.triangles()};
   return walk.Go(node, cell, 0, 0);
 }
 

@@ -1,0 +1,197 @@
+// "Bounded memory, really": raystack-prep converts a model several times larger than its
+// memory budget inside a real cgroup-v1 memory cap (anonymous memory and page cache both
+// count), and must finish without being OOM-killed, with a store that verifies.
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "common/base/temp_dir.h"
+#include "tests/prep/run_process.h"
+
+namespace raystack::prep {
+namespace {
+
+using testing::kInfoBinary;
+using testing::kPrepBinary;
+using testing::ProcessResult;
+using testing::RunProcess;
+
+constexpr uint64_t kCapBytes = 320ull << 20;
+constexpr int kMemLimitMb = 256;
+// 2 M triangles on a 3x2x2 grid: 24 M triangles, 864 MB of raw positions alone.
+constexpr uint64_t kSourceTriangles = 2000000;
+constexpr int kCopies = 3 * 2 * 2;
+
+// This process's memory cgroup (v1), or "" with `why` saying why there is none.
+std::string OwnMemoryGroup(std::string* why) {
+  std::ifstream in("/proc/self/cgroup");
+  if (!in) {
+    *why = "cannot read /proc/self/cgroup";
+    return "";
+  }
+  std::string line;
+  while (std::getline(in, line)) {
+    // "ID:CONTROLLERS:PATH"; v1 controllers are comma-separated, v2 has an empty list.
+    const size_t a = line.find(':'), b = line.find(':', a + 1);
+    if (a == std::string::npos || b == std::string::npos) continue;
+    std::stringstream controllers(line.substr(a + 1, b - a - 1));
+    std::string c;
+    while (std::getline(controllers, c, ','))
+      if (c == "memory") {
+        const std::string group = "/sys/fs/cgroup/memory" + line.substr(b + 1);
+        if (!std::filesystem::exists(group + "/memory.limit_in_bytes")) {
+          *why = group + "/memory.limit_in_bytes does not exist (cgroup v1 memory not mounted "
+                         "at /sys/fs/cgroup/memory)";
+          return "";
+        }
+        return group;
+      }
+  }
+  *why = "/proc/self/cgroup has no cgroup-v1 'memory' controller line (cgroup v2 only?)";
+  return "";
+}
+
+bool WriteValue(const std::string& path, const std::string& value) {
+  std::ofstream out(path);
+  out << value;
+  out.flush();
+  return out.good();
+}
+
+uint64_t ReadValue(const std::string& path) {
+  std::ifstream in(path);
+  uint64_t v = 0;
+  in >> v;
+  return v;
+}
+
+// The `key N` entry of a flat-keyed cgroup file such as memory.oom_control; -1 if absent.
+int64_t ReadKey(const std::string& path, const std::string& key) {
+  std::ifstream in(path);
+  std::string k;
+  int64_t v = 0;
+  while (in >> k >> v)
+    if (k == key) return v;
+  return -1;
+}
+
+// A child memory cgroup with a hard limit, removed on destruction (after its tasks exited).
+class MemoryCgroup {
+ public:
+  MemoryCgroup(const std::string& parent, const std::string& name) : path_(parent + "/" + name) {}
+  ~MemoryCgroup() {
+    if (!created_) return;
+    WriteValue(path_ + "/memory.force_empty", "0");  // drop the page cache still charged
+    if (rmdir(path_.c_str()) != 0)
+      ADD_FAILURE() << "cannot remove " << path_ << ": " << std::strerror(errno);
+  }
+  MemoryCgroup(const MemoryCgroup&) = delete;
+  MemoryCgroup& operator=(const MemoryCgroup&) = delete;
+
+  // Creates the group; false with `error` set (errno's text) when not allowed.
+  bool Create(std::string* error) {
+    if (mkdir(path_.c_str(), 0755) != 0) {
+      *error = "cannot create " + path_ + ": " + std::strerror(errno);
+      return false;
+    }
+    created_ = true;
+    return true;
+  }
+  bool Limit(uint64_t bytes) {
+    if (!WriteValue(path_ + "/memory.limit_in_bytes", std::to_string(bytes))) return false;
+    // With swap accounting, cap memory + swap too so nothing escapes to swap.
+    const std::string memsw = path_ + "/memory.memsw.limit_in_bytes";
+    if (std::filesystem::exists(memsw) && !WriteValue(memsw, std::to_string(bytes))) return false;
+    return ReadValue(path_ + "/memory.limit_in_bytes") <= bytes;
+  }
+  std::string File(const std::string& name) const { return path_ + "/" + name; }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  bool created_ = false;
+};
+
+TEST(MemoryCap, ConvertsAModelLargerThanTheCap) {
+  std::string why;
+  const std::string own = OwnMemoryGroup(&why);
+  if (own.empty()) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
+  MemoryCgroup group(own, "raystack-memcap-" + std::to_string(getpid()));
+  if (!group.Create(&why)) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
+  ASSERT_TRUE(group.Limit(kCapBytes)) << "cannot set the limit of " << group.path();
+  // The model is bigger than the cap: it cannot simply be held in memory.
+  ASSERT_GT(kSourceTriangles * kCopies * 36, kCapBytes);
+
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok()) << dir.status().message();
+  const std::string store = dir->File("store");
+  const std::string procs = group.File("cgroup.procs");
+  const auto start = std::chrono::steady_clock::now();
+  const ProcessResult r = RunProcess(
+      {kPrepBinary, "--generate", "sphere:" + std::to_string(kSourceTriangles), "--replicate",
+       "3,2,2", "--mem-limit", std::to_string(kMemLimitMb), "-q", "--temp-dir", dir->path(),
+       "-o", store},
+      dir->path(), [&procs] {
+        // After fork: join the group before exec (async-signal-safe calls only).
+        const int fd = open(procs.c_str(), O_WRONLY);
+        char pid[32];
+        const int n = snprintf(pid, sizeof pid, "%d", static_cast<int>(getpid()));
+        if (fd < 0 || write(fd, pid, static_cast<size_t>(n)) != n) _exit(125);
+        close(fd);
+      });
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  const uint64_t max_usage = ReadValue(group.File("memory.max_usage_in_bytes"));
+  const uint64_t failcnt = ReadValue(group.File("memory.failcnt"));
+  const int64_t oom_kills = ReadKey(group.File("memory.oom_control"), "oom_kill");
+  ::testing::Test::RecordProperty("cgroup_limit_bytes", std::to_string(kCapBytes));
+  ::testing::Test::RecordProperty("cgroup_max_usage_bytes", std::to_string(max_usage));
+  ::testing::Test::RecordProperty("cgroup_failcnt", std::to_string(failcnt));
+  ::testing::Test::RecordProperty("wall_seconds", std::to_string(seconds));
+  std::printf("memory cap: limit %llu MB, peak usage %.1f MB, failcnt %llu, oom kills %lld, "
+              "%.1f s wall, %llu triangles\n",
+              static_cast<unsigned long long>(kCapBytes >> 20), max_usage / 1048576.0,
+              static_cast<unsigned long long>(failcnt), static_cast<long long>(oom_kills),
+              seconds, static_cast<unsigned long long>(kSourceTriangles * kCopies));
+
+  ASSERT_NE(r.exit_code, 125) << "the child could not join " << group.path();
+  EXPECT_EQ(r.signal, 0) << "raystack-prep was killed by signal " << r.signal
+                         << " (SIGKILL = the OOM killer); stderr: " << r.err;
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  // Its own peak RSS (anonymous memory; the cgroup figure also counts page cache) keeps to
+  // --mem-limit.
+  std::smatch rss;
+  ASSERT_TRUE(std::regex_search(r.out, rss, std::regex("peak RSS ([0-9]+) MB"))) << r.out;
+  const int peak_rss_mb = std::stoi(rss[1].str());
+  ::testing::Test::RecordProperty("prep_peak_rss_mb", std::to_string(peak_rss_mb));
+  std::printf("memory cap: raystack-prep peak RSS %d MB (--mem-limit %d)\n", peak_rss_mb, kMemLimitMb);
+  EXPECT_LE(peak_rss_mb, kMemLimitMb);
+  EXPECT_LE(oom_kills, 0) << "the OOM killer fired in " << group.path();
+  EXPECT_GT(max_usage, 0u) << "nothing was charged to the group: the run was not capped";
+  EXPECT_LE(max_usage, kCapBytes);
+
+  const ProcessResult info = RunProcess({kInfoBinary, store, "--verify"}, dir->path());
+  EXPECT_EQ(info.exit_code, 0) << info.err;
+  // About 2 M triangles per copy (the cube-sphere rounds N to its grid).
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(info.out, m, std::regex("triangles +([0-9]+)"))) << info.out;
+  const uint64_t stored = std::stoull(m[1].str());
+  EXPECT_EQ(stored % kCopies, 0u);
+  EXPECT_GT(stored, kSourceTriangles * kCopies * 9 / 10);
+  EXPECT_NE(info.out.find("all "), std::string::npos) << info.out;
+}
+
+}  // namespace
+}  // namespace raystack::prep

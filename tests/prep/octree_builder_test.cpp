@@ -1,0 +1,360 @@
+// The octree builder, driven through Convert and checked on the store it writes: the block
+// cap holds, degenerate input terminates with bounded depth and block count, replication and
+// the out-of-core partition path give complete, consistent stores, and output is
+// deterministic whatever the thread count.
+
+#include "tools/prep/octree_builder.h"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <fstream>
+#include <set>
+
+#include "common/base/log.h"
+#include "common/base/temp_dir.h"
+#include "common/store/octree.h"
+#include "tests/prep/run_process.h"
+#include "tests/prep/store_contents.h"
+#include "tools/prep/convert.h"
+
+namespace raystack::prep {
+namespace {
+
+using testing::ReadStore;
+using testing::StoreContents;
+using testing::TouchesCell;
+
+class OctreeBuilderTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Expected<TempDir> dir = TempDir::Create();
+    ASSERT_TRUE(dir.ok()) << dir.status().message();
+    dir_ = std::make_unique<TempDir>(std::move(*dir));
+  }
+
+  ConvertOptions Options(const std::string& store) const {
+    ConvertOptions o;
+    o.output = dir_->File(store);
+    o.temp_dir = dir_->path();
+    o.quiet = true;
+    o.threads = 2;
+    return o;
+  }
+
+  std::unique_ptr<TempDir> dir_;
+};
+
+// Every id in [0, n) is in some block, and no other id is.
+void ExpectEveryIdPresent(const StoreContents& s, uint64_t n) {
+  std::vector<bool> seen(n, false);
+  for (const auto& ids : s.block_ids)
+    for (uint32_t id : ids) {
+      ASSERT_LT(id, n);
+      seen[id] = true;
+    }
+  uint64_t missing = 0;
+  for (bool b : seen) missing += !b;
+  EXPECT_EQ(missing, 0u) << "of " << n << " triangles";
+}
+
+// Every triangle of a block touches that block's cell, and blocks lie inside their leaf.
+void ExpectBlocksMatchTheirCells(const StoreContents& s) {
+  const store::StoreReader& r = *s.reader;
+  uint64_t outside = 0;
+  for (uint32_t b = 0; b < r.blocks().size(); ++b) {
+    const store::BlockEntry& e = r.blocks()[b];
+    const Bounds3f cell{{e.cell_lower[0], e.cell_lower[1], e.cell_lower[2]},
+                        {e.cell_upper[0], e.cell_upper[1], e.cell_upper[2]}};
+    for (const testing::StoredTriangle& t : s.blocks[b]) outside += !TouchesCell(t.p, cell);
+    ASSERT_LT(e.octree_leaf, r.octree().nodes().size());
+    const store::OctreeNode& leaf = r.octree().nodes()[e.octree_leaf];
+    EXPECT_EQ(leaf.kind, store::kOctreeLeaf);
+    EXPECT_GE(b, leaf.first);
+    EXPECT_LT(b, leaf.first + leaf.count);
+  }
+  EXPECT_EQ(outside, 0u) << "triangles stored in a block whose cell they do not touch";
+}
+
+// Leaves whose closed cell contains `p`.
+void LeavesAt(const store::OctreeView& tree, uint32_t node, const Bounds3f& cell, Vec3f p,
+              std::vector<uint32_t>* leaves) {
+  const store::OctreeNode& n = tree.nodes()[node];
+  if (n.kind == store::kOctreeLeaf) leaves->push_back(node);
+  if (n.kind != store::kOctreeInner) return;
+  for (int i = 0; i < 8; ++i) {
+    const Bounds3f c = store::ChildCell(cell, i);
+    if (c.Contains(p)) LeavesAt(tree, n.first + static_cast<uint32_t>(i), c, p, leaves);
+  }
+}
+
+// Each triangle's centroid lies in leaves that hold the triangle: a ray hitting the triangle
+// there finds it. Returns how many triangles were checked.
+uint64_t ExpectCentroidsReachable(const StoreContents& s) {
+  const store::OctreeView tree = s.reader->octree();
+  std::set<uint32_t> checked;
+  uint64_t unreachable = 0;
+  std::vector<uint32_t> leaves;
+  for (const auto& block : s.blocks)
+    for (const testing::StoredTriangle& t : block) {
+      if (!checked.insert(t.id).second) continue;
+      const Vec3f c = (t.p[0] + t.p[1] + t.p[2]) * (1.0f / 3.0f);
+      leaves.clear();
+      LeavesAt(tree, 0, tree.root_cell(), c, &leaves);
+      bool found = !leaves.empty();
+      for (uint32_t leaf : leaves) {
+        const store::OctreeNode& n = tree.nodes()[leaf];
+        bool here = false;
+        for (uint32_t b = n.first; b < n.first + n.count && !here; ++b)
+          here = std::binary_search(s.block_ids[b].begin(), s.block_ids[b].end(), t.id);
+        found &= here;
+      }
+      if (!found && ++unreachable <= 5) ADD_FAILURE() << "triangle " << t.id << " unreachable";
+    }
+  EXPECT_EQ(unreachable, 0u);
+  return checked.size();
+}
+
+// Depth and block count stay bounded, and the store opens and decodes. `copies_per_triangle`
+// is how many cells a triangle may be duplicated into beyond ordinary clipping.
+void ExpectBounded(const ConvertReport& report, const StoreContents& s, uint32_t max_block_bytes,
+                   uint64_t copies_per_triangle = 8) {
+  EXPECT_LE(report.max_depth, 32u);
+  const uint64_t per_block = MaxTrianglesPerBlock(max_block_bytes, false);
+  EXPECT_LE(report.blocks, copies_per_triangle * report.triangles / per_block + 64)
+      << report.triangles << " triangles, at most " << per_block << " per block";
+  EXPECT_EQ(s.reader->blocks().size(), report.blocks);
+  for (const store::BlockEntry& e : s.reader->blocks()) EXPECT_LE(e.raw_bytes, max_block_bytes);
+}
+
+TEST_F(OctreeBuilderTest, BlocksNeverExceedTheCap) {
+  struct Case {
+    const char* model;
+    uint32_t max_kb, target_kb;
+  };
+  for (const Case& c : {Case{"spheres:30000", 4, 1}, Case{"spheres:30000", 8, 8},
+                        Case{"soup:8000", 8, 2}, Case{"spheres:30000", 32, 16},
+                        Case{"sphere:40000", 64, 4}}) {
+    SCOPED_TRACE(StrFormat("%s cap %u KB target %u KB", c.model, c.max_kb, c.target_kb));
+    ConvertOptions o = Options(StrFormat("store-%s-%u-%u", c.model, c.max_kb, c.target_kb));
+    o.generate = c.model;
+    o.max_block_bytes = c.max_kb * 1024;
+    o.target_block_bytes = c.target_kb * 1024;
+    Expected<ConvertReport> r = Convert(o);
+    ASSERT_TRUE(r.ok()) << r.status().message();
+    EXPECT_LE(r->largest_raw_bytes, o.max_block_bytes);
+    StoreContents s;
+    ReadStore(o.output, &s);
+    EXPECT_EQ(s.reader->summary().max_block_bytes, o.max_block_bytes);
+    uint32_t largest = 0;
+    for (const store::BlockEntry& e : s.reader->blocks()) largest = std::max(largest, e.raw_bytes);
+    EXPECT_LE(largest, o.max_block_bytes);
+    EXPECT_EQ(largest, r->largest_raw_bytes);
+    ExpectEveryIdPresent(s, r->triangles);
+  }
+}
+
+TEST_F(OctreeBuilderTest, ClusterAtOnePointTerminates) {
+  ConvertOptions o = Options("cluster");
+  o.generate = "cluster:20000";
+  o.max_block_bytes = 32 * 1024;
+  o.target_block_bytes = 8 * 1024;
+  Expected<ConvertReport> r = Convert(o);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  StoreContents s;
+  ReadStore(o.output, &s);
+  ExpectBounded(*r, s, o.max_block_bytes);
+  ExpectEveryIdPresent(s, 20000);
+  ExpectBlocksMatchTheirCells(s);
+}
+
+TEST_F(OctreeBuilderTest, HugeTriangleAmongSmallOnesTerminates) {
+  // Triangle 1 spans the whole model; 6400 small ones lie on a grid under it.
+  const std::string obj = dir_->File("huge.obj");
+  {
+    std::ofstream f(obj);
+    f << "v -1000 -1000 0.5\nv 3000 -1000 0.5\nv -1000 3000 0.5\nf 1 2 3\n";
+    int v = 4;
+    for (int i = 0; i < 80; ++i)
+      for (int j = 0; j < 80; ++j, v += 3) {
+        const double x = -900 + 22.5 * i, y = -900 + 22.5 * j;
+        f << "v " << x << " " << y << " 0\nv " << x + 1 << " " << y << " 1\nv " << x << " "
+          << y + 1 << " 2\nf " << v << " " << v + 1 << " " << v + 2 << "\n";
+      }
+  }
+  ConvertOptions o = Options("huge");
+  o.inputs = {obj};
+  o.max_block_bytes = 8 * 1024;
+  o.target_block_bytes = 2 * 1024;
+  Expected<ConvertReport> r = Convert(o);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->triangles, 6401u);
+  StoreContents s;
+  ReadStore(o.output, &s);
+  ExpectBounded(*r, s, o.max_block_bytes);
+  ExpectEveryIdPresent(s, 6401);
+  ExpectBlocksMatchTheirCells(s);
+  ExpectCentroidsReachable(s);
+  uint64_t blocks_with_huge = 0;
+  for (const auto& ids : s.block_ids) blocks_with_huge += std::binary_search(ids.begin(), ids.end(), 0u);
+  EXPECT_GT(blocks_with_huge, 1u) << "the huge triangle is clipped into many cells";
+}
+
+// Coincident triangles cannot be separated, but the builder tries for kMaxStall (4) levels
+// before it gives up, and each of those levels copies the whole stack into every child cell
+// the triangle crosses: ~21 leaves of the full stack here (736 blocks for 5001 triangles at
+// 145 per block). Bounded, but far above the 8 copies of ordinary input; 64 pins that bound.
+constexpr uint64_t kCoincidentCopies = 64;
+
+// An OBJ with `copies` identical faces and one other triangle.
+void WriteCoincidentObj(const std::string& path, int copies) {
+  std::ofstream f(path);
+  f << "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\nv 6 5 5\nv 5 6 5\n";
+  for (int i = 0; i < copies; ++i) f << "f 1 2 3\n";
+  f << "f 4 5 6\n";
+}
+
+TEST_F(OctreeBuilderTest, CoincidentTrianglesTerminate) {
+  const std::string obj = dir_->File("same.obj");
+  WriteCoincidentObj(obj, 5000);
+  ConvertOptions o = Options("same");
+  o.inputs = {obj};
+  o.max_block_bytes = 16 * 1024;
+  o.target_block_bytes = 4 * 1024;
+  Expected<ConvertReport> r = Convert(o);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  StoreContents s;
+  ReadStore(o.output, &s);
+  ExpectBounded(*r, s, o.max_block_bytes, kCoincidentCopies);
+  EXPECT_GE(r->multi_block_leaves, 1u);
+  ExpectEveryIdPresent(s, 5001);
+  ExpectBlocksMatchTheirCells(s);
+}
+
+TEST_F(OctreeBuilderTest, CoincidentTrianglesBeyondMemoryTerminate) {
+  // More coincident triangles than a 64 MB budget holds in memory: the partition path must
+  // give up splitting them too (it used to re-partition one level deeper, forever).
+  const std::string obj = dir_->File("same-big.obj");
+  WriteCoincidentObj(obj, 300000);
+  ConvertOptions o = Options("same-big");
+  o.inputs = {obj};
+  o.memory_limit_bytes = 64ull << 20;
+  Expected<ConvertReport> r = Convert(o);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_GE(r->partition_passes, 1u);
+  EXPECT_GE(r->multi_block_leaves, 1u);
+  StoreContents s;
+  ReadStore(o.output, &s);
+  ExpectBounded(*r, s, o.max_block_bytes, kCoincidentCopies);
+  ExpectEveryIdPresent(s, 300001);
+  ExpectBlocksMatchTheirCells(s);
+}
+
+TEST_F(OctreeBuilderTest, ReplicateStoresEveryCopy) {
+  ConvertOptions one = Options("one");
+  one.generate = "sphere:3000";
+  one.max_block_bytes = 16 * 1024;
+  one.target_block_bytes = 4 * 1024;
+  Expected<ConvertReport> base = Convert(one);
+  ASSERT_TRUE(base.ok()) << base.status().message();
+  const uint64_t n = base->triangles;
+
+  ConvertOptions o = one;
+  o.output = dir_->File("replicated");
+  o.replicate = {2, 3, 2};
+  Expected<ConvertReport> r = Convert(o);
+  ASSERT_TRUE(r.ok()) << r.status().message();
+  EXPECT_EQ(r->copies, 12u);
+  EXPECT_EQ(r->triangles, 12 * n);
+  StoreContents s;
+  ReadStore(o.output, &s);
+  EXPECT_EQ(s.reader->summary().source_triangles, 12 * n);
+  ExpectEveryIdPresent(s, 12 * n);
+  ExpectBlocksMatchTheirCells(s);
+
+  // The model bounds hold every stored vertex and span the whole grid of copies.
+  const Bounds3f model = s.reader->model_bounds();
+  const Bounds3f root = s.reader->root_cell();
+  Bounds3f vertices;
+  for (const auto& block : s.blocks)
+    for (const testing::StoredTriangle& t : block)
+      for (const Vec3f& p : t.p) vertices.Extend(p);
+  EXPECT_TRUE(model.Contains(vertices));
+  EXPECT_TRUE(root.Contains(model));
+  StoreContents single;
+  ReadStore(one.output, &single);
+  const Vec3f e = single.reader->model_bounds().Extent();
+  const Vec3f grid = vertices.Extent();
+  EXPECT_GE(grid.x, 2 * e.x);
+  EXPECT_GE(grid.y, 3 * e.y);
+  EXPECT_GE(grid.z, 2 * e.z);
+}
+
+TEST_F(OctreeBuilderTest, OutputIsDeterministicWhateverTheThreads) {
+  std::string files[2][3];
+  for (int run = 0; run < 2; ++run) {
+    ConvertOptions o = Options(StrFormat("run%d", run));
+    o.generate = "spheres:60000";
+    o.max_block_bytes = 32 * 1024;
+    o.target_block_bytes = 8 * 1024;
+    o.threads = run + 1;
+    Expected<ConvertReport> r = Convert(o);
+    ASSERT_TRUE(r.ok()) << r.status().message();
+    ASSERT_GT(r->blocks, 20u);
+    files[run][0] = testing::Slurp(o.output + "/blocks.bin");
+    files[run][1] = testing::Slurp(o.output + "/index.bin");
+    files[run][2] = testing::Slurp(o.output + "/octree.bin");
+  }
+  const char* names[3] = {"blocks.bin", "index.bin", "octree.bin"};
+  for (int f = 0; f < 3; ++f) {
+    EXPECT_FALSE(files[0][f].empty()) << names[f];
+    EXPECT_TRUE(files[0][f] == files[1][f]) << names[f] << " differs between 1 and 2 threads";
+  }
+}
+
+TEST_F(OctreeBuilderTest, PartitionPathMatchesInMemoryPath) {
+  StoreContents stores[2];
+  ConvertReport reports[2];
+  for (int run = 0; run < 2; ++run) {
+    ConvertOptions o = Options(run == 0 ? "in-memory" : "partitioned");
+    o.generate = "spheres:400000";
+    if (run == 1) o.memory_limit_bytes = 64ull << 20;
+    Expected<ConvertReport> r = Convert(o);
+    ASSERT_TRUE(r.ok()) << r.status().message();
+    reports[run] = *r;
+    ReadStore(o.output, &stores[run]);
+  }
+  EXPECT_EQ(reports[0].partition_passes, 0u);
+  EXPECT_GE(reports[1].partition_passes, 1u);
+  EXPECT_EQ(reports[0].source_triangles, reports[1].source_triangles);
+  EXPECT_EQ(stores[0].reader->summary().source_triangles,
+            stores[1].reader->summary().source_triangles);
+  const uint64_t n = reports[0].triangles;
+  ASSERT_GT(n, 300000u);
+
+  // Both are complete and valid, and store the same triangle under each id.
+  std::vector<std::array<Vec3f, 3>> first(n);
+  std::vector<bool> have(n, false);
+  uint64_t mismatched = 0;
+  for (int run = 0; run < 2; ++run) {
+    SCOPED_TRACE(run == 0 ? "in memory" : "partitioned");
+    ExpectEveryIdPresent(stores[run], n);
+    ExpectBlocksMatchTheirCells(stores[run]);
+    EXPECT_EQ(ExpectCentroidsReachable(stores[run]), n);
+    for (const auto& block : stores[run].blocks)
+      for (const testing::StoredTriangle& t : block) {
+        if (t.id >= n) continue;
+        if (!have[t.id]) {
+          have[t.id] = true;
+          first[t.id] = {t.p[0], t.p[1], t.p[2]};
+        } else {
+          mismatched += !(first[t.id][0] == t.p[0] && first[t.id][1] == t.p[1] &&
+                          first[t.id][2] == t.p[2]);
+        }
+      }
+  }
+  EXPECT_EQ(mismatched, 0u);
+}
+
+}  // namespace
+}  // namespace raystack::prep

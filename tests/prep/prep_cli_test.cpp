@@ -1,0 +1,169 @@
+// raystack-prep and raystack-info as a user meets them: exit codes and messages that name the
+// problem, statistics after a good run, and --verify catching a damaged block.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <regex>
+
+#include "common/base/temp_dir.h"
+#include "common/store/store_reader.h"
+#include "tests/prep/run_process.h"
+
+namespace raystack::prep {
+namespace {
+
+using testing::kInfoBinary;
+using testing::kPrepBinary;
+using testing::ProcessResult;
+using testing::RunProcess;
+
+class PrepCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Expected<TempDir> dir = TempDir::Create();
+    ASSERT_TRUE(dir.ok()) << dir.status().message();
+    dir_ = std::make_unique<TempDir>(std::move(*dir));
+  }
+
+  ProcessResult Prep(std::vector<std::string> args) {
+    args.insert(args.begin(), kPrepBinary);
+    return RunProcess(args, dir_->path());
+  }
+  ProcessResult Info(std::vector<std::string> args) {
+    args.insert(args.begin(), kInfoBinary);
+    return RunProcess(args, dir_->path());
+  }
+
+  // Expects a clean failure (an exit code, not a crash) whose stderr mentions every `words`.
+  static void ExpectFailsNaming(const ProcessResult& r, const std::vector<std::string>& words) {
+    EXPECT_EQ(r.signal, 0) << "crashed; stderr: " << r.err;
+    EXPECT_GT(r.exit_code, 0) << "stderr: " << r.err;
+    for (const std::string& w : words)
+      EXPECT_NE(r.err.find(w), std::string::npos) << "stderr does not name '" << w << "': " << r.err;
+  }
+
+  std::unique_ptr<TempDir> dir_;
+};
+
+TEST_F(PrepCliTest, HelpMentionsEveryOption) {
+  const ProcessResult r = Prep({"--help"});
+  EXPECT_EQ(r.exit_code, 0);
+  for (const char* option :
+       {"-o", "--output", "--generate", "--replicate", "--target-block-kb", "--max-block-kb",
+        "--mem-limit", "--threads", "--temp-dir", "--no-shuffle", "--stats-json", "-q",
+        "--quiet", "--help"})
+    EXPECT_NE(r.out.find(option), std::string::npos) << "--help does not mention " << option;
+  EXPECT_EQ(Prep({"-h"}).exit_code, 0);
+}
+
+TEST_F(PrepCliTest, MissingOutputFails) {
+  ExpectFailsNaming(Prep({"--generate", "sphere:100"}), {"-o"});
+}
+
+TEST_F(PrepCliTest, UnknownOptionFails) {
+  ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--frobnicate"}),
+                    {"--frobnicate"});
+}
+
+TEST_F(PrepCliTest, BadReplicateFails) {
+  for (const char* bad : {"2,2", "0,1,1", "a,b,c", "1,1,5000"}) {
+    SCOPED_TRACE(bad);
+    ExpectFailsNaming(
+        Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--replicate", bad}),
+        {"--replicate", bad});
+  }
+}
+
+TEST_F(PrepCliTest, BadNumberFails) {
+  ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--mem-limit", "12x"}),
+                    {"--mem-limit", "12x"});
+  ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--threads"}),
+                    {"--threads"});
+}
+
+TEST_F(PrepCliTest, TargetAboveCapFails) {
+  ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--max-block-kb",
+                          "16", "--target-block-kb", "32"}),
+                    {"--target-block-kb", "--max-block-kb"});
+}
+
+TEST_F(PrepCliTest, UnknownGeneratorFails) {
+  ExpectFailsNaming(Prep({"--generate", "teapot:100", "-o", dir_->File("s")}), {"teapot"});
+}
+
+TEST_F(PrepCliTest, MissingInputFails) {
+  const std::string missing = dir_->File("no-such-model.obj");
+  ExpectFailsNaming(Prep({missing, "-o", dir_->File("s")}), {missing});
+}
+
+TEST_F(PrepCliTest, MalformedObjNamesFileAndLine) {
+  const std::string obj = dir_->File("broken.obj");
+  std::ofstream(obj) << "# three vertices, then a face that uses a fourth\n"
+                        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 4\n";
+  const ProcessResult r = Prep({obj, "-o", dir_->File("s"), "-q"});
+  ExpectFailsNaming(r, {obj, "6"});
+  // The line number appears as a line reference, not by accident inside another number.
+  EXPECT_TRUE(std::regex_search(r.err, std::regex("broken\\.obj[:( ]+(line )?6\\b"))) << r.err;
+}
+
+TEST_F(PrepCliTest, GoodRunPrintsStatisticsAndVerifies) {
+  const std::string store = dir_->File("store");
+  const std::string json = dir_->File("stats.json");
+  const ProcessResult r = Prep({"--generate", "spheres:20000", "-o", store, "--target-block-kb",
+                                "8", "--max-block-kb", "32", "--threads", "2", "--temp-dir",
+                                dir_->path(), "--stats-json", json, "-q"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* word : {"triangles", "blocks", "compression", "octree", "peak RSS"})
+    EXPECT_NE(r.out.find(word), std::string::npos) << "no '" << word << "' in: " << r.out;
+  const std::string stats = testing::Slurp(json);
+  EXPECT_NE(stats.find("\"triangles\":"), std::string::npos) << stats;
+  EXPECT_NE(stats.find("\"blocks\":"), std::string::npos) << stats;
+
+  const ProcessResult info = Info({store, "--verify"});
+  EXPECT_EQ(info.exit_code, 0) << info.err;
+  for (const char* word : {"format version", "blocks", "bytes/triangle", "compression",
+                           "histogram", "all "})
+    EXPECT_NE(info.out.find(word), std::string::npos) << "no '" << word << "' in: " << info.out;
+  EXPECT_TRUE(std::regex_search(info.out, std::regex("KB +[0-9]+ #"))) << "no histogram bars";
+}
+
+TEST_F(PrepCliTest, VerifyNamesADamagedBlock) {
+  const std::string store = dir_->File("store");
+  ASSERT_EQ(Prep({"--generate", "sphere:20000", "-o", store, "--target-block-kb", "8", "-q"})
+                .exit_code,
+            0);
+  uint32_t victim = 0;
+  uint64_t offset = 0;
+  {
+    Expected<std::unique_ptr<store::StoreReader>> s = store::StoreReader::Open(store);
+    ASSERT_TRUE(s.ok()) << s.status().message();
+    ASSERT_GT((*s)->blocks().size(), 4u);
+    victim = static_cast<uint32_t>((*s)->blocks().size() / 2);
+    const store::BlockEntry& e = (*s)->blocks()[victim];
+    offset = e.offset + e.stored_bytes / 2;
+  }
+  {
+    std::fstream f(store + "/blocks.bin", std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(static_cast<std::streamoff>(offset));
+    char c = 0;
+    f.read(&c, 1);
+    c = static_cast<char>(c ^ 0x5a);
+    f.seekp(static_cast<std::streamoff>(offset));
+    f.write(&c, 1);
+    ASSERT_TRUE(f.good());
+  }
+  // Without --verify the index is intact, so it still opens.
+  EXPECT_EQ(Info({store}).exit_code, 0);
+  const ProcessResult r = Info({store, "--verify"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_TRUE(std::regex_search(r.err, std::regex("block " + std::to_string(victim) + "\\b")))
+      << r.err;
+}
+
+TEST_F(PrepCliTest, InfoOnMissingStoreFails) {
+  ExpectFailsNaming(Info({dir_->File("nothing-here")}), {"nothing-here"});
+}
+
+}  // namespace
+}  // namespace raystack::prep

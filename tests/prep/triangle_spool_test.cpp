@@ -1,0 +1,171 @@
+// A spool gives back exactly what was appended, in order, whether it stayed in memory or
+// spilled to disk, and it cleans up after itself.
+
+#include "tools/prep/triangle_spool.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
+#include "common/base/temp_dir.h"
+
+namespace raystack::prep {
+namespace {
+
+// Triangle i; every third has normals and uvs, every fifth only uvs.
+PackedTriangle MakeTriangle(uint32_t i, TriangleAttributes* a) {
+  PackedTriangle t;
+  const float f = static_cast<float>(i);
+  t.p[0] = {f, f + 0.5f, -f};
+  t.p[1] = {f + 1, f * 2, 3};
+  t.p[2] = {-f, 7, f * 0.25f};
+  t.id = i * 7 + 3;
+  t.material_and_flags = i % 11;
+  *a = TriangleAttributes{};
+  if (i % 3 == 0) t.material_and_flags |= PackedTriangle::kHasNormals | PackedTriangle::kHasUvs;
+  if (i % 5 == 0) t.material_and_flags |= PackedTriangle::kHasUvs;
+  if (t.has_normals() || t.has_uvs()) {
+    for (int c = 0; c < 3; ++c) {
+      a->n[c] = {f * 0.1f + static_cast<float>(c), 1, 2};
+      a->uv[c][0] = f * 0.01f;
+      a->uv[c][1] = static_cast<float>(c) - f;
+    }
+  }
+  return t;
+}
+
+bool SameTriangle(const PackedTriangle& a, const PackedTriangle& b) {
+  return std::memcmp(&a, &b, sizeof a) == 0;
+}
+
+bool SameAttributes(const TriangleAttributes& a, const TriangleAttributes& b) {
+  return std::memcmp(&a, &b, sizeof a) == 0;
+}
+
+class TriangleSpoolTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Expected<TempDir> dir = TempDir::Create();
+    ASSERT_TRUE(dir.ok()) << dir.status().message();
+    dir_ = std::make_unique<TempDir>(std::move(*dir));
+  }
+
+  static void Fill(TriangleSpool* spool, uint32_t n) {
+    for (uint32_t i = 0; i < n; ++i) {
+      TriangleAttributes a;
+      const PackedTriangle t = MakeTriangle(i, &a);
+      ASSERT_TRUE(spool->Append(t, &a).ok());
+    }
+    ASSERT_TRUE(spool->Close().ok());
+  }
+
+  // Reads the spool back and checks it holds triangles 0..n-1 in order.
+  static void ExpectHolds(const TriangleSpool& spool, uint32_t n) {
+    EXPECT_EQ(spool.triangles(), n);
+    uint32_t next = 0;
+    int batches = 0;
+    Status s = spool.ForEach([&](std::span<const PackedTriangle> tris,
+                                 std::span<const TriangleAttributes> attrs) {
+      ++batches;
+      EXPECT_EQ(tris.size(), attrs.size());
+      for (size_t k = 0; k < tris.size(); ++k, ++next) {
+        TriangleAttributes expected_attributes;
+        const PackedTriangle expected = MakeTriangle(next, &expected_attributes);
+        if (!SameTriangle(tris[k], expected)) {
+          ADD_FAILURE() << "triangle " << next << " differs";
+          return Status::Error("stop");
+        }
+        if ((expected.has_normals() || expected.has_uvs()) &&
+            !SameAttributes(attrs[k], expected_attributes)) {
+          ADD_FAILURE() << "attributes of triangle " << next << " differ";
+          return Status::Error("stop");
+        }
+      }
+      return OkStatus();
+    });
+    EXPECT_TRUE(s.ok()) << s.message();
+    EXPECT_EQ(next, n);
+    EXPECT_GT(batches, 0);
+  }
+
+  std::unique_ptr<TempDir> dir_;
+};
+
+// Enough triangles for several visitor batches and several 1 MB read buffers when spilled.
+constexpr uint32_t kTriangles = 30000;
+
+TEST_F(TriangleSpoolTest, InMemoryGivesBackEveryTriangleInOrder) {
+  TriangleSpool spool(dir_->File("memory.tmp"), uint64_t{1} << 30);
+  Fill(&spool, kTriangles);
+  EXPECT_FALSE(spool.spilled());
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("memory.tmp")));
+  ExpectHolds(spool, kTriangles);
+}
+
+TEST_F(TriangleSpoolTest, SpilledGivesBackEveryTriangleInOrder) {
+  // A budget of a few triangles: the first ones are in memory when it spills.
+  TriangleSpool spool(dir_->File("spilled.tmp"), 500, 4096);
+  Fill(&spool, kTriangles);
+  EXPECT_TRUE(spool.spilled());
+  EXPECT_TRUE(std::filesystem::exists(dir_->File("spilled.tmp")));
+  ExpectHolds(spool, kTriangles);
+  ExpectHolds(spool, kTriangles);  // readable more than once
+}
+
+TEST_F(TriangleSpoolTest, SpilledAndInMemoryAgreeOnBytes) {
+  TriangleSpool memory(dir_->File("a.tmp"), uint64_t{1} << 30);
+  TriangleSpool spilled(dir_->File("b.tmp"), 0);
+  Fill(&memory, 1000);
+  Fill(&spilled, 1000);
+  EXPECT_EQ(memory.bytes(), spilled.bytes());
+  // 44 bytes per triangle, plus 60 for each of the 334 + 200 - 67 with attributes.
+  EXPECT_EQ(spilled.bytes(), 1000u * 44 + (334u + 200 - 67) * 60);
+  EXPECT_EQ(std::filesystem::file_size(dir_->File("b.tmp")), spilled.bytes());
+}
+
+TEST_F(TriangleSpoolTest, MovedSpoolKeepsItsTriangles) {
+  TriangleSpool spool(dir_->File("moved.tmp"), 0);
+  Fill(&spool, 2000);
+  TriangleSpool moved(std::move(spool));
+  ExpectHolds(moved, 2000);
+}
+
+TEST_F(TriangleSpoolTest, ClearRemovesTheSpillFile) {
+  const std::string path = dir_->File("cleared.tmp");
+  TriangleSpool spool(path, 0);
+  Fill(&spool, 100);
+  ASSERT_TRUE(std::filesystem::exists(path));
+  spool.Clear();
+  EXPECT_FALSE(std::filesystem::exists(path));
+  EXPECT_EQ(spool.triangles(), 0u);
+  EXPECT_EQ(spool.bytes(), 0u);
+}
+
+TEST_F(TriangleSpoolTest, DestructorRemovesTheSpillFile) {
+  const std::string path = dir_->File("destroyed.tmp");
+  {
+    TriangleSpool spool(path, 0);
+    Fill(&spool, 100);
+    ASSERT_TRUE(std::filesystem::exists(path));
+  }
+  EXPECT_FALSE(std::filesystem::exists(path));
+}
+
+TEST_F(TriangleSpoolTest, UnwritablePathIsAnErrorNamingIt) {
+  // A path below a regular file cannot be created, even by root.
+  const std::string file = dir_->File("plain-file");
+  std::ofstream(file) << "not a directory";
+  const std::string path = file + "/spill.tmp";
+  TriangleSpool spool(path, 0);
+  TriangleAttributes a;
+  const PackedTriangle t = MakeTriangle(1, &a);
+  Status s = spool.Append(t, &a);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find(path), std::string::npos) << s.message();
+}
+
+}  // namespace
+}  // namespace raystack::prep
