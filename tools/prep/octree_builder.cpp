@@ -285,52 +285,43 @@ Status Classify(const PackedTriangle& t, const TriangleAttributes& a, const Boun
 Status Builder::StreamLeaf(const TriangleSource& source, uint32_t node, const Bounds3f& cell,
                            int depth) {
   max_depth_ = std::max(max_depth_, depth);
-  const uint32_t first = next_block_;
+  uint32_t chunks = 0;
+  auto bucket = std::make_shared<Bucket>();
   std::vector<Ref> refs;
-  triangles_.clear();
-  attributes_store_.clear();
-  auto flush = [&]() -> Status {
-    if (refs.empty()) return OkStatus();
-    if (next_block_ - first >= 0xffff)
-      return Status::Error(StrFormat("%llu triangles in one octree cell cannot be separated "
-                                     "(coincident?): more than 65535 blocks in one leaf",
-                                     static_cast<unsigned long long>(source.triangles())));
+  auto flush = [&]() {
+    if (refs.empty()) return;
     LeafJob job;
-    job.triangles = triangles_;
-    if (attributes_) job.attributes = attributes_store_;
+    job.triangles = bucket->triangles;
+    if (attributes_) job.attributes = bucket->attributes;
+    job.keep_alive = bucket;
     for (const Ref& r : refs) {
       job.refs.push_back(r.tri);
       job.ref_bounds.push_back(r.bounds);
     }
     job.cell = cell;
-    job.block_id = next_block_++;
     job.octree_leaf = node;
     if (options_.progress) options_.progress->Update(refs.size());
     pipeline_.Submit(std::move(job));
-    // The job points into triangles_: let it finish before the next block refills it.
-    RAYSTACK_RETURN_IF_ERROR(pipeline_.Drain());
+    ++chunks;
     refs.clear();
-    triangles_.clear();
-    attributes_store_.clear();
-    return OkStatus();
+    bucket = std::make_shared<Bucket>();  // the job keeps the old one alive
   };
   RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
                                               std::span<const TriangleAttributes> attrs) {
     for (size_t i = 0; i < tris.size(); ++i) {
       const Bounds3f b = ClipTriangleToCell(tris[i].p, cell);
       if (b.Empty()) continue;
-      refs.push_back({static_cast<uint32_t>(triangles_.size()), b});
-      triangles_.push_back(tris[i]);
-      if (attributes_) attributes_store_.push_back(attrs[i]);
-      if (refs.size() == max_tris_) RAYSTACK_RETURN_IF_ERROR(flush());
+      refs.push_back({static_cast<uint32_t>(bucket->triangles.size()), b});
+      bucket->triangles.push_back(tris[i]);
+      if (attributes_) bucket->attributes.push_back(attrs[i]);
+      if (refs.size() == max_tris_) flush();
     }
     return OkStatus();
   }));
-  RAYSTACK_RETURN_IF_ERROR(flush());
-  const uint32_t count = next_block_ - first;
-  if (count > 1) ++multi_block_leaves_;
-  nodes_[node] = count ? OctreeNode{first, static_cast<uint16_t>(count), store::kOctreeLeaf, 0}
-                       : OctreeNode{0, 0, store::kOctreeEmpty, 0};
+  flush();
+  if (chunks > 1) ++multi_block_leaves_;
+  // Run() points the leaf at its blocks once they are written.
+  nodes_[node] = {0, 0, chunks ? store::kOctreeLeaf : store::kOctreeEmpty, 0};
   return OkStatus();
 }
 
