@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <thread>
 
 #include "common/base/check.h"
 #include "common/base/log.h"
@@ -262,11 +263,14 @@ class SpoolSource : public TriangleSource {
   bool attributes_;
 };
 
-// Appends triangle `t` to the bucket of every level-`levels` cell it overlaps below `cell`.
-Status Classify(const PackedTriangle& t, const TriangleAttributes& a, const Bounds3f& bounds,
-                const Bounds3f& cell, int levels, uint32_t morton,
-                std::vector<TriangleSpool>* buckets) {
-  if (levels == 0) return (*buckets)[morton].Append(t, &a);
+// Appends to `out` the index (in Morton order) of every level-`levels` cell below `cell` that
+// triangle `t` overlaps; `bounds` is its box clipped to `cell`.
+void Classify(const PackedTriangle& t, const Bounds3f& bounds, const Bounds3f& cell, int levels,
+              uint32_t morton, std::vector<uint32_t>* out) {
+  if (levels == 0) {
+    out->push_back(morton);
+    return;
+  }
   const Vec3f mid = (cell.lower + cell.upper) * 0.5f;
   for (int i = 0; i < 8; ++i) {
     bool touches = true;
@@ -276,9 +280,38 @@ Status Classify(const PackedTriangle& t, const TriangleAttributes& a, const Boun
     const Bounds3f child = store::ChildCell(cell, i);
     const Bounds3f b = child.Contains(bounds) ? bounds : ClipTriangleToCell(t.p, child);
     if (b.Empty()) continue;
-    RAYSTACK_RETURN_IF_ERROR(
-        Classify(t, a, b, child, levels - 1, morton * 8 + static_cast<uint32_t>(i), buckets));
+    Classify(t, b, child, levels - 1, morton * 8 + static_cast<uint32_t>(i), out);
   }
+}
+
+// Classifies a batch on several threads, then appends to the buckets on this one, slice by
+// slice, so each bucket gets its triangles in the same order as a serial pass would.
+Status ClassifyBatch(std::span<const PackedTriangle> tris, std::span<const TriangleAttributes> attrs,
+                     const Bounds3f& cell, int levels, int threads,
+                     std::vector<std::vector<std::pair<uint32_t, uint32_t>>>* slices,
+                     std::vector<TriangleSpool>* buckets) {
+  const size_t n = tris.size();
+  const size_t parts = std::clamp<size_t>(static_cast<size_t>(threads), 1, std::max<size_t>(n / 256, 1));
+  slices->resize(parts);
+  auto work = [&](size_t part) {
+    std::vector<std::pair<uint32_t, uint32_t>>& slice = (*slices)[part];
+    slice.clear();
+    std::vector<uint32_t> cells;
+    for (size_t i = part * n / parts; i < (part + 1) * n / parts; ++i) {
+      const Bounds3f b = ClipTriangleToCell(tris[i].p, cell);
+      if (b.Empty()) continue;
+      cells.clear();
+      Classify(tris[i], b, cell, levels, 0, &cells);
+      for (uint32_t c : cells) slice.emplace_back(c, static_cast<uint32_t>(i));
+    }
+  };
+  std::vector<std::thread> helpers;
+  for (size_t part = 1; part < parts; ++part) helpers.emplace_back(work, part);
+  work(0);
+  for (std::thread& h : helpers) h.join();
+  for (const auto& slice : *slices)
+    for (const auto& [bucket, i] : slice)
+      RAYSTACK_RETURN_IF_ERROR((*buckets)[bucket].Append(tris[i], &attrs[i]));
   return OkStatus();
 }
 
@@ -342,14 +375,10 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
     buckets.emplace_back(StrFormat("%s/bucket-d%d-n%u-%u.tmp", options_.temp_dir.c_str(), depth,
                                    node, i),
                          0, 64 << 10);
+  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> slices;
   RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
                                               std::span<const TriangleAttributes> attrs) {
-    for (size_t i = 0; i < tris.size(); ++i) {
-      const Bounds3f b = ClipTriangleToCell(tris[i].p, cell);
-      if (b.Empty()) continue;
-      RAYSTACK_RETURN_IF_ERROR(Classify(tris[i], attrs[i], b, cell, levels, 0, &buckets));
-    }
-    return OkStatus();
+    return ClassifyBatch(tris, attrs, cell, levels, options_.threads, &slices, &buckets);
   }));
   for (TriangleSpool& b : buckets) RAYSTACK_RETURN_IF_ERROR(b.Close());
 
