@@ -120,11 +120,11 @@ class Builder {
     // encoding the last one; the bucket budget allows for two in memory).
     auto bucket = std::make_shared<Bucket>();
     bucket->triangles.reserve(source.triangles());
-    if (attributes_) bucket->attributes.reserve(source.triangles());
+
     RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
                                                 std::span<const TriangleAttributes> attrs) {
       bucket->triangles.insert(bucket->triangles.end(), tris.begin(), tris.end());
-      if (attributes_) bucket->attributes.insert(bucket->attributes.end(), attrs.begin(), attrs.end());
+      bucket->attributes.insert(bucket->attributes.end(), attrs.begin(), attrs.end());
       return OkStatus();
     }));
     bucket_ = bucket;
@@ -208,7 +208,7 @@ class Builder {
     for (size_t c = 0; c < chunks; ++c) {
       LeafJob job;
       job.triangles = bucket_->triangles;
-      if (attributes_) job.attributes = bucket_->attributes;
+      job.attributes = bucket_->attributes;
       job.keep_alive = bucket_;
       const size_t begin = c * refs.size() / chunks, end = (c + 1) * refs.size() / chunks;
       job.refs.reserve(end - begin);
@@ -311,7 +311,7 @@ Status ClassifyBatch(std::span<const PackedTriangle> tris, std::span<const Trian
   for (std::thread& h : helpers) h.join();
   for (const auto& slice : *slices)
     for (const auto& [bucket, i] : slice)
-      RAYSTACK_RETURN_IF_ERROR((*buckets)[bucket].Append(tris[i], &attrs[i]));
+      RAYSTACK_RETURN_IF_ERROR((*buckets)[bucket].Append(tris[i], attrs.empty() ? nullptr : &attrs[i]));
   return OkStatus();
 }
 
@@ -325,7 +325,7 @@ Status Builder::StreamLeaf(const TriangleSource& source, uint32_t node, const Bo
     if (refs.empty()) return;
     LeafJob job;
     job.triangles = bucket->triangles;
-    if (attributes_) job.attributes = bucket->attributes;
+    job.attributes = bucket->attributes;
     job.keep_alive = bucket;
     for (const Ref& r : refs) {
       job.refs.push_back(r.tri);
@@ -346,7 +346,7 @@ Status Builder::StreamLeaf(const TriangleSource& source, uint32_t node, const Bo
       if (b.Empty()) continue;
       refs.push_back({static_cast<uint32_t>(bucket->triangles.size()), b});
       bucket->triangles.push_back(tris[i]);
-      if (attributes_) bucket->attributes.push_back(attrs[i]);
+      if (!attrs.empty()) bucket->attributes.push_back(attrs[i]);
       if (refs.size() == max_tris_) flush();
     }
     return OkStatus();

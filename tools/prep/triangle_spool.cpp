@@ -15,7 +15,8 @@ TriangleSpool::TriangleSpool(std::string path, uint64_t memory_budget, size_t fi
 TriangleSpool::TriangleSpool(TriangleSpool&& o) noexcept
     : path_(std::move(o.path_)), memory_budget_(o.memory_budget_), file_buffer_(o.file_buffer_),
       memory_(std::move(o.memory_)),
-      file_(o.file_), spilled_(o.spilled_), triangles_(o.triangles_), bytes_(o.bytes_) {
+      file_(o.file_), spilled_(o.spilled_), triangles_(o.triangles_), bytes_(o.bytes_),
+      has_attributes_(o.has_attributes_) {
   o.file_ = nullptr;
   o.spilled_ = false;
   o.path_.clear();
@@ -30,6 +31,7 @@ void TriangleSpool::Clear() {
   spilled_ = false;
   std::vector<uint8_t>().swap(memory_);
   triangles_ = bytes_ = 0;
+  has_attributes_ = false;
 }
 
 Status TriangleSpool::Spill() {
@@ -45,6 +47,7 @@ Status TriangleSpool::Spill() {
 
 Status TriangleSpool::Append(const PackedTriangle& t, const TriangleAttributes* attributes) {
   const bool with_attributes = t.has_normals() || t.has_uvs();
+  has_attributes_ |= with_attributes;
   const size_t n = sizeof t + (with_attributes ? sizeof *attributes : 0);
   ++triangles_;
   bytes_ += n;
@@ -97,7 +100,7 @@ Status TriangleSpool::ForEach(const Visitor& visit) const {
       n += sizeof a;
     }
     tris.push_back(t);
-    attrs.push_back(a);
+    if (has_attributes_) attrs.push_back(a);
     *used = n;
     return true;
   };

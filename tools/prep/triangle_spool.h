@@ -38,7 +38,8 @@ class TriangleSpool {
   bool spilled() const { return file_ != nullptr || spilled_; }
 
   // Streams every triangle, in order, in batches. `visit(tris, attrs)`: attrs is parallel to
-  // tris (entries of triangles without attributes are unspecified). An error stops the scan.
+  // tris when any triangle of the spool has attributes (entries of triangles without are
+  // unspecified), and empty otherwise. An error stops the scan.
   using Visitor = std::function<Status(std::span<const PackedTriangle>,
                                        std::span<const TriangleAttributes>)>;
   Status ForEach(const Visitor& visit) const;
@@ -55,6 +56,7 @@ class TriangleSpool {
   std::FILE* file_ = nullptr;
   bool spilled_ = false;
   uint64_t triangles_ = 0, bytes_ = 0;
+  bool has_attributes_ = false;
 };
 
 }  // namespace raystack::prep
