@@ -1,6 +1,7 @@
 // The store holds the model faithfully: every triangle is in the blocks whose cells it
 // overlaps, blocks stay inside their cells, and closest hits through the store equal brute
-// force over the source triangles, bit for bit (t and triangle id), for 10^5 rays per model.
+// force over the source triangles, bit for bit (t and triangle id), for 10^5 rays per model;
+// any-hit agrees on whether there is a hit.
 
 #include <gtest/gtest.h>
 
@@ -114,6 +115,11 @@ void CheckRays(const store::StoreReader& s, const std::vector<Tri>& tris, int n)
     Expected<Hit> got = s.blocks().empty() ? Expected<Hit>(Hit{}) : tracer.Intersect(ray);
     ASSERT_TRUE(got.ok()) << got.status().message();
     hits += want.Valid();
+    if (!s.blocks().empty()) {  // any-hit agrees with the closest hit on whether there is one
+      Expected<bool> occluded = tracer.Occluded(ray);
+      ASSERT_TRUE(occluded.ok());
+      EXPECT_EQ(*occluded, want.Valid());
+    }
     if (got->triangle_id != want.triangle_id || (want.Valid() && got->t != want.t)) {
       if (++mismatches <= 5)
         ADD_FAILURE() << "ray (" << ray.origin.x << "," << ray.origin.y << "," << ray.origin.z
@@ -188,6 +194,66 @@ INSTANTIATE_TEST_SUITE_P(Models, SharedModelTest,
                              if (!isalnum(static_cast<unsigned char>(c))) c = '_';
                            return name;
                          });
+
+}  // namespace
+}  // namespace raystack
+
+namespace raystack {
+namespace {
+
+// What the model has is stored, and only that: normals, uvs and per-triangle materials of an
+// OBJ come back from the blocks; a model without them has blocks without them.
+TEST(StoreModel, AttributesTheModelHasAreStoredAndOnlyThose) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  const std::string obj = dir->File("attr.obj"), mtl = dir->File("attr.mtl");
+  {
+    std::FILE* f = std::fopen(mtl.c_str(), "w");
+    std::fputs("newmtl red\nKd 1 0 0\nnewmtl lamp\nKe 5 5 5\n", f);
+    std::fclose(f);
+    f = std::fopen(obj.c_str(), "w");
+    std::fputs("mtllib attr.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\n"
+               "vn 0 0 1\nvn 0 0.6 0.8\nvt 0 0\nvt 1 0\nvt 0 1\nvt 1 1\n"
+               "usemtl red\nf 1/1/1 2/2/1 3/3/2\nusemtl lamp\nf 2/2/1 4/4/2 3/3/2\n", f);
+    std::fclose(f);
+  }
+  prep::ConvertOptions o;
+  o.inputs = {obj};
+  Built b = ConvertToStore(o);
+  ASSERT_TRUE(b.store);
+  EXPECT_EQ(b.store->summary().model_flags,
+            store::kModelHasNormals | store::kModelHasUvs | store::kModelHasMaterials);
+  ASSERT_EQ(b.store->materials().size(), 2u);
+  EXPECT_STREQ(b.store->materials()[1].name, "lamp");
+  EXPECT_EQ(b.store->materials()[1].ke[0], 5.0f);
+  std::vector<uint8_t> stored;
+  store::AlignedBuffer scratch, raw;
+  ASSERT_EQ(b.store->blocks().size(), 1u);
+  Expected<store::BlockView> v = b.store->Load(0, &stored, &scratch, &raw);
+  ASSERT_TRUE(v.ok()) << v.status().message();
+  ASSERT_TRUE(v->has_normals());
+  ASSERT_TRUE(v->has_uvs());
+  for (uint32_t t = 0; t < v->triangle_count(); ++t) {
+    EXPECT_EQ(v->Material(t), v->TriangleId(t));  // triangle 0 is red (0), 1 is lamp (1)
+    const Vec3f n2 = v->Normal(v->VertexIndex(t, 2));
+    EXPECT_EQ(n2.y, 0.6f);
+    EXPECT_EQ(n2.z, 0.8f);
+  }
+
+  prep::ConvertOptions plain;
+  plain.generate = "sphere:2000";
+  Built p = ConvertToStore(plain);
+  ASSERT_TRUE(p.store);
+  EXPECT_EQ(p.store->summary().model_flags, 0u);
+  for (uint32_t id = 0; id < p.store->blocks().size(); ++id) {
+    Expected<store::BlockView> pv = p.store->Load(id, &stored, &scratch, &raw);
+    ASSERT_TRUE(pv.ok());
+    EXPECT_FALSE(pv->has_normals());
+    EXPECT_FALSE(pv->has_uvs());
+    EXPECT_FALSE(pv->header().flags & store::kBlockPerTriangleMaterial);
+    EXPECT_EQ(pv->Material(0), store::kNoMaterial);
+  }
+}
 
 }  // namespace
 }  // namespace raystack
