@@ -32,47 +32,43 @@ Status StoreTracer::LoadAll() {
   return OkStatus();
 }
 
-Expected<Hit> StoreTracer::Intersect(const Ray& ray) {
-  Hit hit;
-  hit.t = ray.tmax;
+template <typename PerBlock>
+Status StoreTracer::VisitBlocks(const Ray& ray, float* tmax, PerBlock&& per_block) {
   Status error;
-  float tmax = ray.tmax;
-  store_.octree().VisitLeaves(ray, &tmax, [&](uint32_t, const OctreeNode& leaf, float, float) {
+  store_.octree().VisitLeaves(ray, tmax, [&](uint32_t, const OctreeNode& leaf, float, float) {
     for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b) {
       Expected<const BlockView*> block = Block(b);
       if (!block.ok()) {
         error = block.status();
         return false;
       }
-      (*block)->Intersect(ray, &hit);
+      if (!per_block(**block)) return false;
     }
-    tmax = hit.t;  // later leaves start beyond the best hit: skip them
     return true;
   });
-  if (!error.ok()) return error;
+  return error;
+}
+
+Expected<Hit> StoreTracer::Intersect(const Ray& ray) {
+  Hit hit;
+  hit.t = ray.tmax;
+  float tmax = ray.tmax;
+  RAYSTACK_RETURN_IF_ERROR(VisitBlocks(ray, &tmax, [&](const BlockView& block) {
+    block.Intersect(ray, &hit);
+    tmax = hit.t;  // later leaves start beyond the best hit: skip them
+    return true;
+  }));
   if (!hit.Valid()) hit.t = std::numeric_limits<float>::infinity();
   return hit;
 }
 
 Expected<bool> StoreTracer::Occluded(const Ray& ray) {
   bool occluded = false;
-  Status error;
   float tmax = ray.tmax;
-  store_.octree().VisitLeaves(ray, &tmax, [&](uint32_t, const OctreeNode& leaf, float, float) {
-    for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b) {
-      Expected<const BlockView*> block = Block(b);
-      if (!block.ok()) {
-        error = block.status();
-        return false;
-      }
-      if ((*block)->Occluded(ray)) {
-        occluded = true;
-        return false;
-      }
-    }
-    return true;
-  });
-  if (!error.ok()) return error;
+  RAYSTACK_RETURN_IF_ERROR(VisitBlocks(ray, &tmax, [&](const BlockView& block) {
+    occluded = block.Occluded(ray);
+    return !occluded;
+  }));
   return occluded;
 }
 

@@ -31,6 +31,10 @@ class StoreTracer {
  private:
   struct Loaded;
   Expected<const BlockView*> Block(uint32_t id);
+  // Calls per_block(view) for each block of each leaf the ray crosses, nearest first, until
+  // it returns false; a block that fails to load ends the walk with its error.
+  template <typename PerBlock>
+  Status VisitBlocks(const Ray& ray, float* tmax, PerBlock&& per_block);
 
   const StoreReader& store_;
   std::vector<std::unique_ptr<Loaded>> blocks_;  // by block id; null until loaded
