@@ -157,4 +157,12 @@ bool BlockView::Occluded(const Ray& ray) const {
   return occluded;
 }
 
+void BlockView::IntersectBatch(std::span<const Ray> rays, std::span<Hit> hits) const {
+  for (size_t i = 0; i < rays.size(); ++i) Intersect(rays[i], &hits[i]);
+}
+
+void BlockView::OccludedBatch(std::span<const Ray> rays, std::span<uint8_t> occluded) const {
+  for (size_t i = 0; i < rays.size(); ++i) occluded[i] = Occluded(rays[i]) ? 1 : 0;
+}
+
 }  // namespace raystack::store

@@ -49,6 +49,11 @@ class BlockView {
   // Any hit in (ray.tmin, ray.tmax).
   bool Occluded(const Ray& ray) const;
 
+  // The same queries for a batch of rays (a block's waiting queue): results equal, bit for
+  // bit, n calls of the single-ray forms; a batch lets the block be traversed as packets.
+  void IntersectBatch(std::span<const Ray> rays, std::span<Hit> hits) const;
+  void OccludedBatch(std::span<const Ray> rays, std::span<uint8_t> occluded) const;
+
  private:
   uint32_t id_ = 0;
   const BlockHeader* header_ = nullptr;
