@@ -195,6 +195,24 @@ Status StoreReader::ReadStored(uint32_t id, std::vector<uint8_t>* stored) const 
   return OkStatus();
 }
 
+Status StoreReader::ReadRange(uint64_t offset, uint64_t size, uint8_t* out) const {
+  if (offset > blocks_file_bytes_ || size > blocks_file_bytes_ - offset)
+    return Status::Error(StrFormat("%s/blocks.bin: read of %llu bytes at offset %llu is past the end",
+                                   dir_.c_str(), static_cast<unsigned long long>(size),
+                                   static_cast<unsigned long long>(offset)));
+  uint64_t done = 0;
+  while (done < size) {
+    ssize_t n = ::pread(blocks_fd_, out + done, size - done, static_cast<off_t>(offset + done));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0)
+      return Status::Error(StrFormat("%s/blocks.bin: read at offset %llu failed: %s", dir_.c_str(),
+                                     static_cast<unsigned long long>(offset + done),
+                                     n < 0 ? std::strerror(errno) : "unexpected end of file"));
+    done += static_cast<uint64_t>(n);
+  }
+  return OkStatus();
+}
+
 Expected<BlockView> StoreReader::Decode(uint32_t id, std::span<const uint8_t> stored,
                                         AlignedBuffer* scratch, AlignedBuffer* raw) const {
   if (id >= blocks_.size()) return Status::Error(BlockError(id, "no such block"));

@@ -34,6 +34,9 @@ class StoreReader {
   Bounds3f model_bounds() const;
   uint64_t blocks_file_bytes() const { return blocks_file_bytes_; }
 
+  // Reads `size` bytes of blocks.bin at `offset` (a loader reading a run of neighbouring blocks
+  // in one request). Errors name the file and offset. Thread-safe.
+  Status ReadRange(uint64_t offset, uint64_t size, uint8_t* out) const;
   // Reads block `id`'s stored bytes (for a loader that batches reads). Thread-safe.
   Status ReadStored(uint32_t id, std::vector<uint8_t>* stored) const;
   // Verifies the checksum, decompresses into `raw` and validates. Thread-safe.

@@ -1,0 +1,40 @@
+#pragma once
+// Order-independent sums of floats. Rays of one sample, and samples of one pixel, finish in an
+// order that depends on block loads, threads and (later) ranks; float addition is not
+// associative, so summing in completion order would make images differ in the last bit between
+// modes. Each value is instead rounded once, on its own, to a 128-bit fixed-point number, and
+// integer addition is exact and associative: any order gives the same bits.
+
+#include <cmath>
+#include <cstdint>
+
+namespace raystack::render {
+
+__extension__ typedef __int128 Int128;
+
+class FixedSum {
+ public:
+  // 2^-50 resolution (~9e-16) and a range of about +-1.5e23: radiance of 1e-6 to 1e12, and
+  // squares of it for variances, are all within range.
+  static constexpr int kFractionBits = 50;
+
+  // Adds x (a finite value; callers drop non-finite ones and count them).
+  void Add(double x) { value_ += ToFixed(x); }
+  void Add(const FixedSum& other) { value_ += other.value_; }
+  double Value() const { return std::ldexp(static_cast<double>(value_), -kFractionBits); }
+  Int128 raw() const { return value_; }
+  void set_raw(Int128 v) { value_ = v; }
+
+  static Int128 ToFixed(double x) {
+    constexpr double kLimit = 0x1p125;  // saturate far inside the int128 range
+    double scaled = std::ldexp(x, kFractionBits);
+    if (!(scaled < kLimit)) scaled = scaled != scaled ? 0.0 : kLimit;
+    if (scaled < -kLimit) scaled = -kLimit;
+    return static_cast<Int128>(scaled);
+  }
+
+ private:
+  Int128 value_ = 0;
+};
+
+}  // namespace raystack::render

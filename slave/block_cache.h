@@ -1,0 +1,105 @@
+#pragma once
+// The slave's block cache: decoded blocks by id, under a hard byte budget that is never
+// exceeded (bytes are reserved before a read starts, and a load waits rather than overshoot).
+// Least recently used unpinned blocks are evicted first.
+//
+// Traversal takes no lock: TryAcquire/Release are one atomic add each on the block's pin count
+// (a ray thread pins a block once per queue batch, not per ray). Eviction claims a block by
+// swinging its pin count from 0 to a large negative value, which a concurrent TryAcquire sees
+// and backs off from, so a pinned block is never freed under a reader.
+//
+// Thread-safe. Budgets count decoded bytes (64-byte rounded), the memory blocks really use.
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/store/block_codec.h"
+#include "common/store/block_view.h"
+#include "common/store/store_reader.h"
+
+namespace raystack::slave {
+
+class BlockCache {
+ public:
+  static constexpr uint64_t kUnlimited = ~uint64_t{0};
+
+  // Fails when the budget cannot hold the largest block of the store.
+  static Expected<std::unique_ptr<BlockCache>> Create(const store::StoreReader& store,
+                                                      uint64_t budget_bytes);
+
+  // Pins block `id` if it is resident and returns its view (valid until Release), else null.
+  // Lock-free.
+  const store::BlockView* TryAcquire(uint32_t id);
+  void Release(uint32_t id);
+
+  // Loader side. BeginLoad claims block `id` for loading and reserves its bytes, evicting
+  // least recently used unpinned blocks and waiting while everything resident is pinned.
+  // With wait = false it returns kNoRoom instead of waiting (the loader first sends off the
+  // reads it has reserved room for: they are what will free room).
+  enum class Claim { kLoad, kResident, kLoading, kFailed, kNoRoom };
+  Claim BeginLoad(uint32_t id, bool wait = true);
+  // Decodes `stored` into the reserved room and makes the block resident with `pins` pins
+  // already taken (one per ray thread that asked for it); on failure the block is marked
+  // failed and the error (naming the block) is returned.
+  Status FinishLoad(uint32_t id, std::span<const uint8_t> stored, int pins,
+                    store::AlignedBuffer* scratch);
+  // A load that could not read its bytes: releases the reservation, marks the block failed.
+  void FailLoad(uint32_t id);
+  // Wakes and fails every BeginLoad waiting for room (the render is ending, pins will not be
+  // released any more); later BeginLoads fail at once.
+  void Shutdown();
+  // Waits until a block another thread is loading is resident or failed.
+  Claim WaitWhileLoading(uint32_t id);
+
+  // Charge of one block against the budget.
+  uint64_t Charge(uint32_t id) const;
+  uint64_t budget() const { return budget_; }
+  uint64_t used_bytes() const;
+  uint64_t peak_bytes() const { return peak_.load(); }
+  uint64_t loads() const { return loads_.load(); }         // #C, reloads included
+  uint64_t distinct_loaded() const { return distinct_.load(); }  // #U
+  uint64_t evictions() const { return evictions_.load(); }
+  uint64_t resident_count() const;
+
+ private:
+  struct Resident {
+    store::AlignedBuffer raw;
+    store::BlockView view;
+  };
+  enum State : uint8_t { kAbsent = 0, kLoadingState, kResidentState, kFailedState };
+  struct Entry {
+    std::atomic<int32_t> pins{0};
+    std::atomic<uint8_t> state{kAbsent};
+    bool ever_loaded = false;
+    std::atomic<uint64_t> last_use{0};
+    uint32_t resident_index = 0;  // position in resident_ (under mu_)
+    std::unique_ptr<Resident> data;
+  };
+  static constexpr int32_t kEvicting = -(1 << 30);
+
+  BlockCache(const store::StoreReader& store, uint64_t budget);
+  // Frees unpinned least recently used blocks until `need` more bytes fit, plus a small reserve
+  // so that a run of loads does not rescan for every block. Holds mu_. False if impossible now.
+  bool MakeRoom(uint64_t need);
+
+  const store::StoreReader& store_;
+  const uint64_t budget_;
+  std::vector<Entry> entries_;
+  std::atomic<uint64_t> clock_{0};
+
+  mutable std::mutex mu_;
+  std::condition_variable changed_;     // a pin dropped to zero, or a load finished
+  std::atomic<int> waiting_{0};         // threads waiting on changed_
+  bool shutdown_ = false;               // (under mu_)
+  uint64_t used_ = 0;                   // resident + reserved bytes (under mu_)
+  std::vector<uint32_t> resident_;      // ids of resident blocks (under mu_)
+  std::atomic<uint64_t> peak_{0};
+  std::atomic<uint64_t> loads_{0}, distinct_{0}, evictions_{0};
+};
+
+}  // namespace raystack::slave

@@ -1,0 +1,195 @@
+#include "slave/block_loader.h"
+
+#include <algorithm>
+#include <bit>
+
+#include "common/base/log.h"
+
+namespace raystack::slave {
+
+BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, BlockSource* source,
+                         LoaderOptions options, Deliver deliver)
+    : store_(store), cache_(cache), source_(source), options_(options),
+      deliver_(std::move(deliver)) {
+  loader_ = std::thread([this] { LoaderLoop(); });
+  for (int i = 0; i < std::max(1, options_.io_threads); ++i)
+    workers_.emplace_back([this] { WorkerLoop(); });
+}
+
+BlockLoader::~BlockLoader() { Stop(); }
+
+void BlockLoader::Stop() {
+  {
+    std::lock_guard lock(mu_);
+    if (stop_) return;
+    stop_ = true;
+  }
+  requests_cv_.notify_all();
+  cache_->Shutdown();  // the loader may be waiting for room that will never be freed
+  loader_.join();
+  {
+    std::lock_guard lock(runs_mu_);
+    workers_stop_ = true;
+  }
+  runs_cv_.notify_all();
+  for (std::thread& w : workers_)
+    if (w.joinable()) w.join();
+}
+
+void BlockLoader::Request(uint32_t block, uint32_t thread) {
+  {
+    std::lock_guard lock(mu_);
+    requests_.push_back({block, thread});
+  }
+  requests_cv_.notify_one();
+}
+
+void BlockLoader::LoaderLoop() {
+  std::vector<std::pair<uint32_t, uint32_t>> batch;
+  std::vector<std::pair<uint32_t, uint64_t>> blocks;  // (block, threads)
+  for (;;) {
+    {
+      std::unique_lock lock(mu_);
+      requests_cv_.wait(lock, [&] { return stop_ || !requests_.empty(); });
+      if (stop_) return;
+      batch.swap(requests_);
+      requests_.clear();
+    }
+    batches_.fetch_add(1, std::memory_order_relaxed);
+    // Sorting by id sorts by file offset: blocks are written in id order.
+    std::sort(batch.begin(), batch.end());
+    blocks.clear();
+    for (const auto& [block, thread] : batch) {
+      if (blocks.empty() || blocks.back().first != block) blocks.push_back({block, 0});
+      blocks.back().second |= uint64_t{1} << thread;
+    }
+    Run run;
+    uint64_t run_bytes = 0;
+    auto flush = [&] {
+      if (!run.ids.empty()) Submit(std::move(run));
+      run = Run{};
+      run_bytes = 0;
+    };
+    for (const auto& [block, threads] : blocks) {
+      {
+        std::lock_guard lock(mu_);
+        if (stop_) return;
+        auto it = in_flight_.find(block);
+        if (it != in_flight_.end()) {  // already being read: just add the askers
+          it->second |= threads;
+          continue;
+        }
+      }
+      BlockCache::Claim claim = cache_->BeginLoad(block, /*wait=*/false);
+      if (claim == BlockCache::Claim::kNoRoom) {
+        flush();  // the reads already reserved must go first: they are what frees room
+        claim = cache_->BeginLoad(block);
+      }
+      if (claim == BlockCache::Claim::kFailed) {
+        for (uint64_t t = threads; t; t &= t - 1)
+          deliver_(static_cast<uint32_t>(std::countr_zero(t)), block,
+                   Status::Error(StrFormat("block %u failed to load earlier", block)));
+        continue;
+      }
+      if (claim != BlockCache::Claim::kLoad) {
+        // Resident already (or being loaded by a synchronous reader): pin it for each asker;
+        // one that loses a race with eviction asks again.
+        std::lock_guard lock(mu_);
+        for (uint64_t t = threads; t; t &= t - 1) {
+          const uint32_t thread = static_cast<uint32_t>(std::countr_zero(t));
+          if (claim == BlockCache::Claim::kResident && cache_->TryAcquire(block))
+            deliver_(thread, block, OkStatus());
+          else
+            requests_.push_back({block, thread});
+        }
+        continue;
+      }
+      {
+        std::lock_guard lock(mu_);
+        in_flight_[block] = threads;
+      }
+      const store::BlockEntry& e = store_.blocks()[block];
+      const bool adjacent = !run.ids.empty() && run.ids.back() + 1 == block;
+      if (!adjacent || run_bytes + e.stored_bytes > options_.max_run_bytes) flush();
+      run.ids.push_back(block);
+      run_bytes += e.stored_bytes;
+    }
+    flush();
+  }
+}
+
+void BlockLoader::Submit(Run run) {
+  runs_.fetch_add(1, std::memory_order_relaxed);
+  {
+    std::lock_guard lock(runs_mu_);
+    run_queue_.push_back(std::move(run));
+  }
+  runs_cv_.notify_one();
+}
+
+void BlockLoader::WorkerLoop() {
+  std::vector<uint8_t> bytes;
+  store::AlignedBuffer scratch;
+  for (;;) {
+    Run run;
+    {
+      std::unique_lock lock(runs_mu_);
+      runs_cv_.wait(lock, [&] { return !run_queue_.empty() || workers_stop_; });
+      if (run_queue_.empty()) return;
+      run = std::move(run_queue_.front());
+      run_queue_.pop_front();
+    }
+    BusyBegin();
+    const Status read = source_->ReadRun(run.ids, &bytes);
+    uint64_t offset = 0;
+    const uint64_t base = store_.blocks()[run.ids.front()].offset;
+    for (uint32_t id : run.ids) {
+      const store::BlockEntry& e = store_.blocks()[id];
+      offset = e.offset - base;
+      std::span<const uint8_t> stored;
+      if (read.ok()) stored = std::span<const uint8_t>(bytes.data() + offset, e.stored_bytes);
+      Complete(id, read, stored, &scratch);
+    }
+    BusyEnd();
+  }
+}
+
+void BlockLoader::Complete(uint32_t block, const Status& read, std::span<const uint8_t> stored,
+                           store::AlignedBuffer* scratch) {
+  uint64_t threads;
+  {
+    std::lock_guard lock(mu_);
+    threads = in_flight_[block];
+    in_flight_.erase(block);
+  }
+  Status status = read;
+  if (read.ok()) {
+    status = cache_->FinishLoad(block, stored, std::popcount(threads), scratch);
+  } else {
+    cache_->FailLoad(block);
+  }
+  for (uint64_t t = threads; t; t &= t - 1)
+    deliver_(static_cast<uint32_t>(std::countr_zero(t)), block, status);
+}
+
+void BlockLoader::BusyBegin() {
+  std::lock_guard lock(busy_mu_);
+  if (active_++ == 0) busy_since_ = std::chrono::steady_clock::now();
+}
+
+void BlockLoader::BusyEnd() {
+  std::lock_guard lock(busy_mu_);
+  if (--active_ == 0)
+    busy_seconds_ +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - busy_since_).count();
+}
+
+double BlockLoader::busy_seconds() const {
+  std::lock_guard lock(busy_mu_);
+  double s = busy_seconds_;
+  if (active_ > 0)
+    s += std::chrono::duration<double>(std::chrono::steady_clock::now() - busy_since_).count();
+  return s;
+}
+
+}  // namespace raystack::slave

@@ -1,0 +1,95 @@
+#pragma once
+// The loader (thesis Fig. VI.3's loading thread): ray threads request blocks they are missing;
+// the loader takes all pending requests as one batch, sorts it by file offset, merges blocks
+// that are neighbours on disk into one read, reserves their room in the cache and hands the
+// reads to a few I/O workers so 8-16 reads are in flight (a disk, and even more a network
+// filesystem, is fastest with a deep queue). Each loaded block is announced to every thread
+// that asked for it, with one cache pin per asker already taken, so it cannot be evicted
+// before they use it.
+//
+// Thread-safe. A failed read or a damaged block is announced to its askers as an error naming
+// the block; the loader never blocks forever on a failure.
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <unordered_map>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/store/store_reader.h"
+#include "slave/block_cache.h"
+#include "slave/block_source.h"
+
+namespace raystack::slave {
+
+struct LoaderOptions {
+  int io_threads = 8;                  // reads in flight
+  uint32_t max_run_bytes = 256 << 10;  // neighbouring blocks merged into one read, up to this
+};
+
+class BlockLoader {
+ public:
+  static constexpr int kMaxRayThreads = 64;  // requesters are a 64-bit mask
+  // Called from loader threads when block `block` is ready for ray thread `thread` (the pin is
+  // taken) or failed (`status` names the block; no pin).
+  using Deliver = std::function<void(uint32_t thread, uint32_t block, const Status& status)>;
+
+  BlockLoader(const store::StoreReader& store, BlockCache* cache, BlockSource* source,
+              LoaderOptions options, Deliver deliver);
+  ~BlockLoader();
+
+  // Ray thread `thread` needs block `block`. Non-blocking.
+  void Request(uint32_t block, uint32_t thread);
+  // Stops and joins the threads; pending requests are dropped.
+  void Stop();
+
+  double busy_seconds() const;  // time with at least one read in flight (T_io)
+  uint64_t batches() const { return batches_.load(); }
+  uint64_t runs() const { return runs_.load(); }
+
+ private:
+  struct Run {
+    std::vector<uint32_t> ids;
+  };
+  void LoaderLoop();
+  void WorkerLoop();
+  void Complete(uint32_t block, const Status& status, std::span<const uint8_t> stored,
+                store::AlignedBuffer* scratch);
+  void Submit(Run run);
+  void BusyBegin();
+  void BusyEnd();
+
+  const store::StoreReader& store_;
+  BlockCache* cache_;
+  BlockSource* source_;
+  const LoaderOptions options_;
+  const Deliver deliver_;
+
+  std::mutex mu_;
+  std::condition_variable requests_cv_;
+  std::vector<std::pair<uint32_t, uint32_t>> requests_;  // (block, thread)
+  std::unordered_map<uint32_t, uint64_t> in_flight_;      // block -> threads waiting for it
+  bool stop_ = false;
+
+  std::mutex runs_mu_;
+  std::condition_variable runs_cv_;
+  std::deque<Run> run_queue_;
+  bool workers_stop_ = false;
+
+  mutable std::mutex busy_mu_;
+  int active_ = 0;
+  std::chrono::steady_clock::time_point busy_since_;
+  double busy_seconds_ = 0;
+
+  std::atomic<uint64_t> batches_{0}, runs_{0};
+  std::thread loader_;
+  std::vector<std::thread> workers_;
+};
+
+}  // namespace raystack::slave

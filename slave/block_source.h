@@ -1,0 +1,46 @@
+#pragma once
+// Where the loader gets block bytes. Today the store's blocks.bin on a local disk or a shared
+// filesystem (`--blocks loc`); later a peer slave's memory. One virtual call per read run,
+// never per ray. Fault injection lives here so every loader path can be tested against it.
+
+#include <atomic>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/store/store_reader.h"
+
+namespace raystack::slave {
+
+struct FaultOptions {
+  uint32_t io_latency_us = 0;  // added to every read (emulates NFS/Lustre, ~1 ms)
+  int64_t fail_read = -1;      // the k-th read (0-based) fails, as a disk error would
+  int64_t corrupt_read = -1;   // the k-th read returns one flipped byte (the checksum must catch it)
+};
+
+class BlockSource {
+ public:
+  virtual ~BlockSource() = default;
+  // Reads the stored (compressed) bytes of `ids`, which are consecutive in blocks.bin, into
+  // `bytes`, in one request. Thread-safe.
+  virtual Status ReadRun(std::span<const uint32_t> ids, std::vector<uint8_t>* bytes) = 0;
+};
+
+class DiskBlockSource final : public BlockSource {
+ public:
+  DiskBlockSource(const store::StoreReader& store, FaultOptions faults)
+      : store_(store), faults_(faults) {}
+  Status ReadRun(std::span<const uint32_t> ids, std::vector<uint8_t>* bytes) override;
+
+  uint64_t reads() const { return reads_.load(); }
+  uint64_t bytes_read() const { return bytes_.load(); }
+
+ private:
+  const store::StoreReader& store_;
+  FaultOptions faults_;
+  std::atomic<int64_t> reads_{0};
+  std::atomic<uint64_t> bytes_{0};
+};
+
+}  // namespace raystack::slave

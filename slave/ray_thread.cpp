@@ -1,0 +1,415 @@
+#include "slave/ray_thread.h"
+
+#include <algorithm>
+
+#include "common/base/log.h"
+#include "common/render/pixel_priority.h"
+#include "common/render/random.h"
+#include "common/store/format.h"
+#include "slave/block_walk.h"
+
+namespace raystack::slave {
+
+void FrameShared::Fail(const Status& status) {
+  {
+    std::lock_guard lock(error_mu);
+    if (error.ok()) error = status;
+  }
+  abort.store(true);
+  for (RayThread* t : threads) t->Wake();
+}
+
+RayThread::RayThread(FrameShared* shared, uint32_t index)
+    : shared_(shared),
+      index_(index),
+      queues_(static_cast<uint32_t>(shared->store->blocks().size())) {}
+
+void RayThread::Wake() {
+  std::lock_guard lock(inbox_mu_);
+  inbox_cv_.notify_all();
+}
+
+void RayThread::Deliver(uint32_t block, const Status& status) {
+  {
+    std::lock_guard lock(inbox_mu_);
+    inbox_.push_back({block, status});
+  }
+  inbox_cv_.notify_all();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Feeding primary rays.
+
+bool RayThread::NeedFeed() const {
+  if (tiles_exhausted_) return false;
+  if (tiles_.empty()) return true;
+  const ActiveTile& t = tiles_[newest_tile_];
+  // Thesis P_pr: the next tile's rays join once this fraction of the newest tile is done, so
+  // the stack never runs dry at a tile's end yet stays small.
+  return static_cast<double>(t.done) >= shared_->feed_fraction * static_cast<double>(t.total);
+}
+
+RayRecord RayThread::PrimaryRay(int x, int y, uint32_t sample, uint32_t slot,
+                                uint16_t priority) const {
+  float jx = 0.5f, jy = 0.5f;  // sample 0 goes through the pixel centre
+  if (sample > 0) {
+    const render::SampleRandom rng(shared_->seed, slots_.pixel(slot), sample);
+    jx = rng.Uniform(0, render::RandomUse::kPixelJitterX);
+    jy = rng.Uniform(0, render::RandomUse::kPixelJitterY);
+  }
+  const Ray r = shared_->camera->Generate(static_cast<float>(x) + jx, static_cast<float>(y) + jy);
+  RayRecord rec{};
+  rec.origin = r.origin;
+  rec.direction = r.direction;
+  rec.tmax = r.tmax;
+  rec.hit_id = kInvalidId;
+  rec.slot = slot;
+  rec.cursor = 0;
+  rec.weight = {1, 1, 1};
+  rec.material = store::kNoMaterial16;
+  rec.type = static_cast<uint8_t>(RayType::kPrimary);
+  rec.depth = 0;
+  rec.priority = priority;
+  return rec;
+}
+
+bool RayThread::FeedNextTile() {
+  Tile tile;
+  if (!shared_->tiles->Next(index_, &tile)) {
+    tiles_exhausted_ = true;
+    return false;
+  }
+  const uint32_t local = static_cast<uint32_t>(tiles_.size());
+  tiles_.push_back({tile, static_cast<uint32_t>(tile.pixels()) * static_cast<uint32_t>(shared_->spp), 0});
+  newest_tile_ = local;
+  // Highest priority first; pending_ is a LIFO, so push in reverse.
+  struct Px {
+    uint16_t priority;
+    int x, y;
+  };
+  std::vector<Px> pixels;
+  pixels.reserve(static_cast<size_t>(tile.pixels()));
+  for (int y = tile.y0; y < tile.y1; ++y)
+    for (int x = tile.x0; x < tile.x1; ++x) pixels.push_back({render::PixelPriority(x, y), x, y});
+  std::stable_sort(pixels.begin(), pixels.end(),
+                   [](const Px& a, const Px& b) { return a.priority > b.priority; });
+  const int width = shared_->camera->width();
+  for (int s = shared_->spp - 1; s >= 0; --s) {
+    for (auto it = pixels.rbegin(); it != pixels.rend(); ++it) {
+      const uint32_t pixel = static_cast<uint32_t>(it->y * width + it->x);
+      const uint32_t slot = slots_.Open(pixel, static_cast<uint32_t>(s), local);
+      pending_.push_back(PrimaryRay(it->x, it->y, static_cast<uint32_t>(s), slot, it->priority));
+      ++counters_.rays[static_cast<int>(RayType::kPrimary)];
+    }
+  }
+  if (shared_->stack) {
+    while (!pending_.empty()) {
+      RayRecord r = pending_.back();
+      pending_.pop_back();
+      Route(r);
+    }
+  }
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Per-ray steps shared by both drivers.
+
+void RayThread::Finish(const RayRecord& ray) {
+  const uint32_t slot = ray.slot;
+  if (ray.type == static_cast<uint8_t>(RayType::kShadow)) {  // reached the light
+    slots_.AddRadiance(slot, ray.weight);
+    RayDone(slot);
+    return;
+  }
+  shared_->shader->Finish(ray, slots_.pixel(slot), slots_.sample(slot), &shade_);
+  slots_.AddRadiance(slot, shade_.radiance);
+  if (shade_.primary) slots_.SetPrimary(slot, shade_.hit, shade_.z, shade_.normal, shade_.albedo);
+  slots_.AddRays(slot, static_cast<uint32_t>(shade_.children.size()));
+  for (const RayRecord& child : shade_.children) {
+    ++counters_.rays[child.type];
+    pending_.push_back(child);
+  }
+  RayDone(slot);
+}
+
+void RayThread::RayDone(uint32_t slot) {
+  const uint32_t tile = slots_.tile(slot);
+  render::SampleResult result;
+  if (!slots_.RayDone(slot, &result)) return;
+  ++counters_.samples;
+  ++tiles_[tile].done;
+  results_.push_back(result);
+  if (results_.size() >= shared_->result_batch) FlushResults();
+}
+
+void RayThread::FlushResults() {
+  if (results_.empty()) return;
+  shared_->sink->Consume(results_);
+  results_.clear();
+}
+
+namespace {
+
+// Records a closer hit found in `view`: distance, id, and what shading will need once the
+// block may be gone (normal facing the ray's origin, side, material).
+void RecordHit(const store::BlockView& view, const Hit& hit, RayRecord* ray) {
+  Vec3f p0, p1, p2;
+  view.TriangleVertices(hit.local_triangle, &p0, &p1, &p2);
+  const Vec3f ng = Cross(p1 - p0, p2 - p0);
+  const bool back = Dot(ng, ray->direction) > 0;
+  const Vec3f ng_facing = back ? -ng : ng;
+  Vec3f ns = ng_facing;
+  if (view.has_normals()) {
+    const float w0 = 1.0f - hit.u - hit.v;
+    const Vec3f n = view.Normal(view.VertexIndex(hit.local_triangle, 0)) * w0 +
+                    view.Normal(view.VertexIndex(hit.local_triangle, 1)) * hit.u +
+                    view.Normal(view.VertexIndex(hit.local_triangle, 2)) * hit.v;
+    if (IsFinite(n) && Dot(n, n) > 0) ns = Dot(n, ng_facing) < 0 ? -n : n;
+  }
+  ray->tmax = hit.t;
+  ray->hit_id = hit.triangle_id;
+  ray->normal = EncodeNormal(Normalize(ns));
+  ray->flags = back ? kHitBackFace : 0;
+  const uint32_t m = view.Material(hit.local_triangle);
+  ray->material = m == store::kNoMaterial ? store::kNoMaterial16 : static_cast<uint16_t>(m);
+}
+
+Ray ToRay(const RayRecord& r) {
+  Ray ray;
+  ray.origin = r.origin;
+  ray.direction = r.direction;
+  ray.tmin = 0;
+  ray.tmax = r.tmax;
+  return ray;
+}
+
+Hit ToHit(const RayRecord& r) {
+  Hit h;
+  h.t = r.tmax;
+  h.triangle_id = r.hit_id;
+  return h;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Stack driver.
+
+void RayThread::Route(RayRecord& ray) {
+  const uint32_t block = NthBlockAlong(shared_->octree, ToRay(ray), ray.tmax, ray.cursor);
+  if (block == kInvalidId) {
+    Finish(ray);
+    return;
+  }
+  Enqueue(ray, block);
+}
+
+void RayThread::Enqueue(const RayRecord& ray, uint32_t block) {
+  ++counters_.block_visits;
+  uint32_t q = queues_.Find(block);
+  if (q == RayQueues::kNone) {
+    if (shared_->cache->TryAcquire(block)) {  // the ready queue holds this pin
+      q = queues_.Create(block, RayQueues::State::kReady);
+    } else {
+      q = queues_.Create(block, RayQueues::State::kWaiting);
+      shared_->loader->Request(block, index_);
+    }
+  }
+  if (queues_.state(q) == RayQueues::State::kWaiting) ++counters_.visits_waited;
+  queues_.Push(q, ray);
+  counters_.peak_stack_bytes = std::max(counters_.peak_stack_bytes, queues_.peak_bytes());
+  counters_.peak_stack_rays = std::max(counters_.peak_stack_rays, queues_.peak_rays());
+}
+
+void RayThread::TraceChunk(const store::BlockView& view, RayRecord* rays, uint32_t count) {
+  batch_rays_.clear();
+  batch_hits_.clear();
+  batch_index_.clear();
+  for (uint32_t i = 0; i < count; ++i) {
+    if (rays[i].type == static_cast<uint8_t>(RayType::kShadow)) continue;
+    batch_rays_.push_back(ToRay(rays[i]));
+    batch_hits_.push_back(ToHit(rays[i]));
+    batch_index_.push_back(i);
+  }
+  view.IntersectBatch(batch_rays_, batch_hits_);
+  for (size_t k = 0; k < batch_index_.size(); ++k) {
+    RayRecord& r = rays[batch_index_[k]];
+    const Hit& h = batch_hits_[k];
+    if (h.triangle_id != r.hit_id || h.t != r.tmax) RecordHit(view, h, &r);
+  }
+  const size_t radiance = batch_index_.size();
+  batch_rays_.clear();
+  batch_index_.clear();
+  for (uint32_t i = 0; i < count; ++i) {
+    if (rays[i].type != static_cast<uint8_t>(RayType::kShadow)) continue;
+    batch_rays_.push_back(ToRay(rays[i]));
+    batch_index_.push_back(i);
+  }
+  shadow_flags_.resize(batch_rays_.size());
+  view.OccludedBatch(batch_rays_, shadow_flags_);
+  for (size_t k = 0; k < batch_index_.size(); ++k)
+    rays[batch_index_[k]].flags = shadow_flags_[k];  // shadow rays use flags for "occluded"
+  (void)radiance;
+  for (uint32_t i = 0; i < count; ++i) {
+    RayRecord& r = rays[i];
+    if (r.type == static_cast<uint8_t>(RayType::kShadow) && r.flags) {
+      RayDone(r.slot);  // blocked: the light contributes nothing
+      continue;
+    }
+    ++r.cursor;
+    pending_.push_back(r);
+  }
+  while (!pending_.empty()) {
+    RayRecord r = pending_.back();
+    pending_.pop_back();
+    Route(r);
+  }
+}
+
+void RayThread::TraceQueue(uint32_t q) {
+  const uint32_t block = queues_.block(q);
+  // The queue's pin keeps the block resident; this second pin only fetches the view.
+  const store::BlockView* view = shared_->cache->TryAcquire(block);
+  CHECK(view != nullptr);
+  while (queues_.size(q) > 0 && !shared_->abort.load(std::memory_order_relaxed)) {
+    uint32_t last_count;
+    queues_.TakeChunks(q, &taken_chunks_, &last_count);
+    for (size_t c = 0; c < taken_chunks_.size(); ++c) {
+      const uint32_t n = c + 1 == taken_chunks_.size() ? last_count : kChunkRays;
+      TraceChunk(*view, queues_.chunk(taken_chunks_[c]).rays, n);
+    }
+    queues_.Recycle(taken_chunks_);
+  }
+  if (queues_.size(q) == 0) queues_.Close(q);
+  shared_->cache->Release(block);
+  shared_->cache->Release(block);
+}
+
+void RayThread::DrainInbox() {
+  {
+    std::lock_guard lock(inbox_mu_);
+    inbox_local_.swap(inbox_);
+    inbox_.clear();
+  }
+  for (const Delivery& d : inbox_local_) {
+    if (!d.status.ok()) {
+      shared_->Fail(d.status);
+      continue;
+    }
+    const uint32_t q = queues_.Find(d.block);
+    if (q == RayQueues::kNone || queues_.state(q) == RayQueues::State::kReady) {
+      shared_->cache->Release(d.block);  // not needed (any more): give the pin back
+      continue;
+    }
+    queues_.MarkReady(q);
+  }
+  inbox_local_.clear();
+}
+
+void RayThread::RunStack() {
+  while (!shared_->abort.load(std::memory_order_relaxed)) {
+    DrainInbox();
+    const uint32_t q = queues_.PopReady();
+    if (q != RayQueues::kNone) {
+      TraceQueue(q);
+      continue;
+    }
+    if (NeedFeed() && FeedNextTile()) continue;
+    if (queues_.rays() > 0) {  // everything waits for the loader
+      FlushResults();
+      std::unique_lock lock(inbox_mu_);
+      inbox_cv_.wait(lock, [&] { return !inbox_.empty() || shared_->abort.load(); });
+      continue;
+    }
+    if (tiles_exhausted_) break;
+  }
+  FlushResults();
+  counters_.peak_open_samples = slots_.peak_open();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Sync driver.
+
+const store::BlockView* RayThread::AcquireSync(uint32_t block) {
+  bool counted = false;
+  while (!shared_->abort.load(std::memory_order_relaxed)) {
+    if (const store::BlockView* view = shared_->cache->TryAcquire(block)) return view;
+    if (!counted) {
+      ++counters_.visits_waited;
+      counted = true;
+    }
+    switch (shared_->cache->BeginLoad(block)) {
+      case BlockCache::Claim::kLoad: {
+        const uint32_t ids[1] = {block};
+        Status s = shared_->source->ReadRun(ids, &stored_);
+        if (!s.ok()) {
+          shared_->cache->FailLoad(block);
+          shared_->Fail(s);
+          return nullptr;
+        }
+        s = shared_->cache->FinishLoad(block, stored_, 1, &scratch_);
+        if (!s.ok()) {
+          shared_->Fail(s);
+          return nullptr;
+        }
+        const store::BlockView* view = shared_->cache->TryAcquire(block);
+        shared_->cache->Release(block);  // keep exactly one pin
+        return view;
+      }
+      case BlockCache::Claim::kLoading:
+        shared_->cache->WaitWhileLoading(block);
+        break;
+      case BlockCache::Claim::kFailed:
+        shared_->Fail(Status::Error(StrFormat("%s: block %u could not be loaded",
+                                              shared_->store->dir().c_str(), block)));
+        return nullptr;
+      case BlockCache::Claim::kResident:
+      case BlockCache::Claim::kNoRoom:  // (only when asked not to wait)
+        break;
+    }
+  }
+  return nullptr;
+}
+
+void RayThread::TraceSync(RayRecord ray) {
+  for (;;) {
+    const uint32_t block = NthBlockAlong(shared_->octree, ToRay(ray), ray.tmax, ray.cursor);
+    if (block == kInvalidId) {
+      Finish(ray);
+      return;
+    }
+    ++counters_.block_visits;
+    const store::BlockView* view = AcquireSync(block);
+    if (!view) return;  // the frame failed
+    if (ray.type == static_cast<uint8_t>(RayType::kShadow)) {
+      const bool occluded = view->Occluded(ToRay(ray));
+      shared_->cache->Release(block);
+      if (occluded) {
+        RayDone(ray.slot);
+        return;
+      }
+    } else {
+      Hit h = ToHit(ray);
+      view->Intersect(ToRay(ray), &h);
+      if (h.triangle_id != ray.hit_id || h.t != ray.tmax) RecordHit(*view, h, &ray);
+      shared_->cache->Release(block);
+    }
+    ++ray.cursor;
+  }
+}
+
+void RayThread::RunSync() {
+  while (!shared_->abort.load(std::memory_order_relaxed)) {
+    if (pending_.empty() && !FeedNextTile()) break;
+    while (!pending_.empty() && !shared_->abort.load(std::memory_order_relaxed)) {
+      RayRecord r = pending_.back();  // depth first: children come back on top
+      pending_.pop_back();
+      TraceSync(r);
+    }
+  }
+  FlushResults();
+  counters_.peak_open_samples = slots_.peak_open();
+}
+
+}  // namespace raystack::slave

@@ -1,0 +1,120 @@
+#pragma once
+// One ray thread of a slave: its own ray stack (waiting queues per block), its own sample
+// slots, fed with tiles of primary rays. Two drivers over the same per-ray code, so the modes
+// differ only in when blocks are read, never in what a ray computes:
+// - RunStack: trace whichever ready queue comes first; a ray whose next block is missing
+//   waits in that block's queue while the loader reads it (thesis Fig. VI.3);
+// - RunSync: trace one ray at a time to the end, reading a missing block on the spot (the
+//   thesis's baseline).
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/render/camera.h"
+#include "common/render/sample_result.h"
+#include "common/store/store_reader.h"
+#include "slave/block_cache.h"
+#include "slave/block_loader.h"
+#include "slave/block_source.h"
+#include "slave/ray_queues.h"
+#include "slave/render_stats.h"
+#include "slave/sample_slots.h"
+#include "slave/shading.h"
+#include "slave/tile_source.h"
+
+namespace raystack::slave {
+
+// What every ray thread of one frame shares (all thread-safe or read-only).
+struct FrameShared {
+  const store::StoreReader* store = nullptr;
+  store::OctreeView octree;
+  BlockCache* cache = nullptr;
+  BlockLoader* loader = nullptr;  // stack mode only
+  BlockSource* source = nullptr;  // sync reads
+  bool stack = true;              // which driver routes rays
+  const Shader* shader = nullptr;
+  const render::Camera* camera = nullptr;
+  TileSource* tiles = nullptr;
+  render::SampleSink* sink = nullptr;
+  int spp = 1;
+  uint64_t seed = 1;
+  double feed_fraction = 0.1;
+  size_t result_batch = 1024;
+
+  // The first error ends the frame on every thread.
+  std::atomic<bool> abort{false};
+  std::mutex error_mu;
+  Status error;
+  std::vector<class RayThread*> threads;  // woken when the frame fails
+  void Fail(const Status& status);
+};
+
+class RayThread {
+ public:
+  RayThread(FrameShared* shared, uint32_t index);
+
+  void RunStack();
+  void RunSync();
+  // Loader callback: block ready (pinned for this thread) or failed. Thread-safe.
+  void Deliver(uint32_t block, const Status& status);
+  // Wakes the thread if it waits (abort).
+  void Wake();
+
+  const ThreadCounters& counters() const { return counters_; }
+
+ private:
+  struct ActiveTile {
+    Tile tile;
+    uint32_t total = 0, done = 0;
+  };
+  bool NeedFeed() const;
+  bool FeedNextTile();
+  RayRecord PrimaryRay(int x, int y, uint32_t sample, uint32_t slot, uint16_t priority) const;
+  // Puts a ray where it goes next: its next block's queue, or finished (stack driver).
+  void Route(RayRecord& ray);
+  void Enqueue(const RayRecord& ray, uint32_t block);
+  void TraceQueue(uint32_t q);
+  void TraceChunk(const store::BlockView& view, RayRecord* rays, uint32_t count);
+  // After a block: advance the cursor, then route or finish.
+  void Advance(RayRecord& ray);
+  void Finish(const RayRecord& ray);
+  void RayDone(uint32_t slot);
+  void DrainInbox();
+  void FlushResults();
+  // Sync driver pieces.
+  void TraceSync(RayRecord ray);
+  const store::BlockView* AcquireSync(uint32_t block);
+
+  FrameShared* shared_;
+  const uint32_t index_;
+  RayQueues queues_;
+  SampleSlots slots_;
+  ThreadCounters counters_;
+  std::vector<ActiveTile> tiles_;  // tiles fed and not finished, by local index
+  uint32_t newest_tile_ = 0;
+  bool tiles_exhausted_ = false;
+  std::vector<render::SampleResult> results_;
+  ShadeOutput shade_;
+  std::vector<RayRecord> pending_;  // rays to route (children, primaries): no recursion
+  std::vector<uint32_t> taken_chunks_;
+  std::vector<uint8_t> shadow_flags_;
+  std::vector<Ray> batch_rays_;
+  std::vector<Hit> batch_hits_;
+  std::vector<uint32_t> batch_index_;
+  std::vector<uint8_t> stored_;  // sync reads
+  store::AlignedBuffer scratch_;
+
+  std::mutex inbox_mu_;
+  std::condition_variable inbox_cv_;
+  struct Delivery {
+    uint32_t block;
+    Status status;
+  };
+  std::vector<Delivery> inbox_, inbox_local_;
+};
+
+}  // namespace raystack::slave

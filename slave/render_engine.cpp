@@ -1,0 +1,177 @@
+#include "slave/render_engine.h"
+
+#include <chrono>
+#include <thread>
+
+#include "common/base/log.h"
+#include "slave/ray_thread.h"
+#include "slave/shading.h"
+
+namespace raystack::slave {
+
+const char* TraceModeName(TraceMode mode) {
+  switch (mode) {
+    case TraceMode::kStack: return "stack";
+    case TraceMode::kSync: return "sync";
+    case TraceMode::kIncore: return "incore";
+  }
+  return "?";
+}
+
+Expected<TraceMode> ParseTraceMode(const std::string& name) {
+  if (name == "stack") return TraceMode::kStack;
+  if (name == "sync") return TraceMode::kSync;
+  if (name == "incore") return TraceMode::kIncore;
+  return Status::Error("--mode must be stack, sync or incore, got '" + name + "'");
+}
+
+Expected<std::unique_ptr<RenderEngine>> RenderEngine::Create(const store::StoreReader& store,
+                                                             EngineOptions options) {
+  if (options.threads < 1 || options.threads > BlockLoader::kMaxRayThreads)
+    return Status::Error(StrFormat("--threads must be in [1, %d], got %d",
+                                   BlockLoader::kMaxRayThreads, options.threads));
+  if (!(options.feed_fraction >= 0 && options.feed_fraction <= 1))
+    return Status::Error("--feed-fraction must be in [0, 1]");
+  std::unique_ptr<RenderEngine> engine(new RenderEngine(store, options));
+  const uint64_t budget =
+      options.mode == TraceMode::kIncore ? BlockCache::kUnlimited : options.cache_bytes;
+  Expected<std::unique_ptr<BlockCache>> cache = BlockCache::Create(store, budget);
+  if (!cache.ok()) return cache.status();
+  engine->cache_ = std::move(*cache);
+  return engine;
+}
+
+RenderEngine::RenderEngine(const store::StoreReader& store, EngineOptions options)
+    : store_(store),
+      options_(options),
+      source_(std::make_unique<DiskBlockSource>(store, options.faults)) {}
+
+RenderEngine::~RenderEngine() = default;
+
+Status RenderEngine::Preload(double* seconds) {
+  const auto start = std::chrono::steady_clock::now();
+  // Every block, read in file order by all threads at once through the same path as a miss.
+  std::atomic<uint32_t> next{0};
+  std::mutex mu;
+  Status error;
+  auto work = [&] {
+    std::vector<uint8_t> stored;
+    store::AlignedBuffer scratch;
+    for (;;) {
+      const uint32_t id = next.fetch_add(1);
+      if (id >= store_.blocks().size()) return;
+      if (cache_->BeginLoad(id) != BlockCache::Claim::kLoad) continue;
+      const uint32_t ids[1] = {id};
+      Status s = source_->ReadRun(ids, &stored);
+      if (s.ok()) {
+        s = cache_->FinishLoad(id, stored, 0, &scratch);
+      } else {
+        cache_->FailLoad(id);
+      }
+      if (!s.ok()) {
+        std::lock_guard lock(mu);
+        if (error.ok()) error = s;
+        next.store(static_cast<uint32_t>(store_.blocks().size()));
+      }
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int i = 0; i < options_.threads; ++i) threads.emplace_back(work);
+  for (std::thread& t : threads) t.join();
+  *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return error;
+}
+
+Status RenderEngine::RenderFrame(const render::Scene& scene,
+                                 const render::MaterialTable& materials,
+                                 const render::Camera& camera, TileSource& tiles,
+                                 render::SampleSink& sink, RenderStats* stats) {
+  RenderStats s;
+  s.mode = TraceModeName(options_.mode);
+  s.threads = options_.threads;
+  if (options_.mode == TraceMode::kIncore && !preloaded_) {
+    RAYSTACK_RETURN_IF_ERROR(Preload(&s.preload_seconds));
+    preloaded_ = true;
+  }
+  const uint64_t loads_before = cache_->loads();
+  const uint64_t bytes_before = source_->bytes_read();
+  const uint64_t reads_before = source_->reads();
+  const uint64_t evictions_before = cache_->evictions();
+
+  const Shader shader(scene, materials);
+  FrameShared shared;
+  shared.store = &store_;
+  shared.octree = store_.octree();
+  shared.cache = cache_.get();
+  shared.source = source_.get();
+  shared.shader = &shader;
+  shared.camera = &camera;
+  shared.tiles = &tiles;
+  shared.sink = &sink;
+  shared.spp = scene.integrator.spp;
+  shared.seed = scene.integrator.seed;
+  shared.feed_fraction = options_.feed_fraction;
+  shared.result_batch = options_.result_batch;
+  shared.stack = options_.mode != TraceMode::kSync;
+
+  std::vector<std::unique_ptr<RayThread>> threads;
+  for (int i = 0; i < options_.threads; ++i)
+    threads.push_back(std::make_unique<RayThread>(&shared, static_cast<uint32_t>(i)));
+  for (auto& t : threads) shared.threads.push_back(t.get());
+
+  std::unique_ptr<BlockLoader> loader;
+  if (shared.stack) {
+    loader = std::make_unique<BlockLoader>(
+        store_, cache_.get(), source_.get(), options_.loader,
+        [&threads](uint32_t thread, uint32_t block, const Status& status) {
+          threads[thread]->Deliver(block, status);
+        });
+    shared.loader = loader.get();
+  }
+
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<std::thread> workers;
+  for (auto& t : threads)
+    workers.emplace_back([&shared, rt = t.get()] {
+      if (shared.stack)
+        rt->RunStack();
+      else
+        rt->RunSync();
+    });
+  for (std::thread& w : workers) w.join();
+  s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (loader) {
+    loader->Stop();
+    s.loader_busy_seconds = loader->busy_seconds();
+  }
+
+  uint64_t visits = 0, waited = 0;
+  for (auto& t : threads) {
+    const ThreadCounters& c = t->counters();
+    for (int k = 0; k < kRayTypeCount; ++k) s.rays[k] += c.rays[k];
+    s.samples += c.samples;
+    visits += c.block_visits;
+    waited += c.visits_waited;
+    s.peak_stack_bytes += c.peak_stack_bytes;
+    s.peak_stack_rays += c.peak_stack_rays;
+    s.peak_open_samples += c.peak_open_samples;
+  }
+  for (uint64_t r : s.rays) s.rays_total += r;
+  s.rays_per_second = s.seconds > 0 ? static_cast<double>(s.rays_total) / s.seconds : 0;
+  s.block_visits = visits;
+  s.cache_hit_rate = visits ? 1.0 - static_cast<double>(waited) / static_cast<double>(visits) : 1.0;
+  s.blocks_loaded = cache_->loads() - loads_before;
+  s.blocks_distinct = cache_->distinct_loaded();
+  s.block_count = store_.blocks().size();
+  s.bytes_read = source_->bytes_read() - bytes_before;
+  s.reads = source_->reads() - reads_before;
+  s.evictions = cache_->evictions() - evictions_before;
+  s.cache_budget_bytes = cache_->budget();
+  s.cache_peak_bytes = cache_->peak_bytes();
+  s.peak_rss_bytes = PeakRssBytes();
+  if (stats) *stats = s;
+  std::lock_guard lock(shared.error_mu);
+  return shared.error;
+}
+
+}  // namespace raystack::slave

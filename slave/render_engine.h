@@ -1,0 +1,65 @@
+#pragma once
+// A slave's renderer: a block cache under a byte budget, a loader, and N ray threads, kept
+// across frames so caches stay warm. RenderFrame traces one frame's tiles and hands finished
+// samples to a sink.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "common/base/status.h"
+#include "common/render/camera.h"
+#include "common/render/material_table.h"
+#include "common/render/sample_result.h"
+#include "common/render/scene.h"
+#include "common/store/store_reader.h"
+#include "slave/block_cache.h"
+#include "slave/block_loader.h"
+#include "slave/block_source.h"
+#include "slave/render_stats.h"
+#include "slave/tile_source.h"
+
+namespace raystack::slave {
+
+enum class TraceMode { kStack, kSync, kIncore };
+const char* TraceModeName(TraceMode mode);
+Expected<TraceMode> ParseTraceMode(const std::string& name);
+
+struct EngineOptions {
+  TraceMode mode = TraceMode::kStack;
+  int threads = 2;
+  double feed_fraction = 0.1;               // P_pr
+  uint64_t cache_bytes = uint64_t{512} << 20;  // ignored in incore mode
+  LoaderOptions loader;
+  FaultOptions faults;
+  size_t result_batch = 1024;               // samples per hand-over to the sink
+};
+
+class RenderEngine {
+ public:
+  static Expected<std::unique_ptr<RenderEngine>> Create(const store::StoreReader& store,
+                                                        EngineOptions options);
+  ~RenderEngine();
+
+  // Renders every tile `tiles` hands out, with `scene`'s lights, integrator and background,
+  // through `camera`. Returns the first error (naming the block or file), after every thread
+  // has stopped.
+  Status RenderFrame(const render::Scene& scene, const render::MaterialTable& materials,
+                     const render::Camera& camera, TileSource& tiles, render::SampleSink& sink,
+                     RenderStats* stats);
+
+  const BlockCache& cache() const { return *cache_; }
+  const EngineOptions& options() const { return options_; }
+
+ private:
+  RenderEngine(const store::StoreReader& store, EngineOptions options);
+  Status Preload(double* seconds);
+
+  const store::StoreReader& store_;
+  EngineOptions options_;
+  std::unique_ptr<BlockCache> cache_;
+  std::unique_ptr<DiskBlockSource> source_;
+  bool preloaded_ = false;
+};
+
+}  // namespace raystack::slave

@@ -1,0 +1,71 @@
+#include "slave/render_stats.h"
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "common/base/log.h"
+
+namespace raystack::slave {
+namespace {
+constexpr const char* kTypeNames[kRayTypeCount] = {"primary", "shadow", "specular", "diffuse"};
+}
+
+std::string RenderStats::ToJson() const {
+  std::ostringstream o;
+  o << "{\n  \"mode\": \"" << mode << "\",\n  \"threads\": " << threads
+    << ",\n  \"seconds\": " << seconds << ",\n  \"preload_seconds\": " << preload_seconds
+    << ",\n  \"rays\": {";
+  for (int t = 0; t < kRayTypeCount; ++t)
+    o << (t ? ", " : "") << "\"" << kTypeNames[t] << "\": " << rays[t];
+  o << "},\n  \"rays_total\": " << rays_total << ",\n  \"rays_per_second\": " << rays_per_second
+    << ",\n  \"samples\": " << samples << ",\n  \"blocks_loaded\": " << blocks_loaded
+    << ",\n  \"blocks_distinct\": " << blocks_distinct << ",\n  \"block_count\": " << block_count
+    << ",\n  \"loaded_per_useful\": "
+    << (blocks_distinct ? static_cast<double>(blocks_loaded) / static_cast<double>(blocks_distinct) : 0.0)
+    << ",\n  \"bytes_read\": " << bytes_read << ",\n  \"reads\": " << reads
+    << ",\n  \"block_visits\": " << block_visits << ",\n  \"cache_hit_rate\": " << cache_hit_rate
+    << ",\n  \"loader_busy_seconds\": " << loader_busy_seconds
+    << ",\n  \"cache_budget_bytes\": " << cache_budget_bytes
+    << ",\n  \"cache_peak_bytes\": " << cache_peak_bytes << ",\n  \"evictions\": " << evictions
+    << ",\n  \"peak_stack_bytes\": " << peak_stack_bytes
+    << ",\n  \"peak_stack_rays\": " << peak_stack_rays
+    << ",\n  \"peak_open_samples\": " << peak_open_samples
+    << ",\n  \"ray_record_bytes\": " << ray_record_bytes
+    << ",\n  \"peak_rss_bytes\": " << peak_rss_bytes << "\n}\n";
+  return o.str();
+}
+
+std::string RenderStats::ToText() const {
+  std::string s = StrFormat("%s mode, %d threads: %.3f s", mode.c_str(), threads, seconds);
+  if (preload_seconds > 0) s += StrFormat(" (+%.3f s preloading)", preload_seconds);
+  s += StrFormat("\n  rays: %llu (%.2f M/s); primary %llu, shadow %llu, specular %llu, diffuse %llu",
+                 static_cast<unsigned long long>(rays_total), rays_per_second * 1e-6,
+                 static_cast<unsigned long long>(rays[0]), static_cast<unsigned long long>(rays[1]),
+                 static_cast<unsigned long long>(rays[2]), static_cast<unsigned long long>(rays[3]));
+  s += StrFormat("\n  blocks: %llu loaded (#C), %llu distinct used (#U) of %llu; %.1f MB read in %llu reads; loader busy %.3f s",
+                 static_cast<unsigned long long>(blocks_loaded),
+                 static_cast<unsigned long long>(blocks_distinct),
+                 static_cast<unsigned long long>(block_count), static_cast<double>(bytes_read) / 1e6,
+                 static_cast<unsigned long long>(reads), loader_busy_seconds);
+  s += StrFormat("\n  cache: hit rate %.4f, peak %.1f of %.1f MB, %llu evictions",
+                 cache_hit_rate, static_cast<double>(cache_peak_bytes) / 1e6,
+                 static_cast<double>(cache_budget_bytes) / 1e6,
+                 static_cast<unsigned long long>(evictions));
+  s += StrFormat("\n  ray stack: %llu-byte records, peak %.2f MB (%llu rays); peak RSS %.1f MB",
+                 static_cast<unsigned long long>(ray_record_bytes),
+                 static_cast<double>(peak_stack_bytes) / 1e6,
+                 static_cast<unsigned long long>(peak_stack_rays),
+                 static_cast<double>(peak_rss_bytes) / 1e6);
+  return s;
+}
+
+uint64_t PeakRssBytes() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stoull(line.substr(6)) * 1024;
+  return 0;
+}
+
+}  // namespace raystack::slave

@@ -1,0 +1,57 @@
+#pragma once
+// What one frame cost on one slave: the figures the thesis reports (TAB. VI.3-VI.4) and ours.
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "slave/ray_record.h"
+
+namespace raystack::slave {
+
+struct ThreadCounters {
+  std::array<uint64_t, kRayTypeCount> rays{};  // rays created, by RayType
+  uint64_t block_visits = 0;   // (ray, block) traversal steps
+  uint64_t visits_waited = 0;  // steps whose block was not resident when the ray got there
+  uint64_t samples = 0;        // samples finished
+  uint64_t peak_stack_bytes = 0;
+  uint64_t peak_stack_rays = 0;
+  uint64_t peak_open_samples = 0;
+};
+
+struct RenderStats {
+  std::string mode;
+  int threads = 0;
+  double seconds = 0;          // the frame, after any preloading
+  double preload_seconds = 0;  // incore mode: loading every block first
+  std::array<uint64_t, kRayTypeCount> rays{};
+  uint64_t rays_total = 0;
+  double rays_per_second = 0;
+  uint64_t samples = 0;
+  uint64_t blocks_loaded = 0;    // #C, reloads included
+  uint64_t blocks_distinct = 0;  // #U
+  uint64_t block_count = 0;      // in the store
+  uint64_t bytes_read = 0;       // stored bytes read from the block source
+  uint64_t reads = 0;            // read requests (runs of neighbouring blocks)
+  uint64_t block_visits = 0;
+  double cache_hit_rate = 0;     // visits whose block was resident when the ray got there
+  double loader_busy_seconds = 0;  // T_io: time with at least one read in flight
+  uint64_t cache_budget_bytes = 0;
+  uint64_t cache_peak_bytes = 0;
+  uint64_t evictions = 0;
+  uint64_t peak_stack_bytes = 0;   // sum over threads of each one's peak queue memory
+  uint64_t peak_stack_rays = 0;
+  uint64_t peak_open_samples = 0;
+  uint64_t ray_record_bytes = sizeof(RayRecord);
+  uint64_t peak_rss_bytes = 0;
+
+  // One JSON object (stable keys, documented in the README).
+  std::string ToJson() const;
+  // Human-readable lines for the end of a run.
+  std::string ToText() const;
+};
+
+// Peak resident set size of this process (VmHWM), 0 if unknown.
+uint64_t PeakRssBytes();
+
+}  // namespace raystack::slave

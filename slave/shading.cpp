@@ -1,0 +1,180 @@
+#include "slave/shading.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "common/geometry/offset_ray.h"
+#include "common/geometry/ray.h"
+#include "common/render/random.h"
+#include "common/store/format.h"
+
+namespace raystack::slave {
+namespace {
+
+using render::Material;
+using render::MaterialType;
+using render::RandomUse;
+using render::SampleRandom;
+
+bool NonZero(Vec3f v) { return v.x > 0 || v.y > 0 || v.z > 0; }
+float MaxComponent(Vec3f v) { return std::max(v.x, std::max(v.y, v.z)); }
+
+// Fresnel reflectance of a smooth dielectric; cos_i > 0 on the incident side, eta = n_i / n_t.
+float FresnelDielectric(float cos_i, float eta, float* cos_t) {
+  const float sin2_t = eta * eta * std::max(0.0f, 1.0f - cos_i * cos_i);
+  if (sin2_t >= 1.0f) {
+    *cos_t = 0;
+    return 1.0f;  // total internal reflection
+  }
+  *cos_t = std::sqrt(1.0f - sin2_t);
+  const float rs = (eta * cos_i - *cos_t) / (eta * cos_i + *cos_t);
+  const float rp = (cos_i - eta * *cos_t) / (cos_i + eta * *cos_t);
+  return 0.5f * (rs * rs + rp * rp);
+}
+
+Vec3f Reflect(Vec3f d, Vec3f n) { return d - n * (2.0f * Dot(d, n)); }
+
+// Any unit vector perpendicular to n, stably (Duff et al. 2017).
+void Basis(Vec3f n, Vec3f* t, Vec3f* b) {
+  const float sign = std::copysign(1.0f, n.z);
+  const float a = -1.0f / (sign + n.z);
+  const float c = n.x * n.y * a;
+  *t = {1.0f + sign * n.x * n.x * a, sign * c, -sign * n.x};
+  *b = {c, sign + n.y * n.y * a, -n.y};
+}
+
+}  // namespace
+
+Shader::Shader(const render::Scene& scene, const render::MaterialTable& materials)
+    : scene_(scene),
+      materials_(materials),
+      path_(scene.integrator.type == render::IntegratorType::kPath),
+      max_depth_(scene.integrator.max_depth),
+      seed_(scene.integrator.seed),
+      background_(NonZero(scene.background)) {}
+
+void Shader::Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f direction,
+                   Vec3f weight, ShadeOutput* out) const {
+  RayRecord r{};
+  r.origin = origin;
+  r.direction = direction;
+  r.tmax = type == RayType::kShadow ? 1.0f : std::numeric_limits<float>::infinity();
+  r.hit_id = kInvalidId;
+  r.slot = parent.slot;
+  r.cursor = 0;
+  r.weight = weight;
+  r.material = store::kNoMaterial16;
+  r.type = static_cast<uint8_t>(type);
+  r.depth = static_cast<uint8_t>(type == RayType::kShadow ? parent.depth : parent.depth + 1);
+  r.priority = parent.priority;
+  out->children.push_back(r);
+}
+
+void Shader::DirectLight(const RayRecord& ray, Vec3f p, Vec3f n, Vec3f albedo, uint32_t pixel,
+                         uint32_t sample, ShadeOutput* out) const {
+  const auto& lights = scene_.lights;
+  if (lights.empty() || !NonZero(albedo)) return;
+  size_t first = 0, last = lights.size();
+  float scale = 1.0f;
+  if (path_) {  // next-event estimation: one light, chosen uniformly
+    const SampleRandom rng(seed_, pixel, sample);
+    const float u = rng.Uniform(ray.depth, RandomUse::kLightChoice);
+    first = std::min(lights.size() - 1, static_cast<size_t>(u * static_cast<float>(lights.size())));
+    last = first + 1;
+    scale = static_cast<float>(lights.size());
+  }
+  const Vec3f origin = OffsetRayOrigin(p, n);
+  for (size_t i = first; i < last; ++i) {
+    const Vec3f to_light = lights[i].position - origin;
+    const float d2 = Dot(to_light, to_light);
+    if (!(d2 > 0)) continue;
+    const float cos_theta = Dot(n, to_light) / std::sqrt(d2);
+    if (!(cos_theta > 0)) continue;
+    // Lambertian BRDF albedo/pi times the irradiance I cos / d^2 of a point light.
+    const Vec3f weight = ray.weight * albedo * lights[i].intensity *
+                         (scale * cos_theta / (d2 * std::numbers::pi_v<float>));
+    if (!NonZero(weight)) continue;
+    Spawn(ray, RayType::kShadow, origin, to_light, weight, out);
+  }
+}
+
+void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
+                    ShadeOutput* out) const {
+  out->radiance = {0, 0, 0};
+  out->children.clear();
+  out->primary = ray.type == static_cast<uint8_t>(RayType::kPrimary);
+  out->hit = ray.hit_id != kInvalidId;
+  if (!out->hit) {
+    if (background_) out->radiance = ray.weight * scene_.background;
+    if (out->primary) {
+      out->z = std::numeric_limits<float>::infinity();
+      out->normal = out->albedo = {0, 0, 0};
+    }
+    return;
+  }
+  const Material& m = materials_.Get(ray.material == store::kNoMaterial16 ? store::kNoMaterial
+                                                                          : ray.material);
+  const Vec3f n = DecodeNormal(ray.normal);  // faces the side the ray came from
+  const Vec3f p = ray.origin + ray.direction * ray.tmax;
+  if (out->primary) {
+    out->z = ray.tmax;
+    out->normal = n;
+    out->albedo = m.albedo;
+  }
+  if (m.emissive()) out->radiance = ray.weight * m.emission;
+  const bool can_bounce = ray.depth < max_depth_;
+  const SampleRandom rng(seed_, pixel, sample);
+  switch (m.type) {
+    case MaterialType::kDiffuse: {
+      DirectLight(ray, p, n, m.albedo, pixel, sample, out);
+      if (!path_ || !can_bounce || !NonZero(m.albedo)) break;
+      Vec3f weight = ray.weight * m.albedo;  // cosine sampling: cos/pdf cancels the 1/pi
+      if (ray.depth >= 3) {                  // Russian roulette keeps the estimate unbiased
+        const float q = std::min(0.95f, MaxComponent(weight));
+        if (!(rng.Uniform(ray.depth, RandomUse::kRoulette) < q)) break;
+        weight = weight * (1.0f / q);
+      }
+      const float u1 = rng.Uniform(ray.depth, RandomUse::kBsdfU);
+      const float u2 = rng.Uniform(ray.depth, RandomUse::kBsdfV);
+      const float r = std::sqrt(u1), phi = 2.0f * std::numbers::pi_v<float> * u2;
+      Vec3f t, b;
+      Basis(n, &t, &b);
+      const Vec3f dir = Normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) +
+                                  n * std::sqrt(std::max(0.0f, 1.0f - u1)));
+      Spawn(ray, RayType::kDiffuse, OffsetRayOrigin(p, n), dir, weight, out);
+      break;
+    }
+    case MaterialType::kMirror: {
+      if (!can_bounce || !NonZero(m.albedo)) break;
+      Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, n), Normalize(Reflect(ray.direction, n)),
+            ray.weight * m.albedo, out);
+      break;
+    }
+    case MaterialType::kGlass: {
+      if (!can_bounce || !NonZero(m.albedo)) break;
+      const bool entering = !(ray.flags & kHitBackFace);
+      const float eta = entering ? 1.0f / m.ior : m.ior;
+      const float cos_i = std::min(1.0f, std::max(0.0f, -Dot(ray.direction, n)));
+      float cos_t;
+      const float f = FresnelDielectric(cos_i, eta, &cos_t);
+      const Vec3f reflected = Normalize(Reflect(ray.direction, n));
+      const Vec3f refracted = Normalize(ray.direction * eta + n * (eta * cos_i - cos_t));
+      const Vec3f tint = ray.weight * m.albedo;
+      if (path_) {  // one lobe, chosen with its Fresnel probability (the weight is unchanged)
+        if (rng.Uniform(ray.depth, RandomUse::kLobe) < f)
+          Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, n), reflected, tint, out);
+        else
+          Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, -n), refracted, tint, out);
+      } else {  // Whitted: both lobes
+        if (f > 0) Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, n), reflected, tint * f, out);
+        if (f < 1)
+          Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, -n), refracted, tint * (1 - f), out);
+      }
+      break;
+    }
+  }
+}
+
+}  // namespace raystack::slave

@@ -1,0 +1,51 @@
+#pragma once
+// What happens when a radiance ray's traversal ends: emission and background are added to its
+// sample, and the integrator spawns the rays the hit needs (shadow rays towards lights,
+// specular or diffuse continuations). Only what the scene needs: no lights, no shadow rays;
+// no specular material, no specular rays.
+//
+// Pure: the output depends only on the record, the pixel, the sample and the scene (random
+// numbers are hashes of (seed, pixel, sample, bounce)), so rays may finish in any order.
+
+#include <cstdint>
+#include <vector>
+
+#include "common/render/material_table.h"
+#include "common/render/scene.h"
+#include "slave/ray_record.h"
+
+namespace raystack::slave {
+
+struct ShadeOutput {
+  Vec3f radiance{0, 0, 0};          // to add to the sample
+  std::vector<RayRecord> children;  // rays to trace next (reused between calls)
+  // Primary rays only: the Z, normal and albedo layers.
+  bool primary = false;
+  bool hit = false;
+  float z = 0;
+  Vec3f normal{0, 0, 0}, albedo{0, 0, 0};
+};
+
+class Shader {
+ public:
+  Shader(const render::Scene& scene, const render::MaterialTable& materials);
+
+  void Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample, ShadeOutput* out) const;
+
+  bool path() const { return path_; }
+
+ private:
+  void DirectLight(const RayRecord& ray, Vec3f p, Vec3f n, Vec3f albedo, uint32_t pixel,
+                   uint32_t sample, ShadeOutput* out) const;
+  void Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f direction, Vec3f weight,
+             ShadeOutput* out) const;
+
+  const render::Scene& scene_;
+  const render::MaterialTable& materials_;
+  const bool path_;
+  const int max_depth_;
+  const uint64_t seed_;
+  const bool background_;
+};
+
+}  // namespace raystack::slave

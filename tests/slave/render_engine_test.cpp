@@ -1,0 +1,194 @@
+// The ray stack's contract: the three modes compute the same image bit for bit, the image's
+// depth equals brute-force ray casting, and the cache budget holds.
+
+#include "slave/render_engine.h"
+
+#include <gtest/gtest.h>
+
+#include "tests/slave/render_fixture.h"
+#include "tests/support/brute_force.h"
+#include "tests/support/model_loader.h"
+
+namespace raystack::testing {
+namespace {
+
+using slave::EngineOptions;
+using slave::TraceMode;
+
+render::Scene SpheresScene(const store::StoreReader& store, render::IntegratorType type,
+                           int spp) {
+  render::Scene scene;
+  scene.cameras.push_back(FramingCamera(store, 96, 72));
+  const Bounds3f b = store.model_bounds();
+  scene.lights.push_back({b.upper + (b.upper - b.lower) * 0.5f, {40, 40, 40}});
+  scene.lights.push_back({Vec3f{b.lower.x, b.upper.y * 2, b.upper.z}, {10, 5, 5}});
+  scene.background = {0.1f, 0.1f, 0.2f};
+  scene.integrator.type = type;
+  scene.integrator.spp = spp;
+  scene.integrator.max_depth = type == render::IntegratorType::kPath ? 6 : 3;
+  scene.integrator.seed = 7;
+  return scene;
+}
+
+uint64_t Budget(const store::StoreReader& store, int blocks) {
+  uint64_t largest = 0;
+  for (const auto& e : store.blocks()) largest = std::max<uint64_t>(largest, e.raw_bytes);
+  return blocks * ((largest + 63) & ~uint64_t{63});
+}
+
+EngineOptions Mode(TraceMode mode, uint64_t cache_bytes, int threads = 2) {
+  EngineOptions o;
+  o.mode = mode;
+  o.cache_bytes = cache_bytes;
+  o.threads = threads;
+  o.result_batch = 64;
+  return o;
+}
+
+class ModesAgree : public ::testing::TestWithParam<std::tuple<render::MaterialType, render::IntegratorType>> {};
+
+TEST_P(ModesAgree, BitIdenticalRgbaAndZ) {
+  static TestStore s = BuildGenerated("spheres:60000");
+  ASSERT_GT(s.reader->blocks().size(), 20u);
+  const auto [material, integrator] = GetParam();
+  render::Scene scene = SpheresScene(*s.reader, integrator,
+                                     integrator == render::IntegratorType::kPath ? 3 : 1);
+  scene.default_material.type = material;
+  scene.default_material.albedo = {0.7f, 0.6f, 0.5f};
+  const RenderOutcome incore = Render(*s.reader, scene, Mode(TraceMode::kIncore, 0));
+  ASSERT_TRUE(incore.status.ok()) << incore.status.message();
+  for (int blocks : {3, 12}) {
+    for (TraceMode mode : {TraceMode::kStack, TraceMode::kSync}) {
+      SCOPED_TRACE(std::string(slave::TraceModeName(mode)) + " with a budget of " +
+                   std::to_string(blocks) + " blocks");
+      const uint64_t budget = Budget(*s.reader, blocks);
+      const RenderOutcome r = Render(*s.reader, scene, Mode(mode, budget));
+      ASSERT_TRUE(r.status.ok()) << r.status.message();
+      EXPECT_TRUE(SameBits(r.image.rgba, incore.image.rgba));
+      EXPECT_TRUE(SameBits(r.image.z, incore.image.z));
+      EXPECT_TRUE(SameBits(r.image.normal, incore.image.normal));
+      EXPECT_LE(r.stats.cache_peak_bytes, budget);
+      EXPECT_GT(r.stats.blocks_loaded, r.stats.blocks_distinct / 2);
+      EXPECT_EQ(r.stats.samples, incore.stats.samples);
+      EXPECT_EQ(r.stats.rays_total, incore.stats.rays_total);
+    }
+  }
+  // The image is not trivially black or uniform.
+  float lo = 1e30f, hi = -1e30f;
+  for (size_t i = 0; i < incore.image.rgba.size(); i += 4) {
+    lo = std::min(lo, incore.image.rgba[i]);
+    hi = std::max(hi, incore.image.rgba[i]);
+  }
+  EXPECT_LT(lo, hi);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Materials, ModesAgree,
+    ::testing::Values(std::make_tuple(render::MaterialType::kDiffuse, render::IntegratorType::kWhitted),
+                      std::make_tuple(render::MaterialType::kMirror, render::IntegratorType::kWhitted),
+                      std::make_tuple(render::MaterialType::kGlass, render::IntegratorType::kWhitted),
+                      std::make_tuple(render::MaterialType::kDiffuse, render::IntegratorType::kPath),
+                      std::make_tuple(render::MaterialType::kGlass, render::IntegratorType::kPath)));
+
+TEST(RenderEngine, DepthEqualsBruteForceAtEveryPixel) {
+  const std::string spec = "spheres:40000";
+  TestStore s = BuildGenerated(spec);
+  const BruteForce brute(GenerateTriangles(spec));
+  render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
+  const RenderOutcome r = Render(*s.reader, scene, Mode(TraceMode::kStack, Budget(*s.reader, 4)));
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  const render::Camera camera(scene.cameras[0]);
+  int hits = 0, mismatches = 0;
+  for (int y = 0; y < camera.height(); ++y) {
+    for (int x = 0; x < camera.width(); ++x) {
+      const Ray ray = camera.Generate(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
+      const Hit h = brute.Intersect(ray);
+      const float z = r.image.z[static_cast<size_t>(y) * camera.width() + x];
+      const float expected = h.Valid() ? h.t : std::numeric_limits<float>::infinity();
+      if (h.Valid()) ++hits;
+      if (std::memcmp(&z, &expected, sizeof z) != 0) ++mismatches;
+    }
+  }
+  EXPECT_EQ(mismatches, 0);
+  EXPECT_GT(hits, camera.width() * camera.height() / 4);
+}
+
+TEST(RenderEngine, UnreachedBlocksAreNeverRead) {
+  TestStore s = BuildGenerated("spheres:60000");
+  render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
+  scene.lights.clear();  // primary rays only
+  // A narrow view of one corner of the model.
+  scene.cameras[0].fov_y_deg = 3;
+  const RenderOutcome r = Render(*s.reader, scene, Mode(TraceMode::kStack, Budget(*s.reader, 64)));
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.stats.rays[static_cast<int>(slave::RayType::kShadow)], 0u);
+  EXPECT_LT(r.stats.blocks_distinct, s.reader->blocks().size() / 2);
+  EXPECT_EQ(r.stats.blocks_loaded, r.stats.blocks_distinct);  // the budget holds them all
+}
+
+TEST(RenderEngine, NoSpecularRaysWithoutSpecularMaterials) {
+  TestStore s = BuildGenerated("sphere:5000");
+  const RenderOutcome r = Render(*s.reader, SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1),
+                                 Mode(TraceMode::kStack, Budget(*s.reader, 8)));
+  ASSERT_TRUE(r.status.ok());
+  EXPECT_EQ(r.stats.rays[static_cast<int>(slave::RayType::kSpecular)], 0u);
+  EXPECT_GT(r.stats.rays[static_cast<int>(slave::RayType::kShadow)], 0u);
+}
+
+TEST(RenderEngine, BudgetSmallerThanABlockIsAClearError) {
+  TestStore s = BuildGenerated("sphere:5000");
+  Expected<std::unique_ptr<slave::RenderEngine>> e =
+      slave::RenderEngine::Create(*s.reader, Mode(TraceMode::kStack, 1000));
+  ASSERT_FALSE(e.ok());
+  EXPECT_NE(e.status().message().find("smaller than the largest block"), std::string::npos)
+      << e.status().message();
+}
+
+TEST(RenderEngine, CacheBudgetHoldsFromAFewBlocksUp) {
+  TestStore s = BuildGenerated("spheres:60000");
+  render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
+  scene.default_material.type = render::MaterialType::kMirror;
+  for (int blocks : {1, 2, 5, 40}) {
+    for (TraceMode mode : {TraceMode::kStack, TraceMode::kSync}) {
+      const uint64_t budget = Budget(*s.reader, blocks);
+      const RenderOutcome r = Render(*s.reader, scene, Mode(mode, budget, 3));
+      ASSERT_TRUE(r.status.ok()) << r.status.message();
+      EXPECT_LE(r.stats.cache_peak_bytes, budget) << blocks << " blocks";
+      EXPECT_GT(r.stats.cache_peak_bytes, 0u);
+    }
+  }
+}
+
+class Faults : public ::testing::TestWithParam<TraceMode> {};
+
+TEST_P(Faults, ReadErrorEndsTheRenderNamingTheBlock) {
+  TestStore s = BuildGenerated("spheres:30000");
+  const render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
+  for (int64_t k : {0, 3, 17}) {
+    EngineOptions o = Mode(GetParam(), Budget(*s.reader, 4));
+    o.faults.fail_read = k;
+    const RenderOutcome r = Render(*s.reader, scene, o);
+    ASSERT_FALSE(r.status.ok()) << "read " << k;
+    EXPECT_NE(r.status.message().find("block "), std::string::npos) << r.status.message();
+    EXPECT_NE(r.status.message().find("read failed"), std::string::npos) << r.status.message();
+  }
+}
+
+TEST_P(Faults, CorruptedBlockEndsTheRenderNamingTheBlock) {
+  TestStore s = BuildGenerated("spheres:30000");
+  const render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
+  for (int64_t k : {0, 5}) {
+    EngineOptions o = Mode(GetParam(), Budget(*s.reader, 4));
+    o.faults.corrupt_read = k;
+    const RenderOutcome r = Render(*s.reader, scene, o);
+    ASSERT_FALSE(r.status.ok()) << "read " << k;
+    EXPECT_NE(r.status.message().find("block "), std::string::npos) << r.status.message();
+    EXPECT_NE(r.status.message().find("damaged"), std::string::npos) << r.status.message();
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Modes, Faults,
+                         ::testing::Values(TraceMode::kStack, TraceMode::kSync, TraceMode::kIncore));
+
+}  // namespace
+}  // namespace raystack::testing
