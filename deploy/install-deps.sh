@@ -3,11 +3,12 @@
 #   compiler and build:  build-essential cmake ninja-build pkg-config
 #   block store:         liblz4-dev (block compression) libxxhash-dev (block checksums)
 #   render job:          libopenmpi-dev openmpi-bin (ranks) libboost-dev (Asio/Beast preview)
-#                        libopenexr-dev (image output)
+#                        libopenexr-dev (image output) libpng-dev (quick-look PNG)
+#                        nlohmann-json3-dev (scene files)
 #   tests:               libgtest-dev
 set -euo pipefail
 packages=(build-essential cmake ninja-build pkg-config liblz4-dev libxxhash-dev libopenmpi-dev
-          openmpi-bin libboost-dev libopenexr-dev libgtest-dev)
+          openmpi-bin libboost-dev libopenexr-dev libpng-dev nlohmann-json3-dev libgtest-dev)
 sudo=""
 if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
 missing=()

@@ -1,19 +1,30 @@
 #pragma once
-// (placeholder until the image library lands)
+// A rendered frame with everything an engine produces per pixel: colour and the auxiliary
+// layers (depth, normal, albedo for denoisers; sample counts and variance for adaptive
+// sampling). Plain data; not synchronised (an engine writes disjoint pixels or merges tiles).
+
+#include <cstddef>
 #include <cstdint>
-#include <limits>
 #include <vector>
+
 namespace raystack::image {
+
 struct ImageLayers {
   int width = 0, height = 0;
-  std::vector<float> rgba, z, normal, albedo;
-  std::vector<uint32_t> samples;
-  std::vector<float> variance;
-  void Resize(int w, int h) {
-    width = w; height = h;
-    const size_t n = static_cast<size_t>(w) * h;
-    rgba.assign(4 * n, 0.0f); z.assign(n, std::numeric_limits<float>::infinity());
-    normal.assign(3 * n, 0.0f); albedo.assign(3 * n, 0.0f); samples.assign(n, 0); variance.assign(n, 0.0f);
+  std::vector<float> rgba;        // 4 per pixel, row-major, row 0 at the top
+  std::vector<float> z;           // 1 per pixel; +inf where the primary ray missed
+  std::vector<float> normal;      // 3 per pixel
+  std::vector<float> albedo;      // 3 per pixel
+  std::vector<uint32_t> samples;  // per-pixel sample count
+  std::vector<float> variance;    // per-pixel variance estimate of the pixel mean (luminance)
+
+  void Resize(int w, int h);  // allocates all layers (z filled with +inf, rest 0)
+
+  size_t pixel_count() const { return static_cast<size_t>(width) * static_cast<size_t>(height); }
+  // Index of pixel (x, y) in a layer with one value per pixel (multiply by 3 or 4 for the others).
+  size_t PixelIndex(int x, int y) const {
+    return static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x);
   }
 };
+
 }  // namespace raystack::image

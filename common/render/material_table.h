@@ -1,22 +1,53 @@
 #pragma once
-// (placeholder until the scene library lands)
+// The materials a render shades with, indexed by the store's material ids: the store's MTL
+// records mapped to the renderer's three material types, with the scene's overrides applied.
+// Built once per scene; immutable afterwards, so every thread may read it.
+
+#include <cstddef>
+#include <cstdint>
 #include <span>
 #include <vector>
+
 #include "common/render/scene.h"
 #include "common/store/format.h"
+
 namespace raystack::render {
+
+// Material for an MTL record: Ke > 0 -> emission = Ke; illum 3 or 5 -> mirror with albedo Ks;
+// illum 4, 6, 7, 9, or d < 1 -> glass with ior Ni (1.5 if Ni < 1) and albedo = Ks if nonzero
+// else [1,1,1]; otherwise diffuse with albedo Kd. The first rule that matches wins, in this
+// order. So that shading never sees what a scene file could not say: non-finite or negative
+// MTL colours become 0 and Ni above 4 becomes 4 (the range LoadScene accepts).
+Material MaterialFromMtl(const store::MaterialRecord& record);
+
 class MaterialTable {
  public:
-  static MaterialTable Build(std::span<const store::MaterialRecord> records, const Scene& scene) {
-    MaterialTable t; t.default_ = scene.default_material;
-    for (const auto& r : records) { Material m; m.albedo = {r.kd[0], r.kd[1], r.kd[2]}; t.m_.push_back(m); }
-    return t;
+  MaterialTable() = default;  // only the default material
+
+  // One entry per store material (overridden by the scene's materials keyed by MTL name), plus
+  // the scene's default for triangles without a material (store::kNoMaterial). An override
+  // naming a material the store does not have is logged as a warning (a scene may be shared
+  // by stores with different materials).
+  static MaterialTable Build(std::span<const store::MaterialRecord> records, const Scene& scene);
+
+  // kNoMaterial or out of range -> the default.
+  const Material& Get(uint32_t material_id) const {
+    return material_id < materials_.size() ? materials_[material_id] : default_;
   }
-  const Material& Get(uint32_t id) const { return id < m_.size() ? m_[id] : default_; }
-  bool any_specular() const { bool s = default_.specular(); for (auto& m : m_) s |= m.specular(); return s; }
-  bool any_emissive() const { bool s = default_.emissive(); for (auto& m : m_) s |= m.emissive(); return s; }
-  size_t size() const { return m_.size(); }
+  // Whether any entry (the default included) is a mirror or glass / emits: lets an engine skip
+  // whole code paths (secondary specular rays, emitter sampling) for scenes without them.
+  bool any_specular() const { return any_specular_; }
+  bool any_emissive() const { return any_emissive_; }
+  // Entries including the default: store materials + 1 (ids 0 .. size() - 2 are the store's;
+  // any other id reads the default).
+  size_t size() const { return materials_.size() + 1; }
+  const Material& default_material() const { return default_; }
+
  private:
-  std::vector<Material> m_; Material default_;
+  std::vector<Material> materials_;  // by store material id
+  Material default_;
+  bool any_specular_ = false;
+  bool any_emissive_ = false;
 };
+
 }  // namespace raystack::render

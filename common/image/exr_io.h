@@ -1,0 +1,28 @@
+#pragma once
+// The render's output file: all layers of an ImageLayers in one OpenEXR file, readable by any
+// EXR viewer or compositor (channels named as they expect: R G B A Z, N.X..., albedo.R...).
+// This library is the only place OpenEXR is linked; its exceptions never leave it. Both
+// functions may run on several threads at once (each call has its own file and temporary).
+
+#include <string>
+
+#include "common/base/status.h"
+#include "common/image/image_layers.h"
+#include "common/image/output_file.h"  // CheckWritable, for the callers of WriteExr
+
+namespace raystack::image {
+
+// Writes all layers as one scanline EXR (channels R G B A Z N.X N.Y N.Z albedo.R albedo.G
+// albedo.B samples (UINT) variance; FLOAT for the rest; ZIP compression), atomically: a temp
+// file in the same folder then rename, so a reader never sees half a file. Errors name the path.
+// rgba is required; any other layer may be empty, and its channels are then left out. A layer
+// that is neither empty nor exactly the image's size is an error.
+Status WriteExr(const std::string& path, const ImageLayers& image);
+
+// Reads a file written by WriteExr (or any EXR with at least R G B; missing layers left empty;
+// a missing A reads as 1). Errors name the path (missing file, not an EXR, truncated). A header
+// claiming more than 2^28 pixels (16384 x 16384) or a side above 65536 is refused rather than
+// allocated: a damaged file must not take the machine's memory.
+Expected<ImageLayers> ReadExr(const std::string& path);
+
+}  // namespace raystack::image

@@ -1,0 +1,94 @@
+#include "common/image/output_file.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <utility>
+
+namespace raystack::image {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Folder(const std::string& path) {
+  const std::string parent = fs::path(path).parent_path().string();
+  return parent.empty() ? "." : parent;
+}
+
+Status CheckFolder(const std::string& path) {
+  if (path.empty()) return Status::Error("an output path must not be empty");
+  const std::string folder = Folder(path);
+  std::error_code ec;
+  const fs::file_status folder_status = fs::status(folder, ec);
+  if (!fs::exists(folder_status))
+    return Status::Error(path + ": cannot write: the folder " + folder + " does not exist");
+  if (!fs::is_directory(folder_status))
+    return Status::Error(path + ": cannot write: " + folder + " is not a folder");
+  if (fs::is_directory(fs::status(path, ec)))
+    return Status::Error(path + ": cannot write: it is a folder");
+  return OkStatus();
+}
+
+}  // namespace
+
+Expected<AtomicOutput> AtomicOutput::Create(const std::string& path) {
+  RAYSTACK_RETURN_IF_ERROR(CheckFolder(path));
+  // Hidden, and unique per process and call, so concurrent writers of one path never share
+  // a temporary. O_EXCL rather than mkstemp: mkstemp's mode 0600 would stay on the result.
+  static std::atomic<uint64_t> counter{0};
+  const fs::path target(path);
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    std::string name = ".";  // (appended piecewise: GCC 12 warns falsely on "." + string)
+    name += target.filename().string();
+    name += ".tmp-" + std::to_string(getpid()) + "-" + std::to_string(counter++);
+    const std::string temp = (target.parent_path() / name).string();
+    const int fd = open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd >= 0) {
+      close(fd);
+      return AtomicOutput(path, temp);
+    }
+    if (errno != EEXIST)
+      return Status::Error(path + ": cannot write: cannot create " + temp + ": " +
+                           std::strerror(errno));
+  }
+  return Status::Error(path + ": cannot write: no free temporary name beside it");
+}
+
+AtomicOutput::AtomicOutput(AtomicOutput&& other) noexcept
+    : path_(std::move(other.path_)), temp_path_(std::move(other.temp_path_)) {
+  other.temp_path_.clear();
+}
+
+AtomicOutput::~AtomicOutput() {
+  if (!temp_path_.empty()) unlink(temp_path_.c_str());
+}
+
+Status AtomicOutput::Commit() {
+  if (temp_path_.empty()) return Status::Error(path_ + ": already written");
+  // fsync before rename: after a crash the name must not point at an empty file.
+  const int fd = open(temp_path_.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0 || fsync(fd) != 0) {
+    const std::string reason = std::strerror(errno);
+    if (fd >= 0) close(fd);
+    return Status::Error(path_ + ": cannot write: " + reason);
+  }
+  close(fd);
+  if (std::rename(temp_path_.c_str(), path_.c_str()) != 0)
+    return Status::Error(path_ + ": cannot write: rename from " + temp_path_ +
+                         " failed: " + std::strerror(errno));
+  temp_path_.clear();
+  return OkStatus();
+}
+
+Status CheckWritable(const std::string& path) {
+  Expected<AtomicOutput> probe = AtomicOutput::Create(path);
+  return probe.ok() ? OkStatus() : probe.status();  // the probe removes itself
+}
+
+}  // namespace raystack::image

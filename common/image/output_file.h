@@ -1,0 +1,43 @@
+#pragma once
+// Output files that appear whole or not at all: written under a temporary name in the target's
+// folder, then renamed over the target (rename is atomic within one file system), so a viewer
+// or a later pipeline step never reads half an image, and a failed write leaves the previous
+// file in place.
+
+#include <string>
+#include <utility>
+
+#include "common/base/status.h"
+
+namespace raystack::image {
+
+// Checks before a render starts that `path` can be written (folder exists and is writable); an
+// error naming the path otherwise. (It creates and removes a temporary file there: the only
+// test that sees read-only mounts and ACLs as they are.)
+Status CheckWritable(const std::string& path);
+
+// A temporary file beside `path`; Commit() makes it `path`. Destroyed without a successful
+// Commit(), it removes the temporary. Move-only; not thread-safe.
+class AtomicOutput {
+ public:
+  // Creates the (empty) temporary file. Errors name `path`.
+  static Expected<AtomicOutput> Create(const std::string& path);
+  AtomicOutput(AtomicOutput&& other) noexcept;
+  AtomicOutput& operator=(AtomicOutput&&) = delete;
+  AtomicOutput(const AtomicOutput&) = delete;
+  ~AtomicOutput();
+
+  // Where the writer writes (by name; the file exists and is empty).
+  const std::string& temp_path() const { return temp_path_; }
+  const std::string& path() const { return path_; }
+  // Flushes the temporary to disk and renames it to path().
+  Status Commit();
+
+ private:
+  AtomicOutput(std::string path, std::string temp_path)
+      : path_(std::move(path)), temp_path_(std::move(temp_path)) {}
+  std::string path_;
+  std::string temp_path_;  // empty once committed or moved from
+};
+
+}  // namespace raystack::image

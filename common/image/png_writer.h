@@ -1,0 +1,21 @@
+#pragma once
+// An 8-bit PNG quick look at a render, for browsers and chat; the EXR stays the real output.
+
+#include <cstdint>
+#include <string>
+
+#include "common/base/status.h"
+#include "common/image/image_layers.h"
+#include "common/image/output_file.h"  // CheckWritable, for the callers of WritePng
+
+namespace raystack::image {
+
+// Tone-mapped 8-bit sRGB quick-look: rgb * 2^exposure, clamped, sRGB transfer curve. Atomic like
+// WriteExr. Alpha is not written (an RGB PNG); NaN shows as black.
+Status WritePng(const std::string& path, const ImageLayers& image, float exposure = 0);
+
+// The 8-bit sRGB code of a linear value (clamped to [0, 1]; NaN -> 0), exposed for tests and
+// for previews that tone-map the same way.
+uint8_t LinearToSrgb8(float linear);
+
+}  // namespace raystack::image

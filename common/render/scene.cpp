@@ -1,0 +1,533 @@
+#include "common/render/scene.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
+#include <limits>
+#include <new>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <utility>
+
+#include "common/base/log.h"
+
+namespace raystack::render {
+namespace {
+
+using Json = nlohmann::json;
+namespace fs = std::filesystem;
+
+constexpr const char* kComponent = "scene";
+
+bool IsIdentifier(std::string_view key) {
+  if (key.empty()) return false;
+  for (char c : key) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                    c == '_' || c == '-';
+    if (!ok) return false;
+  }
+  return true;
+}
+
+// JSON paths as messages print them: "camera.fov_y_deg", "lights[2].intensity",
+// "materials[\"red glass\"].ior" (keys that are not plain words are quoted).
+std::string Child(const std::string& path, std::string_view key) {
+  if (IsIdentifier(key)) return path.empty() ? std::string(key) : path + "." + std::string(key);
+  return path + "[" + Json(std::string(key)).dump(-1, ' ', false, Json::error_handler_t::replace) +
+         "]";
+}
+std::string Index(const std::string& path, size_t i) {
+  return path + "[" + std::to_string(i) + "]";
+}
+
+// A value as it appears in a message: short, so a huge array does not flood the terminal.
+std::string Show(const Json& v) {
+  std::string text = v.dump(-1, ' ', false, Json::error_handler_t::replace);
+  if (text.size() > 48) text = text.substr(0, 45) + "...";
+  return text;
+}
+std::string Show(Vec3f v) {
+  return StrFormat("[%g, %g, %g]", double{v.x}, double{v.y}, double{v.z});
+}
+
+std::string JoinKeys(std::initializer_list<const char*> keys) {
+  std::string out;
+  for (const char* k : keys) out += (out.empty() ? "" : ", ") + std::string(k);
+  return out;
+}
+
+// 1-based line and column of the 0-based byte `offset` of `text`.
+std::string LineColumn(std::string_view text, size_t offset) {
+  offset = std::min(offset, text.size());
+  size_t line = 1, line_start = 0;
+  for (size_t i = 0; i < offset; ++i) {
+    if (text[i] == '\n') {
+      ++line;
+      line_start = i + 1;
+    }
+  }
+  return std::to_string(line) + ":" + std::to_string(offset - line_start + 1);
+}
+
+// Raised by the parse callback (inside this file only; ParseScene turns it into a Status).
+struct StructureError {
+  std::string path;
+  std::string what;
+};
+
+// Watches the parse as it happens: rejects nesting deeper than the format could need (before
+// the document is built, so hostile input costs nothing) and duplicate keys, which nlohmann
+// would otherwise resolve silently by keeping the last one.
+class StructureGuard {
+ public:
+  bool OnEvent(Json::parse_event_t event, const Json& parsed) {
+    switch (event) {
+      case Json::parse_event_t::object_start:
+      case Json::parse_event_t::array_start:
+        if (frames_.size() >= static_cast<size_t>(kMaxJsonNesting))
+          throw StructureError{Path(), StrFormat("nested deeper than %d levels", kMaxJsonNesting)};
+        frames_.push_back(Frame{event == Json::parse_event_t::array_start, 0, {}, {}});
+        break;
+      case Json::parse_event_t::object_end:
+      case Json::parse_event_t::array_end:
+        if (!frames_.empty()) frames_.pop_back();
+        ElementDone();
+        break;
+      case Json::parse_event_t::key: {
+        if (frames_.empty() || !parsed.is_string()) break;
+        Frame& top = frames_.back();
+        top.key = parsed.get<std::string>();
+        if (!top.keys.insert(top.key).second)
+          throw StructureError{Path(), "duplicate key (each key may appear once in an object)"};
+        break;
+      }
+      case Json::parse_event_t::value: ElementDone(); break;
+    }
+    return true;
+  }
+
+ private:
+  struct Frame {
+    bool array;
+    size_t count;     // arrays: elements finished so far, i.e. the index of the current one
+    std::string key;  // objects: the current key
+    std::set<std::string> keys;
+  };
+  void ElementDone() {
+    if (!frames_.empty() && frames_.back().array) ++frames_.back().count;
+  }
+  std::string Path() const {
+    std::string path;
+    for (const Frame& f : frames_) path = f.array ? Index(path, f.count) : Child(path, f.key);
+    return path;
+  }
+  std::vector<Frame> frames_;
+};
+
+class SceneParser {
+ public:
+  SceneParser(std::string source, std::string base_dir)
+      : source_(std::move(source)), base_dir_(std::move(base_dir)) {}
+
+  Status Parse(const Json& root, Scene* scene) {
+    scene->source = source_;
+    if (!root.is_object())
+      return Error("", "the top level must be a JSON object, got " + std::string(root.type_name()));
+    RAYSTACK_RETURN_IF_ERROR(CheckKeys(root, "",
+                                       {"store", "camera", "cameras", "lights", "materials",
+                                        "background", "integrator", "output"}));
+
+    if (!root.contains("store")) return Error("store", "required key missing");
+    RAYSTACK_RETURN_IF_ERROR(ReadPath(root["store"], "store", &scene->store));
+
+    const bool has_camera = root.contains("camera"), has_cameras = root.contains("cameras");
+    if (has_camera && has_cameras)
+      return Error("cameras", "give \"camera\" (one) or \"cameras\" (a list), not both");
+    if (!has_camera && !has_cameras)
+      return Error("camera", "required key missing (or \"cameras\": a list of cameras)");
+    if (has_camera) {
+      scene->cameras.emplace_back();
+      RAYSTACK_RETURN_IF_ERROR(ReadCamera(root["camera"], "camera", &scene->cameras.back()));
+    } else {
+      const Json& list = root["cameras"];
+      if (!list.is_array() || list.empty())
+        return Error("cameras", "must be a non-empty array of cameras, got " + Show(list));
+      scene->cameras.resize(list.size());
+      for (size_t i = 0; i < list.size(); ++i)
+        RAYSTACK_RETURN_IF_ERROR(ReadCamera(list[i], Index("cameras", i), &scene->cameras[i]));
+    }
+
+    if (root.contains("lights")) {
+      const Json& list = root["lights"];
+      if (!list.is_array()) return Error("lights", "must be an array of lights, got " + Show(list));
+      scene->lights.resize(list.size());
+      for (size_t i = 0; i < list.size(); ++i)
+        RAYSTACK_RETURN_IF_ERROR(ReadLight(list[i], Index("lights", i), &scene->lights[i]));
+    }
+
+    if (root.contains("materials")) {
+      const Json& table = root["materials"];
+      if (!table.is_object())
+        return Error("materials", "must be an object of materials by name, got " + Show(table));
+      for (const auto& [name, value] : table.items()) {
+        const std::string path = Child("materials", name);
+        if (name.empty()) return Error(path, "a material name must not be empty");
+        Material* material = name == "default" ? &scene->default_material : &scene->overrides[name];
+        RAYSTACK_RETURN_IF_ERROR(ReadMaterial(value, path, material));
+      }
+    }
+
+    if (root.contains("background")) {
+      RAYSTACK_RETURN_IF_ERROR(ReadVec3(root["background"], "background", &scene->background));
+      RAYSTACK_RETURN_IF_ERROR(CheckNonNegative(scene->background, "background"));
+    }
+    if (root.contains("integrator"))
+      RAYSTACK_RETURN_IF_ERROR(
+          ReadIntegrator(root["integrator"], "integrator", &scene->integrator));
+    if (root.contains("output"))
+      RAYSTACK_RETURN_IF_ERROR(ReadPath(root["output"], "output", &scene->output));
+    else
+      scene->output = Resolve(scene->output);
+    return OkStatus();
+  }
+
+ private:
+  Status Error(const std::string& path, const std::string& what) const {
+    return Status::Error(source_ + ": " + (path.empty() ? "" : path + ": ") + what);
+  }
+  void Warn(const std::string& path, const std::string& what) const {
+    LOG_WARNING(kComponent, "%s: %s: %s", source_.c_str(), path.c_str(), what.c_str());
+  }
+  Status TypeError(const std::string& path, const char* expected, const Json& v) const {
+    return Error(path,
+                 std::string("must be ") + expected + ", got " + v.type_name() + " " + Show(v));
+  }
+
+  // Unknown keys are errors: a misspelt key ("fov_y") must not silently leave a default.
+  Status CheckKeys(const Json& v, const std::string& path,
+                   std::initializer_list<const char*> allowed) const {
+    if (!v.is_object()) return TypeError(path, "an object", v);
+    for (const auto& item : v.items()) {
+      bool known = false;
+      for (const char* k : allowed) known = known || item.key() == k;
+      if (!known)
+        return Error(Child(path, item.key()),
+                     "unknown key (expected one of: " + JoinKeys(allowed) + ")");
+    }
+    return OkStatus();
+  }
+
+  Status ReadFloat(const Json& v, const std::string& path, float* out) const {
+    if (!v.is_number()) return TypeError(path, "a number", v);
+    const double d = v.get<double>();
+    if (!std::isfinite(d) || std::fabs(d) > double{std::numeric_limits<float>::max()})
+      return Error(path, "must be a finite number in float range, got " + Show(v));
+    *out = static_cast<float>(d);
+    return OkStatus();
+  }
+
+  // An integer in [lo, hi]; 640.0 is accepted as 640, 640.5 is not.
+  Status ReadInt(const Json& v, const std::string& path, int64_t lo, int64_t hi,
+                 int64_t* out) const {
+    if (!v.is_number()) return TypeError(path, "an integer", v);
+    const std::string range = StrFormat("must be in [%lld, %lld], got ", static_cast<long long>(lo),
+                                        static_cast<long long>(hi));
+    if (v.is_number_float()) {
+      const double d = v.get<double>();
+      if (!std::isfinite(d) || d != std::floor(d))
+        return Error(path, "must be an integer, got " + Show(v));
+      if (d < static_cast<double>(lo) || d > static_cast<double>(hi))
+        return Error(path, range + Show(v));
+      *out = static_cast<int64_t>(d);
+    } else if (v.is_number_unsigned()) {
+      const uint64_t u = v.get<uint64_t>();  // nlohmann's type for every integer >= 0
+      if (u > static_cast<uint64_t>(hi) || static_cast<int64_t>(u) < lo)
+        return Error(path, range + Show(v));
+      *out = static_cast<int64_t>(u);
+    } else {
+      const int64_t i = v.get<int64_t>();
+      if (i < lo || i > hi) return Error(path, range + Show(v));
+      *out = i;
+    }
+    return OkStatus();
+  }
+  Status ReadInt(const Json& v, const std::string& path, int lo, int hi, int* out) const {
+    int64_t value = 0;
+    RAYSTACK_RETURN_IF_ERROR(ReadInt(v, path, int64_t{lo}, int64_t{hi}, &value));
+    *out = static_cast<int>(value);
+    return OkStatus();
+  }
+
+  Status ReadVec3(const Json& v, const std::string& path, Vec3f* out) const {
+    if (!v.is_array() || v.size() != 3)
+      return Error(path, "must be an array of 3 numbers, got " + Show(v));
+    for (int k = 0; k < 3; ++k)
+      RAYSTACK_RETURN_IF_ERROR(
+          ReadFloat(v[static_cast<size_t>(k)], Index(path, static_cast<size_t>(k)), &(*out)[k]));
+    return OkStatus();
+  }
+
+  Status CheckNonNegative(Vec3f v, const std::string& path) const {
+    if (v.x < 0 || v.y < 0 || v.z < 0) return Error(path, "must not be negative, got " + Show(v));
+    return OkStatus();
+  }
+
+  std::string Resolve(const std::string& p) const {
+    if (base_dir_.empty() || fs::path(p).is_absolute()) return p;
+    return (fs::path(base_dir_) / p).lexically_normal().string();
+  }
+
+  Status ReadPath(const Json& v, const std::string& path, std::string* out) const {
+    if (!v.is_string()) return TypeError(path, "a string (a path)", v);
+    const std::string& text = v.get_ref<const std::string&>();
+    if (text.empty()) return Error(path, "must not be empty");
+    *out = Resolve(text);
+    return OkStatus();
+  }
+
+  Status ReadCamera(const Json& v, const std::string& path, CameraDesc* camera) const {
+    RAYSTACK_RETURN_IF_ERROR(
+        CheckKeys(v, path, {"position", "look_at", "up", "fov_y_deg", "width", "height"}));
+    if (v.contains("position"))
+      RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["position"], Child(path, "position"), &camera->position));
+    if (v.contains("look_at"))
+      RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["look_at"], Child(path, "look_at"), &camera->look_at));
+    if (v.contains("up"))
+      RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["up"], Child(path, "up"), &camera->up));
+    if (v.contains("fov_y_deg")) {
+      const std::string fov_path = Child(path, "fov_y_deg");
+      RAYSTACK_RETURN_IF_ERROR(ReadFloat(v["fov_y_deg"], fov_path, &camera->fov_y_deg));
+      if (!(camera->fov_y_deg > 0 && camera->fov_y_deg < 180))
+        return Error(fov_path, "must be in (0, 180), got " + Show(v["fov_y_deg"]));
+    }
+    if (v.contains("width"))
+      RAYSTACK_RETURN_IF_ERROR(
+          ReadInt(v["width"], Child(path, "width"), 1, kMaxImageSide, &camera->width));
+    if (v.contains("height"))
+      RAYSTACK_RETURN_IF_ERROR(
+          ReadInt(v["height"], Child(path, "height"), 1, kMaxImageSide, &camera->height));
+
+    // The same test in double the Camera makes: no basis, no image.
+    const double dx = double{camera->look_at.x} - double{camera->position.x};
+    const double dy = double{camera->look_at.y} - double{camera->position.y};
+    const double dz = double{camera->look_at.z} - double{camera->position.z};
+    const double d_len = std::sqrt(dx * dx + dy * dy + dz * dz);
+    if (d_len == 0)
+      return Error(Child(path, "look_at"), "equals position " + Show(camera->position) +
+                                               ": the camera has no view direction");
+    const double ux = camera->up.x, uy = camera->up.y, uz = camera->up.z;
+    const double u_len = std::sqrt(ux * ux + uy * uy + uz * uz);
+    const double cx = dy * uz - dz * uy, cy = dz * ux - dx * uz, cz = dx * uy - dy * ux;
+    const double sin_angle =
+        u_len == 0 ? 0 : std::sqrt(cx * cx + cy * cy + cz * cz) / (d_len * u_len);
+    if (!(sin_angle > kMinUpSine))
+      return Error(Child(path, "up"), Show(camera->up) +
+                                          " is zero or parallel to the view direction "
+                                          "(look_at - position): the image has no 'up'");
+    return OkStatus();
+  }
+
+  Status ReadLight(const Json& v, const std::string& path, PointLight* light) const {
+    RAYSTACK_RETURN_IF_ERROR(CheckKeys(v, path, {"type", "position", "intensity"}));
+    if (v.contains("type")) {
+      const Json& type = v["type"];
+      if (!type.is_string()) return TypeError(Child(path, "type"), "a string", type);
+      if (type.get_ref<const std::string&>() != "point")
+        return Error(Child(path, "type"),
+                     "unknown light type " + Show(type) + " (expected: point)");
+    }
+    for (const char* key : {"position", "intensity"})
+      if (!v.contains(key)) return Error(Child(path, key), "required key missing");
+    RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["position"], Child(path, "position"), &light->position));
+    RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["intensity"], Child(path, "intensity"), &light->intensity));
+    return CheckNonNegative(light->intensity, Child(path, "intensity"));
+  }
+
+  Status ReadMaterial(const Json& v, const std::string& path, Material* material) const {
+    RAYSTACK_RETURN_IF_ERROR(CheckKeys(v, path, {"type", "albedo", "ior", "emission", "radiance"}));
+    *material = Material{};
+    bool emissive_type = false;
+    if (v.contains("type")) {
+      const Json& type = v["type"];
+      if (!type.is_string()) return TypeError(Child(path, "type"), "a string", type);
+      const std::string& name = type.get_ref<const std::string&>();
+      if (name == "diffuse") {
+        material->type = MaterialType::kDiffuse;
+      } else if (name == "mirror") {
+        material->type = MaterialType::kMirror;
+        material->albedo = {1, 1, 1};
+      } else if (name == "glass") {
+        material->type = MaterialType::kGlass;
+        material->albedo = {1, 1, 1};
+      } else if (name == "emissive") {
+        material->type = MaterialType::kDiffuse;
+        material->albedo = {0, 0, 0};
+        emissive_type = true;
+      } else {
+        return Error(Child(path, "type"), "unknown material type " + Show(type) +
+                                              " (expected: diffuse, mirror, glass, emissive)");
+      }
+    }
+    if (v.contains("albedo")) {
+      const std::string albedo_path = Child(path, "albedo");
+      RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["albedo"], albedo_path, &material->albedo));
+      RAYSTACK_RETURN_IF_ERROR(CheckNonNegative(material->albedo, albedo_path));
+      const Vec3f a = material->albedo;
+      if (a.x > 1 || a.y > 1 || a.z > 1)
+        Warn(albedo_path,
+             Show(a) + " is above 1: the surface reflects more light than it receives");
+    }
+    if (v.contains("ior")) {
+      const std::string ior_path = Child(path, "ior");
+      RAYSTACK_RETURN_IF_ERROR(ReadFloat(v["ior"], ior_path, &material->ior));
+      if (!(material->ior >= kMinIor && material->ior <= kMaxIor))
+        return Error(ior_path, "must be in [1, 4], got " + Show(v["ior"]));
+      if (material->type != MaterialType::kGlass) Warn(ior_path, "ignored: only glass refracts");
+    }
+    if (v.contains("emission") && v.contains("radiance"))
+      return Error(Child(path, "radiance"),
+                   "give \"emission\" or its alias \"radiance\", not both");
+    const char* emission_key = v.contains("radiance") ? "radiance" : "emission";
+    if (v.contains(emission_key)) {
+      const std::string emission_path = Child(path, emission_key);
+      RAYSTACK_RETURN_IF_ERROR(ReadVec3(v[emission_key], emission_path, &material->emission));
+      RAYSTACK_RETURN_IF_ERROR(CheckNonNegative(material->emission, emission_path));
+    } else if (emissive_type) {
+      return Error(Child(path, "emission"), "required key missing (an emissive material needs it)");
+    }
+    return OkStatus();
+  }
+
+  Status ReadIntegrator(const Json& v, const std::string& path, IntegratorDesc* integrator) const {
+    RAYSTACK_RETURN_IF_ERROR(CheckKeys(v, path, {"type", "max_depth", "spp", "seed"}));
+    if (v.contains("type")) {
+      const Json& type = v["type"];
+      if (!type.is_string()) return TypeError(Child(path, "type"), "a string", type);
+      const std::string& name = type.get_ref<const std::string&>();
+      if (name == "whitted") {
+        integrator->type = IntegratorType::kWhitted;
+      } else if (name == "path") {
+        integrator->type = IntegratorType::kPath;
+      } else {
+        return Error(Child(path, "type"),
+                     "unknown integrator type " + Show(type) + " (expected: whitted, path)");
+      }
+    }
+    if (v.contains("max_depth"))
+      RAYSTACK_RETURN_IF_ERROR(
+          ReadInt(v["max_depth"], Child(path, "max_depth"), 0, kMaxDepth, &integrator->max_depth));
+    if (v.contains("spp"))
+      RAYSTACK_RETURN_IF_ERROR(ReadInt(v["spp"], Child(path, "spp"), 1, kMaxSpp, &integrator->spp));
+    if (v.contains("seed")) {
+      const Json& seed = v["seed"];
+      if (!seed.is_number_unsigned())
+        return Error(Child(path, "seed"), "must be an integer in [0, 2^64), got " +
+                                              std::string(seed.type_name()) + " " + Show(seed));
+      integrator->seed = seed.get<uint64_t>();
+    }
+    return OkStatus();
+  }
+
+  // Below this sine between up and the view direction (0.00006 degrees) the image's 'up' is
+  // numerically meaningless.
+  static constexpr double kMinUpSine = 1e-6;
+
+  std::string source_;
+  std::string base_dir_;
+};
+
+// nlohmann's messages start "[json.exception.parse_error.101] parse error at line 2, column 5: ";
+// we give the place ourselves, so keep only what follows.
+std::string Detail(const char* what) {
+  std::string text = what;
+  size_t pos = text.find("] ");
+  if (pos != std::string::npos) text = text.substr(pos + 2);
+  if (text.rfind("parse error", 0) == 0) {
+    pos = text.find(": ");
+    if (pos != std::string::npos) text = text.substr(pos + 2);
+  }
+  return text;
+}
+
+}  // namespace
+
+const char* MaterialTypeName(MaterialType type) {
+  switch (type) {
+    case MaterialType::kDiffuse: return "diffuse";
+    case MaterialType::kMirror: return "mirror";
+    case MaterialType::kGlass: return "glass";
+  }
+  return "?";
+}
+
+const char* IntegratorTypeName(IntegratorType type) {
+  switch (type) {
+    case IntegratorType::kWhitted: return "whitted";
+    case IntegratorType::kPath: return "path";
+  }
+  return "?";
+}
+
+Expected<Scene> ParseScene(std::string_view json_text, const std::string& source_name,
+                           const std::string& base_dir) {
+  if (json_text.size() > kMaxSceneFileBytes)
+    return Status::Error(source_name + ": " + std::to_string(json_text.size()) +
+                         " bytes is too large for a scene file (the limit is " +
+                         std::to_string(kMaxSceneFileBytes >> 20) + " MB)");
+  // nlohmann reports errors by throwing; nothing thrown leaves this function.
+  try {
+    StructureGuard guard;
+    const Json root = Json::parse(json_text.begin(), json_text.end(),
+                                  [&guard](int /*depth*/, Json::parse_event_t event, Json& parsed) {
+                                    return guard.OnEvent(event, parsed);
+                                  });
+    Scene scene;
+    SceneParser parser(source_name, base_dir);
+    RAYSTACK_RETURN_IF_ERROR(parser.Parse(root, &scene));
+    return scene;
+  } catch (const StructureError& e) {
+    return Status::Error(source_name + ": " + (e.path.empty() ? "" : e.path + ": ") + e.what);
+  } catch (const Json::parse_error& e) {
+    const size_t offset = e.byte > 0 ? e.byte - 1 : 0;
+    return Status::Error(source_name + ":" + LineColumn(json_text, offset) +
+                         ": invalid JSON: " + Detail(e.what()));
+  } catch (const Json::out_of_range& e) {
+    // A number beyond double range ("number overflow parsing '1e400'"): find it for the place.
+    std::string detail = Detail(e.what());
+    const size_t open = detail.find('\''), close = detail.rfind('\'');
+    std::string place;
+    if (open != std::string::npos && close > open + 1) {
+      const size_t at = json_text.find(detail.substr(open + 1, close - open - 1));
+      if (at != std::string_view::npos) place = ":" + LineColumn(json_text, at);
+    }
+    return Status::Error(source_name + place + ": invalid JSON: " + detail);
+  } catch (const std::bad_alloc&) {
+    return Status::Error(source_name + ": out of memory while parsing");
+  } catch (const std::exception& e) {
+    return Status::Error(source_name + ": invalid JSON: " + Detail(e.what()));
+  }
+}
+
+Expected<Scene> LoadScene(const std::string& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) return Status::Error(path + ": is a directory, not a scene file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return Status::Error(path + ": cannot open: " + std::strerror(errno));
+  // Read at most one byte past the limit: enough to tell a file is too large, whatever it is
+  // (a pipe or /dev/zero has no size to ask for, so the size is only a hint).
+  const uintmax_t size = fs::file_size(path, ec);
+  if (!ec && size > kMaxSceneFileBytes)
+    return Status::Error(path + ": " + std::to_string(size) +
+                         " bytes is too large for a scene file (the limit is " +
+                         std::to_string(kMaxSceneFileBytes >> 20) + " MB)");
+  std::string text(ec ? kMaxSceneFileBytes + 1 : static_cast<size_t>(size) + 1, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  if (in.bad()) return Status::Error(path + ": read error: " + std::strerror(errno));
+  text.resize(static_cast<size_t>(in.gcount()));
+  return ParseScene(text, path, fs::path(path).parent_path().string());
+}
+
+}  // namespace raystack::render

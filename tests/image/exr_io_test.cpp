@@ -1,0 +1,195 @@
+#include "common/image/exr_io.h"
+
+#include <ImfRgbaFile.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "common/base/temp_dir.h"
+
+namespace raystack::image {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Every layer filled with distinct values, including the ones a lossy or careless path would
+// change: +inf (missed pixels), -0, denormals, the largest float, the largest uint32.
+ImageLayers TestImage(int width, int height, uint32_t seed) {
+  ImageLayers image;
+  image.Resize(width, height);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> uniform(-1000, 1000);
+  for (float& v : image.rgba) v = uniform(rng);
+  for (float& v : image.z) v = std::abs(uniform(rng));
+  for (float& v : image.normal) v = uniform(rng);
+  for (float& v : image.albedo) v = uniform(rng);
+  for (uint32_t& v : image.samples) v = static_cast<uint32_t>(rng());
+  for (float& v : image.variance) v = std::abs(uniform(rng)) * 1e-6f;
+  image.z[0] = std::numeric_limits<float>::infinity();
+  image.z[image.z.size() - 1] = std::numeric_limits<float>::infinity();
+  image.rgba[1] = -0.0f;
+  image.rgba[2] = std::numeric_limits<float>::denorm_min();
+  image.rgba[3] = std::numeric_limits<float>::max();
+  image.normal[0] = std::numeric_limits<float>::lowest();
+  image.samples[0] = 0xffffffffu;
+  image.samples[image.samples.size() - 1] = 0;
+  return image;
+}
+
+template <typename T>
+bool BitEqual(const std::vector<T>& a, const std::vector<T>& b) {
+  if (a.size() != b.size()) return false;
+  return a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
+}
+
+void ExpectBitEqual(const ImageLayers& a, const ImageLayers& b) {
+  EXPECT_EQ(a.width, b.width);
+  EXPECT_EQ(a.height, b.height);
+  EXPECT_TRUE(BitEqual(a.rgba, b.rgba));
+  EXPECT_TRUE(BitEqual(a.z, b.z));
+  EXPECT_TRUE(BitEqual(a.normal, b.normal));
+  EXPECT_TRUE(BitEqual(a.albedo, b.albedo));
+  EXPECT_TRUE(BitEqual(a.samples, b.samples));
+  EXPECT_TRUE(BitEqual(a.variance, b.variance));
+}
+
+void ExpectErrorNaming(const Status& status, const std::string& path,
+                       const std::string& what = "") {
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find(path), std::string::npos) << status.message();
+  if (!what.empty()) {
+    EXPECT_NE(status.message().find(what), std::string::npos) << status.message();
+  }
+}
+
+size_t EntryCount(const std::string& folder) {
+  return static_cast<size_t>(
+      std::distance(fs::directory_iterator(folder), fs::directory_iterator()));
+}
+
+TEST(ExrIo, RoundTripIsBitExactForEveryLayer) {
+  TempDir dir = TempDir::Create().value();
+  // Odd sizes, more rows than one ZIP block (16 scanlines).
+  for (auto [w, h] : {std::pair{1, 1}, std::pair{37, 23}, std::pair{64, 40}}) {
+    const ImageLayers image = TestImage(w, h, static_cast<uint32_t>(w * 1000 + h));
+    const std::string path = dir.File("frame.exr");
+    ASSERT_TRUE(WriteExr(path, image).ok());
+    Expected<ImageLayers> read = ReadExr(path);
+    ASSERT_TRUE(read.ok()) << read.status().message();
+    ExpectBitEqual(image, *read);
+    EXPECT_TRUE(std::isinf(read->z[0]) && read->z[0] > 0);
+  }
+  EXPECT_EQ(EntryCount(dir.path()), 1u);  // no temporaries left behind
+}
+
+TEST(ExrIo, OnlyRgbaWritesAndReadsBackTheOthersEmpty) {
+  TempDir dir = TempDir::Create().value();
+  ImageLayers image = TestImage(8, 4, 1);
+  image.z.clear();
+  image.normal.clear();
+  image.albedo.clear();
+  image.samples.clear();
+  image.variance.clear();
+  ASSERT_TRUE(WriteExr(dir.File("rgba.exr"), image).ok());
+  Expected<ImageLayers> read = ReadExr(dir.File("rgba.exr"));
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  ExpectBitEqual(image, *read);
+}
+
+TEST(ExrIo, ForeignRgbExrWithOffsetWindowReads) {
+  TempDir dir = TempDir::Create().value();
+  const std::string path = dir.File("foreign.exr");
+  // A half-float RGB file whose data window does not start at (0, 0), as other tools write.
+  const Imath::Box2i window(Imath::V2i(10, 20), Imath::V2i(13, 22));  // 4 x 3
+  std::vector<Imf::Rgba> pixels(12);
+  for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = Imf::Rgba(float(i), 0.5f, 2.0f, 1.0f);
+  {
+    Imf::RgbaOutputFile file(path.c_str(), window, window, Imf::WRITE_RGB);
+    file.setFrameBuffer(pixels.data() - 10 - 20 * 4, 1, 4);
+    file.writePixels(3);
+  }
+  Expected<ImageLayers> read = ReadExr(path);
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  EXPECT_EQ(read->width, 4);
+  EXPECT_EQ(read->height, 3);
+  ASSERT_EQ(read->rgba.size(), 48u);
+  for (size_t i = 0; i < 12; ++i) {
+    EXPECT_EQ(read->rgba[4 * i + 0], float(i));
+    EXPECT_EQ(read->rgba[4 * i + 1], 0.5f);
+    EXPECT_EQ(read->rgba[4 * i + 2], 2.0f);
+    EXPECT_EQ(read->rgba[4 * i + 3], 1.0f);  // no alpha in the file: opaque
+  }
+  EXPECT_TRUE(read->z.empty());
+  EXPECT_TRUE(read->normal.empty());
+  EXPECT_TRUE(read->samples.empty());
+}
+
+TEST(ExrIo, ReadErrorsNameThePath) {
+  TempDir dir = TempDir::Create().value();
+  ExpectErrorNaming(ReadExr(dir.File("missing.exr")).status(), dir.File("missing.exr"),
+                    "no such file");
+  ExpectErrorNaming(ReadExr(dir.path()).status(), dir.path());
+
+  const std::string garbage = dir.File("garbage.exr");
+  std::ofstream(garbage, std::ios::binary) << std::string(5000, 'x');
+  ExpectErrorNaming(ReadExr(garbage).status(), garbage);
+  std::ofstream(dir.File("empty.exr"), std::ios::binary).flush();
+  ExpectErrorNaming(ReadExr(dir.File("empty.exr")).status(), dir.File("empty.exr"));
+
+  // A valid file cut short at several places: header, offset table, pixel data.
+  const std::string whole = dir.File("whole.exr");
+  ASSERT_TRUE(WriteExr(whole, TestImage(64, 64, 3)).ok());
+  const auto size = fs::file_size(whole);
+  for (double fraction : {0.02, 0.1, 0.5, 0.9, 0.999}) {
+    const std::string cut = dir.File("cut.exr");
+    fs::copy_file(whole, cut, fs::copy_options::overwrite_existing);
+    fs::resize_file(cut, static_cast<uintmax_t>(static_cast<double>(size) * fraction));
+    SCOPED_TRACE(fraction);
+    ExpectErrorNaming(ReadExr(cut).status(), cut);
+  }
+}
+
+TEST(ExrIo, WriteErrorsNameThePath) {
+  TempDir dir = TempDir::Create().value();
+  const ImageLayers image = TestImage(4, 4, 2);
+  ExpectErrorNaming(WriteExr(dir.File("no/folder/out.exr"), image), dir.File("no/folder/out.exr"),
+                    "does not exist");
+  ImageLayers wrong = image;
+  wrong.normal.resize(5);
+  ExpectErrorNaming(WriteExr(dir.File("out.exr"), wrong), dir.File("out.exr"), "normal");
+  ExpectErrorNaming(WriteExr(dir.File("out.exr"), ImageLayers{}), dir.File("out.exr"), "empty");
+  ImageLayers no_rgba = image;
+  no_rgba.rgba.clear();
+  ExpectErrorNaming(WriteExr(dir.File("out.exr"), no_rgba), dir.File("out.exr"), "rgba");
+  EXPECT_EQ(EntryCount(dir.path()), 0u);
+}
+
+TEST(ExrIo, FailedWriteKeepsThePreviousFile) {
+  TempDir dir = TempDir::Create().value();
+  const std::string path = dir.File("out.exr");
+  const ImageLayers first = TestImage(6, 6, 4);
+  ASSERT_TRUE(WriteExr(path, first).ok());
+  ImageLayers wrong = TestImage(6, 6, 5);
+  wrong.z.resize(1);
+  EXPECT_FALSE(WriteExr(path, wrong).ok());
+  Expected<ImageLayers> read = ReadExr(path);
+  ASSERT_TRUE(read.ok());
+  ExpectBitEqual(first, *read);
+  // And a good write replaces it.
+  const ImageLayers second = TestImage(3, 2, 6);
+  ASSERT_TRUE(WriteExr(path, second).ok());
+  read = ReadExr(path);
+  ASSERT_TRUE(read.ok());
+  ExpectBitEqual(second, *read);
+}
+
+}  // namespace
+}  // namespace raystack::image

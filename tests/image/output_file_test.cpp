@@ -1,0 +1,105 @@
+#include "common/image/output_file.h"
+
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include "common/base/temp_dir.h"
+
+namespace raystack::image {
+namespace {
+
+namespace fs = std::filesystem;
+
+// The whole file (a sized read: istreambuf_iterator trips GCC 12's -Wnull-dereference).
+std::string ReadBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes(static_cast<size_t>(std::filesystem::file_size(path)), '\0');
+  in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  return bytes;
+}
+
+size_t EntryCount(const std::string& folder) {
+  return static_cast<size_t>(
+      std::distance(fs::directory_iterator(folder), fs::directory_iterator()));
+}
+
+TEST(CheckWritable, MissingFolderIsAnErrorNamingThePath) {
+  TempDir dir = TempDir::Create().value();
+  const std::string path = dir.File("no/such/folder/out.exr");
+  Status status = CheckWritable(path);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find(path), std::string::npos) << status.message();
+  EXPECT_NE(status.message().find("does not exist"), std::string::npos) << status.message();
+}
+
+TEST(CheckWritable, WritableFolderPassesAndLeavesNothingBehind) {
+  TempDir dir = TempDir::Create().value();
+  EXPECT_TRUE(CheckWritable(dir.File("out.exr")).ok());
+  EXPECT_EQ(EntryCount(dir.path()), 0u);
+}
+
+TEST(CheckWritable, FolderOrFileInTheWayIsAnError) {
+  TempDir dir = TempDir::Create().value();
+  fs::create_directory(dir.File("out.exr"));
+  Status status = CheckWritable(dir.File("out.exr"));
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("it is a folder"), std::string::npos) << status.message();
+
+  std::ofstream(dir.File("file")) << "x";
+  status = CheckWritable(dir.File("file/out.exr"));
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("not a folder"), std::string::npos) << status.message();
+  EXPECT_FALSE(CheckWritable("").ok());
+}
+
+TEST(CheckWritable, ReadOnlyFolderIsAnError) {
+  if (geteuid() == 0) GTEST_SKIP() << "root writes into read-only folders";
+  TempDir dir = TempDir::Create().value();
+  const std::string folder = dir.File("ro");
+  fs::create_directory(folder);
+  chmod(folder.c_str(), 0555);
+  Status status = CheckWritable(folder + "/out.exr");
+  chmod(folder.c_str(), 0755);
+  ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find(folder + "/out.exr"), std::string::npos) << status.message();
+}
+
+TEST(AtomicOutput, CommitReplacesTheTargetAndDropRemovesTheTemporary) {
+  TempDir dir = TempDir::Create().value();
+  const std::string path = dir.File("image.png");
+  std::ofstream(path) << "old";
+  {
+    Expected<AtomicOutput> output = AtomicOutput::Create(path);
+    ASSERT_TRUE(output.ok()) << output.status().message();
+    std::ofstream(output->temp_path()) << "abandoned";
+    EXPECT_EQ(EntryCount(dir.path()), 2u);
+  }
+  EXPECT_EQ(EntryCount(dir.path()), 1u);  // the temporary went away, the old file stayed
+  EXPECT_EQ(ReadBytes(path), "old");
+
+  Expected<AtomicOutput> output = AtomicOutput::Create(path);
+  ASSERT_TRUE(output.ok());
+  std::ofstream(output->temp_path()) << "new";
+  ASSERT_TRUE(output->Commit().ok());
+  EXPECT_FALSE(output->Commit().ok());  // once only
+  EXPECT_EQ(ReadBytes(path), "new");
+  EXPECT_EQ(EntryCount(dir.path()), 1u);
+}
+
+TEST(AtomicOutput, BareFileNameMeansTheCurrentFolder) {
+  TempDir dir = TempDir::Create().value();
+  const fs::path previous = fs::current_path();
+  fs::current_path(dir.path());
+  Status status = CheckWritable("out.exr");
+  fs::current_path(previous);
+  EXPECT_TRUE(status.ok()) << status.message();
+}
+
+}  // namespace
+}  // namespace raystack::image
