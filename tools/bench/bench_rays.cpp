@@ -5,6 +5,8 @@
 #include <random>
 #include <thread>
 
+#include <time.h>
+
 namespace raystack::bench {
 
 Camera FrameModel(const Bounds3f& model) {
@@ -86,13 +88,26 @@ void ParallelChunks(int threads, size_t n, size_t chunk,
   for (std::thread& t : pool) t.join();
 }
 
-double MedianSeconds(int repeats, const std::function<void()>& fn) {
+namespace {
+
+double Now(bool cpu_time) {
+  if (!cpu_time) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  }
+  timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+
+}  // namespace
+
+double MedianSeconds(int repeats, const std::function<void()>& fn, bool cpu_time) {
   std::vector<double> times;
   for (int i = 0; i < repeats; ++i) {
-    const auto start = std::chrono::steady_clock::now();
+    const double start = Now(cpu_time);
     fn();
-    times.push_back(
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    times.push_back(Now(cpu_time) - start);
   }
   std::sort(times.begin(), times.end());
   return times[times.size() / 2];

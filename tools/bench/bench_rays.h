@@ -42,7 +42,9 @@ std::vector<Ray> RandomRays(const Bounds3f& model, int n, uint32_t seed);
 void ParallelChunks(int threads, size_t n, size_t chunk,
                     const std::function<void(size_t, size_t, int)>& fn);
 
-// Runs fn `repeats` times and returns the median wall time in seconds.
-double MedianSeconds(int repeats, const std::function<void()>& fn);
+// Runs fn `repeats` times and returns the median time in seconds: wall time, or with
+// `cpu_time` the process's CPU time (summed over threads; steadier on a shared machine,
+// for comparing code changes with one thread).
+double MedianSeconds(int repeats, const std::function<void()>& fn, bool cpu_time = false);
 
 }  // namespace raystack::bench

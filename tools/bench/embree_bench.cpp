@@ -5,7 +5,7 @@
 // ray API it offers; the best one is what we compare against. A benchmark: it measures and
 // checks agreement, it asserts nothing.
 //   embree_bench STORE [--width W] [--height H] [--random N] [--threads 1,2] [--repeats R]
-//                      [--chunk RAYS]
+//                      [--chunk RAYS] [--cpu-time 0|1] [--ours-only 0|1]
 
 #include <algorithm>
 #include <cmath>
@@ -33,12 +33,14 @@ struct Options {
   int width = 1024, height = 1024, random = 1000000, repeats = 3;
   size_t chunk = 65536;  // rays per BlockQueueTracer call (one wave of the ray stack)
   std::vector<int> threads{1, 2};
+  bool cpu_time = false;  // CPU seconds instead of wall seconds
+  bool ours_only = false;
 };
 
 [[noreturn]] void Usage() {
   std::fprintf(stderr,
                "usage: embree_bench STORE [--width W] [--height H] [--random N] "
-               "[--threads 1,2] [--repeats R] [--chunk RAYS]\n");
+               "[--threads 1,2] [--repeats R] [--chunk RAYS] [--cpu-time 0|1] [--ours-only 0|1]\n");
   std::exit(2);
 }
 
@@ -53,6 +55,8 @@ Options Parse(int argc, char** argv) {
     else if (!std::strcmp(argv[i], "--height")) o.height = std::atoi(v);
     else if (!std::strcmp(argv[i], "--random")) o.random = std::atoi(v);
     else if (!std::strcmp(argv[i], "--repeats")) o.repeats = std::max(1, std::atoi(v));
+    else if (!std::strcmp(argv[i], "--cpu-time")) o.cpu_time = std::atoi(v) != 0;
+    else if (!std::strcmp(argv[i], "--ours-only")) o.ours_only = std::atoi(v) != 0;
     else if (!std::strcmp(argv[i], "--chunk")) o.chunk = static_cast<size_t>(std::atol(v));
     else if (!std::strcmp(argv[i], "--threads")) {
       o.threads.clear();
@@ -188,7 +192,7 @@ int main(int argc, char** argv) {
             }
           }
         });
-      });
+      }, o.cpu_time);
       std::vector<BlockQueueTracer> queues(static_cast<size_t>(threads),
                                            BlockQueueTracer(s.octree(), in_core.views));
       const double batched = MedianSeconds(o.repeats, [&] {
@@ -200,7 +204,7 @@ int main(int argc, char** argv) {
             q.Occluded(rays.subspan(b, e - b), std::span<uint8_t>(batch_occ).subspan(b, e - b));
           }
         });
-      });
+      }, o.cpu_time);
       uint64_t visits = 0, batches = 0;
       for (const BlockQueueTracer& q : queues) {
         visits += q.ray_block_visits();
@@ -219,7 +223,7 @@ int main(int argc, char** argv) {
       const char* best_name = "";
       std::string agreement;
       for (EmbreeApi api : apis) {
-        if (!embree.Supports(api)) {
+        if (o.ours_only || !embree.Supports(api)) {
           std::printf(" n/a |");
           continue;
         }
@@ -233,7 +237,7 @@ int main(int argc, char** argv) {
                               std::span<uint8_t>(embree_occ).subspan(b, e - b));
             }
           });
-        });
+        }, o.cpu_time);
         size_t agree = 0;
         for (size_t i = 0; i < n; ++i) {
           agree += kind.closest ? CloseT(single_hits[i].t, embree_t[i])
