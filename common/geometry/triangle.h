@@ -20,6 +20,7 @@ struct RayTriangleSetup {
   int kx, ky, kz;    // axis permutation: kz is the ray's dominant axis
   float sx, sy, sz;  // shear
 
+  RayTriangleSetup() = default;  // for arrays filled later (packets)
   explicit RayTriangleSetup(const Ray& ray) : origin(ray.origin), direction(ray.direction) {
     Vec3f d = ray.direction;
     float ax = std::fabs(d.x), ay = std::fabs(d.y), az = std::fabs(d.z);

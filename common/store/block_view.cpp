@@ -115,24 +115,9 @@ bool BlockView::Intersect(const Ray& ray, Hit* hit) const {
   bool found = false;
   // Hits equal to the best t must still be tested (the smaller id wins a tie), so the
   // triangle test's open upper bound is one float above it.
-  float tmax = std::nextafter(hit->t, std::numeric_limits<float>::infinity());
+  float tmax = block_view_internal::NextUp(hit->t);
   TraverseBvh(nodes(), ray, &tmax, [&](uint32_t first, uint32_t count) {
-    for (uint32_t i = first; i < first + count; ++i) {
-      Vec3f p0, p1, p2;
-      TriangleVertices(i, &p0, &p1, &p2);
-      float t, u, w;
-      if (IntersectTriangle(setup, p0, p1, p2, ray.tmin, tmax, &t, &u, &w) &&
-          CloserThan(t, ids_[i], *hit)) {
-        hit->t = t;
-        hit->u = u;
-        hit->v = w;
-        hit->triangle_id = ids_[i];
-        hit->local_triangle = i;
-        hit->block_id = id_;
-        tmax = std::nextafter(t, std::numeric_limits<float>::infinity());
-        found = true;
-      }
-    }
+    found |= IntersectLeaf(setup, ray, first, count, &tmax, hit);
     return false;
   });
   return found;
@@ -143,26 +128,10 @@ bool BlockView::Occluded(const Ray& ray) const {
   float tmax = ray.tmax;
   bool occluded = false;
   TraverseBvh(nodes(), ray, &tmax, [&](uint32_t first, uint32_t count) {
-    for (uint32_t i = first; i < first + count; ++i) {
-      Vec3f p0, p1, p2;
-      TriangleVertices(i, &p0, &p1, &p2);
-      float t, u, w;
-      if (IntersectTriangle(setup, p0, p1, p2, ray.tmin, ray.tmax, &t, &u, &w)) {
-        occluded = true;
-        return true;
-      }
-    }
-    return false;
+    occluded = OccludedLeaf(setup, ray, first, count);
+    return occluded;
   });
   return occluded;
-}
-
-void BlockView::IntersectBatch(std::span<const Ray> rays, std::span<Hit> hits) const {
-  for (size_t i = 0; i < rays.size(); ++i) Intersect(rays[i], &hits[i]);
-}
-
-void BlockView::OccludedBatch(std::span<const Ray> rays, std::span<uint8_t> occluded) const {
-  for (size_t i = 0; i < rays.size(); ++i) occluded[i] = Occluded(rays[i]) ? 1 : 0;
 }
 
 }  // namespace raystack::store

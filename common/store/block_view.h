@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <span>
 
 #include "common/base/status.h"
@@ -50,11 +51,20 @@ class BlockView {
   bool Occluded(const Ray& ray) const;
 
   // The same queries for a batch of rays (a block's waiting queue): results equal, bit for
-  // bit, n calls of the single-ray forms; a batch lets the block be traversed as packets.
+  // bit, n calls of the single-ray forms. Rays are grouped by direction octant and traced
+  // as packets of 4 (SSE2) within each group, so coherent queues gain most; any order, size
+  // and alignment of the spans is fine (the spans must have equal sizes).
   void IntersectBatch(std::span<const Ray> rays, std::span<Hit> hits) const;
   void OccludedBatch(std::span<const Ray> rays, std::span<uint8_t> occluded) const;
 
  private:
+  // Tests triangles [first, first + count) for one ray: the shared body of the single-ray
+  // and packet traversals, so both make the same operations in the same order.
+  bool IntersectLeaf(const RayTriangleSetup& setup, const Ray& ray, uint32_t first,
+                     uint32_t count, float* tmax, Hit* hit) const;
+  bool OccludedLeaf(const RayTriangleSetup& setup, const Ray& ray, uint32_t first,
+                    uint32_t count) const;
+
   uint32_t id_ = 0;
   const BlockHeader* header_ = nullptr;
   const BvhNode* nodes_ = nullptr;
@@ -65,6 +75,55 @@ class BlockView {
   const uint16_t* materials_ = nullptr;
   const float *nx_ = nullptr, *ny_ = nullptr, *nz_ = nullptr;
 };
+
+namespace block_view_internal {
+
+// std::nextafter(x, +inf), inline (libm's is a call per hit).
+inline float NextUp(float x) {
+  if (!(x < std::numeric_limits<float>::infinity())) return x;  // +inf and NaN
+  if (x == 0.0f) return std::numeric_limits<float>::denorm_min();
+  uint32_t bits;
+  std::memcpy(&bits, &x, sizeof(bits));
+  bits = x > 0 ? bits + 1 : bits - 1;  // the magnitude grows for x > 0, shrinks for x < 0
+  std::memcpy(&x, &bits, sizeof(bits));
+  return x;
+}
+
+}  // namespace block_view_internal
+
+inline bool BlockView::IntersectLeaf(const RayTriangleSetup& setup, const Ray& ray,
+                                     uint32_t first, uint32_t count, float* tmax,
+                                     Hit* hit) const {
+  bool found = false;
+  for (uint32_t i = first; i < first + count; ++i) {
+    Vec3f p0, p1, p2;
+    TriangleVertices(i, &p0, &p1, &p2);
+    float t, u, w;
+    if (IntersectTriangle(setup, p0, p1, p2, ray.tmin, *tmax, &t, &u, &w) &&
+        CloserThan(t, ids_[i], *hit)) {
+      hit->t = t;
+      hit->u = u;
+      hit->v = w;
+      hit->triangle_id = ids_[i];
+      hit->local_triangle = i;
+      hit->block_id = id_;
+      *tmax = block_view_internal::NextUp(t);
+      found = true;
+    }
+  }
+  return found;
+}
+
+inline bool BlockView::OccludedLeaf(const RayTriangleSetup& setup, const Ray& ray,
+                                    uint32_t first, uint32_t count) const {
+  for (uint32_t i = first; i < first + count; ++i) {
+    Vec3f p0, p1, p2;
+    TriangleVertices(i, &p0, &p1, &p2);
+    float t, u, w;
+    if (IntersectTriangle(setup, p0, p1, p2, ray.tmin, ray.tmax, &t, &u, &w)) return true;
+  }
+  return false;
+}
 
 inline uint32_t BlockView::VertexIndex(uint32_t t, int corner) const {
   const uint32_t k = 3 * t + static_cast<uint32_t>(corner);

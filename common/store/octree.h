@@ -50,15 +50,21 @@ void OctreeView::VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const {
   if (nodes_.empty()) return;
   const RayBoxSetup setup(ray);
   // A validated octree is at most kMaxOctreeDepth deep, so 8 pending children per level fit.
+  // Items are plain floats, not Bounds3f: the stack is left uninitialised (its default
+  // member initialisers cost more than the whole walk of a typical ray).
   constexpr int kMaxOctreeDepth = 32;
-  struct Item { uint32_t node; Bounds3f cell; float t_enter; };
+  struct Item {
+    uint32_t node;
+    float t_enter;
+    float lower[3], upper[3];
+  };
   Item stack[8 * kMaxOctreeDepth + 1];
   int top = 0;
   float t0;
   const float lo[3] = {root_.lower.x, root_.lower.y, root_.lower.z};
   const float hi[3] = {root_.upper.x, root_.upper.y, root_.upper.z};
   if (!IntersectBox(setup, lo, hi, ray.tmin, *tmax, &t0)) return;
-  stack[top++] = {0, root_, t0};
+  stack[top++] = {0, t0, {lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}};
   while (top > 0) {
     const Item item = stack[--top];
     // Same slack as IntersectBox: the best hit may have lowered *tmax since this was pushed.
@@ -71,17 +77,47 @@ void OctreeView::VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const {
       continue;
     }
     if (node.kind != kOctreeInner) continue;
+    // The midpoint as ChildCell computes it, so child cells agree bit for bit.
+    const float mid[3] = {(item.lower[0] + item.upper[0]) * 0.5f,
+                          (item.lower[1] + item.upper[1]) * 0.5f,
+                          (item.lower[2] + item.upper[2]) * 0.5f};
+    // Every child face lies on one of 3 planes per axis (lower, mid, upper), so the slab
+    // distances IntersectBox would compute for the 8 children are 9 near and 9 far values,
+    // computed once here with IntersectBox's exact expressions and combined per child in
+    // its order: the same results for a fraction of the work.
+    float t_near[3][3], t_far[3][3];  // [axis][plane: 0 lower, 1 mid, 2 upper]
+    for (int a = 0; a < 3; ++a) {
+      const float planes[3] = {item.lower[a], mid[a], item.upper[a]};
+      for (int k = 0; k < 3; ++k) {
+        t_near[a][k] = (planes[k] - setup.origin[a]) * setup.inv_dir[a];
+        t_far[a][k] = (planes[k] - setup.origin[a]) * setup.inv_dir[a] * bvh_internal::kFarScale;
+      }
+    }
+    const float t1_limit = *tmax * bvh_internal::kFarScale;
     // Children the ray meets, sorted far to near so the nearest is popped first.
     Item hits[8];
     int n = 0;
     for (int i = 0; i < 8; ++i) {
       if (nodes_[node.first + i].kind == kOctreeEmpty) continue;
-      const Bounds3f c = ChildCell(item.cell, i);
-      const float clo[3] = {c.lower.x, c.lower.y, c.lower.z};
-      const float chi[3] = {c.upper.x, c.upper.y, c.upper.z};
-      float te;
-      if (IntersectBox(setup, clo, chi, ray.tmin, *tmax, &te))
-        hits[n++] = {node.first + static_cast<uint32_t>(i), c, te};
+      float enter = ray.tmin, exit = t1_limit;
+      for (int a = 0; a < 3; ++a) {
+        // Child i spans planes [0, 1] or [1, 2] on axis a; the near one depends on the sign.
+        const int half = (i >> a) & 1;
+        const int near_plane = setup.dir_is_neg[a] ? half + 1 : half;
+        const int far_plane = setup.dir_is_neg[a] ? half : half + 1;
+        const float tn = t_near[a][near_plane], tf = t_far[a][far_plane];
+        enter = tn > enter ? tn : enter;
+        exit = tf < exit ? tf : exit;
+      }
+      if (enter > exit) continue;
+      Item& c = hits[n++];
+      c.node = node.first + static_cast<uint32_t>(i);
+      c.t_enter = enter;
+      for (int a = 0; a < 3; ++a) {
+        const bool upper_half = (i >> a) & 1;
+        c.lower[a] = upper_half ? mid[a] : item.lower[a];
+        c.upper[a] = upper_half ? item.upper[a] : mid[a];
+      }
     }
     // Insertion sort, far to near (n <= 8), so the nearest child is popped first.
     for (int i = 1; i < n; ++i) {

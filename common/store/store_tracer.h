@@ -2,7 +2,8 @@
 // Synchronous closest-hit and any-hit queries against a whole store: walks the level-1 octree
 // front to back and intersects each crossed leaf's blocks, loading them on first use and
 // keeping them. Unbounded memory: this is the reference path for tests and tools (and the
-// in-core baseline), not the renderer's ray stack. Not thread-safe.
+// in-core baseline), not the renderer's ray stack. Not thread-safe, except that once LoadAll()
+// has succeeded, Intersect and Occluded only read and may run on several threads at once.
 
 #include <cstdint>
 #include <memory>

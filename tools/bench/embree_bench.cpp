@@ -1,0 +1,265 @@
+// embree_bench: in-core rays/s of our store traversal against Embree 3 on the same mesh,
+// rays and thread count. Ours: every block in memory, the octree walked front to back and
+// each block's BVH traversed by BlockView, one ray at a time (StoreTracer) and batched per
+// block as the renderer's ray stack does (BlockQueueTracer -> IntersectBatch). Embree: every
+// ray API it offers; the best one is what we compare against. A benchmark: it measures and
+// checks agreement, it asserts nothing.
+//   embree_bench STORE [--width W] [--height H] [--random N] [--threads 1,2] [--repeats R]
+//                      [--chunk RAYS] [--cpu-time 0|1] [--ours-only 0|1]
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/store/block_codec.h"
+#include "common/store/store_reader.h"
+#include "common/store/store_tracer.h"
+#include "tools/bench/bench_rays.h"
+#include "tools/bench/block_queue_tracer.h"
+#include "tools/bench/embree_tracer.h"
+
+using namespace raystack;
+using namespace raystack::bench;
+
+namespace {
+
+struct Options {
+  std::string store;
+  int width = 1024, height = 1024, random = 1000000, repeats = 3;
+  size_t chunk = 65536;  // rays per BlockQueueTracer call (one wave of the ray stack)
+  std::vector<int> threads{1, 2};
+  bool cpu_time = false;  // CPU seconds instead of wall seconds
+  bool ours_only = false;
+};
+
+[[noreturn]] void Usage() {
+  std::fprintf(stderr,
+               "usage: embree_bench STORE [--width W] [--height H] [--random N] "
+               "[--threads 1,2] [--repeats R] [--chunk RAYS] [--cpu-time 0|1] [--ours-only 0|1]\n");
+  std::exit(2);
+}
+
+Options Parse(int argc, char** argv) {
+  Options o;
+  if (argc < 2) Usage();
+  o.store = argv[1];
+  for (int i = 2; i < argc; i += 2) {
+    if (i + 1 >= argc) Usage();
+    const char* v = argv[i + 1];
+    if (!std::strcmp(argv[i], "--width")) o.width = std::atoi(v);
+    else if (!std::strcmp(argv[i], "--height")) o.height = std::atoi(v);
+    else if (!std::strcmp(argv[i], "--random")) o.random = std::atoi(v);
+    else if (!std::strcmp(argv[i], "--repeats")) o.repeats = std::max(1, std::atoi(v));
+    else if (!std::strcmp(argv[i], "--cpu-time")) o.cpu_time = std::atoi(v) != 0;
+    else if (!std::strcmp(argv[i], "--ours-only")) o.ours_only = std::atoi(v) != 0;
+    else if (!std::strcmp(argv[i], "--chunk")) o.chunk = static_cast<size_t>(std::atol(v));
+    else if (!std::strcmp(argv[i], "--threads")) {
+      o.threads.clear();
+      for (const char* p = v; *p;) {
+        o.threads.push_back(std::max(1, std::atoi(p)));
+        p = std::strchr(p, ',');
+        if (!p) break;
+        ++p;
+      }
+    } else {
+      Usage();
+    }
+  }
+  if (o.width % 4 || o.height % 4) Usage();
+  return o;
+}
+
+// Every block parsed in memory, for the batched path.
+struct InCore {
+  std::vector<store::AlignedBuffer> raw;
+  std::vector<store::BlockView> views;
+};
+
+InCore LoadBlocks(const store::StoreReader& s) {
+  InCore c;
+  c.raw.resize(s.blocks().size());
+  std::vector<uint8_t> stored;
+  store::AlignedBuffer scratch;
+  for (uint32_t id = 0; id < s.blocks().size(); ++id) {
+    Expected<store::BlockView> v = s.Load(id, &stored, &scratch, &c.raw[id]);
+    if (!v.ok()) {
+      std::fprintf(stderr, "embree_bench: %s\n", v.status().message().c_str());
+      std::exit(1);
+    }
+    c.views.push_back(*v);
+  }
+  return c;
+}
+
+// The source triangles, each once (a triangle crossing cells is stored in several blocks).
+std::vector<Vec3f> SourceTriangles(std::span<const store::BlockView> views) {
+  std::vector<uint8_t> seen;
+  std::vector<Vec3f> vertices;
+  for (const store::BlockView& v : views) {
+    for (uint32_t t = 0; t < v.triangle_count(); ++t) {
+      const uint32_t id = v.TriangleId(t);
+      if (id >= seen.size()) seen.resize(id + 1, 0);
+      if (seen[id]) continue;
+      seen[id] = 1;
+      Vec3f p[3];
+      v.TriangleVertices(t, &p[0], &p[1], &p[2]);
+      vertices.insert(vertices.end(), p, p + 3);
+    }
+  }
+  return vertices;
+}
+
+bool SameHit(const Hit& a, const Hit& b) {
+  return std::memcmp(&a.t, &b.t, sizeof(float)) == 0 && a.u == b.u && a.v == b.v &&
+         a.triangle_id == b.triangle_id && a.block_id == b.block_id &&
+         a.local_triangle == b.local_triangle;
+}
+
+bool CloseT(float ours, float theirs) {
+  if (std::isinf(ours) || std::isinf(theirs)) return std::isinf(ours) && std::isinf(theirs);
+  return std::fabs(ours - theirs) <= 1e-4f * std::fabs(ours);
+}
+
+struct Kind {
+  const char* name;
+  std::vector<Ray> rays;
+  bool closest;   // closest hit, else any hit
+  bool coherent;  // Embree's context flag
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Options o = Parse(argc, argv);
+  Expected<std::unique_ptr<store::StoreReader>> opened = store::StoreReader::Open(o.store);
+  if (!opened.ok()) {
+    std::fprintf(stderr, "embree_bench: %s\n", opened.status().message().c_str());
+    return 1;
+  }
+  const store::StoreReader& s = **opened;
+  store::StoreTracer tracer(s);
+  if (Status st = tracer.LoadAll(); !st.ok()) {
+    std::fprintf(stderr, "embree_bench: %s\n", st.message().c_str());
+    return 1;
+  }
+  const InCore in_core = LoadBlocks(s);
+  const std::vector<Vec3f> vertices = SourceTriangles(in_core.views);
+  const int max_threads = *std::max_element(o.threads.begin(), o.threads.end());
+  const EmbreeTracer embree(vertices, max_threads);
+  std::printf("store %s: %zu blocks, %zu source triangles; Embree %s\n", o.store.c_str(),
+              s.blocks().size(), vertices.size() / 3, embree.Version().c_str());
+
+  const Bounds3f model = s.model_bounds();
+  const Camera camera = FrameModel(model);
+  std::vector<Kind> kinds;
+  kinds.push_back({"primary", PrimaryRays(camera, o.width, o.height), true, true});
+  {
+    std::vector<Hit> hits(kinds[0].rays.size());
+    BlockQueueTracer q(s.octree(), in_core.views);
+    q.Intersect(kinds[0].rays, hits);
+    kinds.push_back({"shadow", ShadowRays(kinds[0].rays, hits, LightFor(model, camera)), false,
+                     true});
+  }
+  kinds.push_back({"random", RandomRays(model, o.random, 1), true, false});
+
+  const EmbreeApi apis[] = {EmbreeApi::kSingle, EmbreeApi::kPacket4, EmbreeApi::kPacket8,
+                            EmbreeApi::kPacket16, EmbreeApi::kStream};
+  std::printf("\n| rays | n | threads | ours single | ours batched | mean batch |");
+  for (EmbreeApi api : apis) std::printf(" %s |", EmbreeApiName(api));
+  std::printf(" best Embree | single/Embree | batched/Embree |\n|---|---:|---:|---:|---:|---:|");
+  for (size_t i = 0; i < std::size(apis); ++i) std::printf("---:|");
+  std::printf("---|---:|---:|\n");
+
+  for (const Kind& kind : kinds) {
+    const size_t n = kind.rays.size();
+    const std::span<const Ray> rays = kind.rays;
+    std::vector<Hit> single_hits(n), batch_hits(n);
+    std::vector<uint8_t> single_occ(n), batch_occ(n), embree_occ(n);
+    std::vector<float> embree_t(n);
+    for (int threads : o.threads) {
+      const double single = MedianSeconds(o.repeats, [&] {
+        ParallelChunks(threads, n, 4096, [&](size_t b, size_t e, int) {
+          for (size_t i = b; i < e; ++i) {
+            if (kind.closest) {
+              single_hits[i] = tracer.Intersect(rays[i]).value();
+            } else {
+              single_occ[i] = tracer.Occluded(rays[i]).value() ? 1 : 0;
+            }
+          }
+        });
+      }, o.cpu_time);
+      std::vector<BlockQueueTracer> queues(static_cast<size_t>(threads),
+                                           BlockQueueTracer(s.octree(), in_core.views));
+      const double batched = MedianSeconds(o.repeats, [&] {
+        ParallelChunks(threads, n, o.chunk, [&](size_t b, size_t e, int t) {
+          BlockQueueTracer& q = queues[static_cast<size_t>(t)];
+          if (kind.closest) {
+            q.Intersect(rays.subspan(b, e - b), std::span<Hit>(batch_hits).subspan(b, e - b));
+          } else {
+            q.Occluded(rays.subspan(b, e - b), std::span<uint8_t>(batch_occ).subspan(b, e - b));
+          }
+        });
+      }, o.cpu_time);
+      uint64_t visits = 0, batches = 0;
+      for (const BlockQueueTracer& q : queues) {
+        visits += q.ray_block_visits();
+        batches += q.batches();
+      }
+      // Batched must equal single bit for bit; Embree must agree within 1e-4 (relative t).
+      size_t batch_mismatch = 0;
+      for (size_t i = 0; i < n; ++i) {
+        batch_mismatch += kind.closest ? !SameHit(single_hits[i], batch_hits[i])
+                                       : single_occ[i] != batch_occ[i];
+      }
+      std::printf("| %s | %zu | %d | %.2f | %.2f | %.0f |", kind.name, n, threads,
+                  static_cast<double>(n) / single / 1e6, static_cast<double>(n) / batched / 1e6,
+                  static_cast<double>(visits) / static_cast<double>(std::max<uint64_t>(1, batches)));
+      double best = 0;
+      const char* best_name = "";
+      std::string agreement;
+      for (EmbreeApi api : apis) {
+        if (o.ours_only || !embree.Supports(api)) {
+          std::printf(" n/a |");
+          continue;
+        }
+        const double sec = MedianSeconds(o.repeats, [&] {
+          ParallelChunks(threads, n, 4096, [&](size_t b, size_t e, int) {
+            if (kind.closest) {
+              embree.Intersect(api, kind.coherent, rays.subspan(b, e - b),
+                               std::span<float>(embree_t).subspan(b, e - b));
+            } else {
+              embree.Occluded(api, kind.coherent, rays.subspan(b, e - b),
+                              std::span<uint8_t>(embree_occ).subspan(b, e - b));
+            }
+          });
+        }, o.cpu_time);
+        size_t agree = 0;
+        for (size_t i = 0; i < n; ++i) {
+          agree += kind.closest ? CloseT(single_hits[i].t, embree_t[i])
+                                : single_occ[i] == embree_occ[i];
+        }
+        char buffer[96];
+        std::snprintf(buffer, sizeof(buffer), " %s %.3f%%;", EmbreeApiName(api),
+                      100.0 * static_cast<double>(agree) / static_cast<double>(n));
+        agreement += buffer;
+        const double rate = static_cast<double>(n) / sec / 1e6;
+        std::printf(" %.2f |", rate);
+        if (rate > best) {
+          best = rate;
+          best_name = EmbreeApiName(api);
+        }
+      }
+      std::printf(" %.2f (%s) | %.2f | %.2f |\n", best, best_name,
+                  static_cast<double>(n) / single / 1e6 / best,
+                  static_cast<double>(n) / batched / 1e6 / best);
+      std::fprintf(stderr, "  %s x%d: batched != single on %zu rays; Embree agrees:%s\n",
+                   kind.name, threads, batch_mismatch, agreement.c_str());
+    }
+  }
+  return 0;
+}
