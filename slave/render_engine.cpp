@@ -89,14 +89,15 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   RenderStats s;
   s.mode = TraceModeName(options_.mode);
   s.threads = options_.threads;
-  if (options_.mode == TraceMode::kIncore && !preloaded_) {
-    RAYSTACK_RETURN_IF_ERROR(Preload(&s.preload_seconds));
-    preloaded_ = true;
-  }
+  // Counted from here: in incore mode the preloading is part of the frame's reads.
   const uint64_t loads_before = cache_->loads();
   const uint64_t bytes_before = source_->bytes_read();
   const uint64_t reads_before = source_->reads();
   const uint64_t evictions_before = cache_->evictions();
+  if (options_.mode == TraceMode::kIncore && !preloaded_) {
+    RAYSTACK_RETURN_IF_ERROR(Preload(&s.preload_seconds));
+    preloaded_ = true;
+  }
 
   const Shader shader(scene, materials);
   FrameShared shared;

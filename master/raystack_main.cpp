@@ -1,0 +1,29 @@
+// raystack: the renderer. One executable for every role; `mpirun` will launch it too.
+
+#include <cstdio>
+#include <cstring>
+
+#include "master/render_command.h"
+
+namespace {
+
+constexpr const char* kUsage = R"(usage: raystack COMMAND [options]
+
+commands:
+  render SCENE.json   render a block store as the scene file says (raystack render --help)
+
+Stores are made with raystack-prep and inspected with raystack-info.
+)";
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc >= 2 && std::strcmp(argv[1], "render") == 0)
+    return raystack::master::RenderCommand(argc - 1, argv + 1);
+  if (argc >= 2 && (std::strcmp(argv[1], "-h") == 0 || std::strcmp(argv[1], "--help") == 0)) {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
+  std::fputs(kUsage, stderr);
+  return 2;
+}

@@ -1,0 +1,234 @@
+#include "master/render_command.h"
+
+#include <charconv>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <thread>
+
+#include "common/base/log.h"
+#include "common/base/progress.h"
+#include "common/image/exr_io.h"
+#include "common/image/png_writer.h"
+#include "common/render/camera.h"
+#include "common/render/film.h"
+#include "common/render/material_table.h"
+#include "common/render/scene.h"
+#include "common/store/store_reader.h"
+#include "slave/render_engine.h"
+
+namespace raystack::master {
+namespace {
+
+constexpr const char* kUsage = R"(usage: raystack render SCENE.json [options]
+
+Renders a block store (made by raystack-prep) as the scene file describes (format:
+common/render/SCENE_FORMAT.md) and writes an OpenEXR image with layers R G B A, Z, N, albedo,
+samples and variance, plus a tone-mapped PNG beside it. Blocks are loaded on demand into a
+cache of --cache-mb; rays that need a missing block wait in that block's queue while a
+loader thread reads it (the ray stack), so the store may be far larger than the cache.
+
+options:
+  --mode stack|sync|incore  stack: the ray stack (default); sync: a miss blocks the thread
+                            while its block is read (the baseline); incore: load every block
+                            first, no budget
+  --cache-mb N              block cache budget in MB, never exceeded (default 512)
+  --threads N               ray threads (default: all cores)
+  --feed-fraction P         start the next tile once this fraction of the current one is
+                            done (default 0.1)
+  --tile-size N             tile side in pixels (default 32)
+  --io-threads N            block reads kept in flight by the loader (default 8)
+  --io-latency-us N         add N microseconds to every block read (emulates a network
+                            filesystem; for measurements)
+  --output FILE             override the scene's output path
+  --no-png                  do not write the PNG quick-look
+  --exposure EV             exposure of the PNG quick-look (default 0)
+  --stats FILE              also write the run's statistics as JSON
+  -q, --quiet               no progress output
+  -h, --help                this text
+)";
+
+struct Args {
+  std::string scene;
+  slave::EngineOptions engine;
+  int tile_size = 32;
+  std::string output;
+  bool png = true;
+  float exposure = 0;
+  std::string stats;
+  bool quiet = false;
+};
+
+template <typename T>
+bool ParseNumber(const std::string& s, T* out) {
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *out);
+  return ec == std::errc() && p == s.data() + s.size();
+}
+
+Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
+  a->engine.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    auto value = [&](std::string* out) -> Status {
+      if (i + 1 >= argc) return Status::Error(arg + " needs a value");
+      *out = argv[++i];
+      return OkStatus();
+    };
+    auto number = [&](auto* out, double lo, double hi) -> Status {
+      std::string v;
+      RAYSTACK_RETURN_IF_ERROR(value(&v));
+      if (!ParseNumber(v, out) || static_cast<double>(*out) < lo || static_cast<double>(*out) > hi)
+        return Status::Error(StrFormat("%s: '%s' is not a number from %g to %g", arg.c_str(),
+                                       v.c_str(), lo, hi));
+      return OkStatus();
+    };
+    if (arg == "-h" || arg == "--help") {
+      *help = true;
+      return OkStatus();
+    } else if (arg == "--mode") {
+      std::string v;
+      RAYSTACK_RETURN_IF_ERROR(value(&v));
+      Expected<slave::TraceMode> mode = slave::ParseTraceMode(v);
+      if (!mode.ok()) return mode.status();
+      a->engine.mode = *mode;
+    } else if (arg == "--cache-mb") {
+      double mb;
+      RAYSTACK_RETURN_IF_ERROR(number(&mb, 0.001, 1 << 24));
+      a->engine.cache_bytes = static_cast<uint64_t>(mb * 1024 * 1024);
+    } else if (arg == "--threads") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.threads, 1, slave::BlockLoader::kMaxRayThreads));
+    } else if (arg == "--feed-fraction") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.feed_fraction, 0, 1));
+    } else if (arg == "--tile-size") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->tile_size, 1, 4096));
+    } else if (arg == "--io-threads") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.loader.io_threads, 1, 256));
+    } else if (arg == "--io-latency-us") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.faults.io_latency_us, 0, 10'000'000));
+    } else if (arg == "--output") {
+      RAYSTACK_RETURN_IF_ERROR(value(&a->output));
+    } else if (arg == "--no-png") {
+      a->png = false;
+    } else if (arg == "--exposure") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->exposure, -64, 64));
+    } else if (arg == "--stats") {
+      RAYSTACK_RETURN_IF_ERROR(value(&a->stats));
+    } else if (arg == "-q" || arg == "--quiet") {
+      a->quiet = true;
+    } else if (!arg.empty() && arg[0] == '-') {
+      return Status::Error("unknown option " + arg + " (see --help)");
+    } else if (a->scene.empty()) {
+      a->scene = arg;
+    } else {
+      return Status::Error("one scene file only; extra argument '" + arg + "'");
+    }
+  }
+  if (!*help && a->scene.empty()) return Status::Error("a scene file is required (see --help)");
+  return OkStatus();
+}
+
+// out.exr -> out-1.exr for the second camera, and the PNG beside it.
+std::string FramePath(const std::string& path, size_t frame, size_t frames, const char* ext) {
+  std::string stem = path;
+  const size_t dot = stem.rfind('.');
+  const size_t slash = stem.rfind('/');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) stem.resize(dot);
+  if (frames > 1) {
+    stem.push_back('-');
+    stem.append(std::to_string(frame));
+  }
+  stem.append(ext);
+  return stem;
+}
+
+Status Run(const Args& args) {
+  Expected<render::Scene> scene = render::LoadScene(args.scene);
+  if (!scene.ok()) return scene.status();
+  const std::string output = args.output.empty() ? scene->output : args.output;
+  const size_t frames = scene->cameras.size();
+  for (size_t f = 0; f < frames; ++f)
+    RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(output, f, frames, ".exr")));
+
+  Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
+  if (!store.ok()) return store.status();
+  Expected<std::unique_ptr<slave::RenderEngine>> engine =
+      slave::RenderEngine::Create(**store, args.engine);
+  if (!engine.ok()) return engine.status();
+  const render::MaterialTable materials =
+      render::MaterialTable::Build((*store)->materials(), *scene);
+
+  std::string stats_json = "[\n";
+  for (size_t f = 0; f < frames; ++f) {
+    const render::Camera camera(scene->cameras[f]);
+    render::Film film(camera.width(), camera.height());
+    render::FilmSink sink(&film);
+    slave::GridTileSource tiles(camera.width(), camera.height(), args.tile_size);
+    slave::RenderStats stats;
+    Status status;
+    const uint64_t total = static_cast<uint64_t>(camera.width()) * camera.height() *
+                           static_cast<uint64_t>(scene->integrator.spp);
+    {
+      ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
+                                args.quiet);
+      std::thread render([&] {
+        status = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
+      });
+      uint64_t shown = 0;
+      for (;;) {
+        const uint64_t done = film.samples_merged();
+        progress.Update(done - shown);
+        shown = done;
+        if (done >= total) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        if (status.ok() && film.samples_merged() == shown && !render.joinable()) break;
+        // RenderFrame's end is seen through the film; an error ends it early.
+        if (!status.ok()) break;
+      }
+      render.join();
+      progress.Update(film.samples_merged() - shown);
+    }
+    RAYSTACK_RETURN_IF_ERROR(status);
+    const image::ImageLayers image = film.Resolve();
+    const std::string exr = FramePath(output, f, frames, ".exr");
+    RAYSTACK_RETURN_IF_ERROR(image::WriteExr(exr, image));
+    if (args.png) RAYSTACK_RETURN_IF_ERROR(image::WritePng(FramePath(output, f, frames, ".png"), image, args.exposure));
+    if (film.nonfinite_dropped() > 0)
+      LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
+                  static_cast<unsigned long long>(film.nonfinite_dropped()));
+    if (!args.quiet) std::printf("frame %zu: %s\n  wrote %s\n", f, stats.ToText().c_str(), exr.c_str());
+    stats_json += stats.ToJson();
+    if (f + 1 < frames) stats_json += ",";
+  }
+  stats_json += "]\n";
+  if (!args.stats.empty()) {
+    std::ofstream out(args.stats);
+    out << stats_json;
+    if (!out) return Status::Error(args.stats + ": cannot write the statistics");
+  }
+  return OkStatus();
+}
+
+}  // namespace
+
+int RenderCommand(int argc, char** argv) {
+  Args args;
+  bool help = false;
+  Status s = ParseArgs(argc, argv, &args, &help);
+  if (help) {
+    std::fputs(kUsage, stdout);
+    return 0;
+  }
+  if (!s.ok()) {
+    std::fprintf(stderr, "raystack render: %s\n", s.message().c_str());
+    return 2;
+  }
+  s = Run(args);
+  if (!s.ok()) {
+    std::fprintf(stderr, "raystack render: %s\n", s.message().c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace raystack::master
