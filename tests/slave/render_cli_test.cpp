@@ -1,0 +1,133 @@
+// `raystack render` run as a user runs it: a scene file in, an EXR with every layer, a PNG and
+// JSON statistics out; bad input ends with a message naming what is wrong and a non-zero exit.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+
+#include "common/base/temp_dir.h"
+#include "common/image/exr_io.h"
+#include "tests/prep/run_process.h"
+
+namespace raystack::testing {
+namespace {
+
+using prep::testing::kPrepBinary;
+using prep::testing::ProcessResult;
+using prep::testing::RunProcess;
+using prep::testing::Slurp;
+
+const std::string kRaystack = RAYSTACK_BINARY_DIR "/master/raystack";
+
+class RenderCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Expected<TempDir> dir = TempDir::Create();
+    ASSERT_TRUE(dir.ok());
+    dir_ = std::make_unique<TempDir>(std::move(*dir));
+    const ProcessResult prep = RunProcess(
+        {kPrepBinary, "--generate", "spheres:20000", "-o", dir_->File("store"),
+         "--target-block-kb", "8", "-q"},
+        dir_->path());
+    ASSERT_EQ(prep.exit_code, 0) << prep.err;
+  }
+
+  std::string WriteScene(const std::string& body) {
+    const std::string path = dir_->File("scene.json");
+    std::ofstream(path) << body;
+    return path;
+  }
+
+  std::string Scene(const std::string& extra = "") {
+    return WriteScene(R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 64, "height": 40 },
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "integrator": { "type": "whitted", "max_depth": 3, "spp": 1, "seed": 1 },
+      "output": "out.exr")" + extra + " }");
+  }
+
+  std::unique_ptr<TempDir> dir_;
+};
+
+TEST_F(RenderCli, WritesEveryLayerAPngAndStatistics) {
+  const ProcessResult r = RunProcess(
+      {kRaystack, "render", Scene(), "--cache-mb", "1", "--threads", "2", "--stats",
+       dir_->File("stats.json"), "-q"},
+      dir_->path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  Expected<image::ImageLayers> image = image::ReadExr(dir_->File("out.exr"));
+  ASSERT_TRUE(image.ok()) << image.status().message();
+  EXPECT_EQ(image->width, 64);
+  EXPECT_EQ(image->height, 40);
+  EXPECT_EQ(image->z.size(), 64u * 40u);
+  EXPECT_EQ(image->normal.size(), 3u * 64u * 40u);
+  EXPECT_EQ(image->albedo.size(), 3u * 64u * 40u);
+  EXPECT_EQ(image->variance.size(), 64u * 40u);
+  ASSERT_EQ(image->samples.size(), 64u * 40u);
+  for (uint32_t n : image->samples) EXPECT_EQ(n, 1u);
+  int misses = 0;
+  for (float z : image->z) misses += std::isinf(z) ? 1 : 0;
+  EXPECT_GT(misses, 0);
+  EXPECT_LT(misses, 64 * 40);
+  EXPECT_FALSE(Slurp(dir_->File("out.png")).empty());
+  const std::string stats = Slurp(dir_->File("stats.json"));
+  for (const char* key : {"\"rays_per_second\"", "\"blocks_loaded\"", "\"blocks_distinct\"",
+                          "\"cache_hit_rate\"", "\"loader_busy_seconds\"", "\"peak_stack_bytes\"",
+                          "\"peak_rss_bytes\"", "\"bytes_read\"", "\"shadow\""})
+    EXPECT_NE(stats.find(key), std::string::npos) << key;
+}
+
+TEST_F(RenderCli, ModesWriteTheSameImage) {
+  std::vector<image::ImageLayers> images;
+  for (const char* mode : {"stack", "sync", "incore"}) {
+    const ProcessResult r = RunProcess({kRaystack, "render", Scene(), "--mode", mode,
+                                        "--cache-mb", "1", "-q", "--output",
+                                        dir_->File(std::string(mode) + ".exr")},
+                                       dir_->path());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    Expected<image::ImageLayers> image = image::ReadExr(dir_->File(std::string(mode) + ".exr"));
+    ASSERT_TRUE(image.ok());
+    images.push_back(std::move(*image));
+  }
+  for (size_t i = 1; i < images.size(); ++i) {
+    EXPECT_EQ(0, std::memcmp(images[i].rgba.data(), images[0].rgba.data(), images[0].rgba.size() * 4));
+    EXPECT_EQ(0, std::memcmp(images[i].z.data(), images[0].z.data(), images[0].z.size() * 4));
+  }
+}
+
+TEST_F(RenderCli, BadInputIsAClearError) {
+  struct Case {
+    std::vector<std::string> args;
+    std::string message;
+    int exit_code;
+  };
+  const std::string good = Scene();
+  const std::string bad_json = dir_->File("bad.json");
+  std::ofstream(bad_json) << "{ \"store\": \"store\", \"camera\": { \"fov_y_deg\": 400 } }";
+  const std::string no_store = dir_->File("nostore.json");
+  std::ofstream(no_store) << R"({ "store": "missing", "camera": { "position": [0, 5, 10], "look_at": [0, 0, 0] } })";
+  const std::vector<Case> cases = {
+      {{kRaystack, "render", good, "--cache-mb", "0.001"}, "smaller than the largest block", 1},
+      {{kRaystack, "render", good, "--mode", "fast"}, "--mode must be", 2},
+      {{kRaystack, "render", good, "--frobnicate"}, "unknown option", 2},
+      {{kRaystack, "render"}, "scene file is required", 2},
+      {{kRaystack, "render", dir_->File("absent.json")}, "absent.json", 1},
+      {{kRaystack, "render", bad_json}, "fov_y_deg", 1},
+      {{kRaystack, "render", no_store}, "missing", 1},
+      {{kRaystack, "render", good, "--output", "/nonexistent-dir/x.exr"}, "/nonexistent-dir", 1},
+      {{kRaystack, "frobnicate"}, "usage", 2},
+  };
+  for (const Case& c : cases) {
+    const ProcessResult r = RunProcess(c.args, dir_->path());
+    EXPECT_EQ(r.exit_code, c.exit_code) << c.args.back() << ": " << r.err;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << "stderr was: " << r.err;
+  }
+  const ProcessResult help = RunProcess({kRaystack, "render", "--help"}, dir_->path());
+  EXPECT_EQ(help.exit_code, 0);
+  EXPECT_NE(help.out.find("--cache-mb"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace raystack::testing
