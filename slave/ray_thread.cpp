@@ -1,6 +1,7 @@
 #include "slave/ray_thread.h"
 
 #include <algorithm>
+#include <limits>
 
 #include "common/base/log.h"
 #include "common/render/pixel_priority.h"
@@ -64,12 +65,12 @@ RayRecord RayThread::PrimaryRay(int x, int y, uint32_t sample, uint32_t slot,
   rec.tmax = r.tmax;
   rec.hit_id = kInvalidId;
   rec.slot = slot;
-  rec.cursor = 0;
+  rec.resume_t = -std::numeric_limits<float>::infinity();
   rec.weight = {1, 1, 1};
   rec.material = store::kNoMaterial16;
-  rec.type = static_cast<uint8_t>(RayType::kPrimary);
+  rec.bits = static_cast<uint8_t>(RayType::kPrimary);
   rec.depth = 0;
-  rec.priority = priority;
+  SetOrder(&rec, static_cast<uint8_t>(priority), 0);
   return rec;
 }
 
@@ -117,7 +118,7 @@ bool RayThread::FeedNextTile() {
 
 void RayThread::Finish(const RayRecord& ray) {
   const uint32_t slot = ray.slot;
-  if (ray.type == static_cast<uint8_t>(RayType::kShadow)) {  // reached the light
+  if (IsShadow(ray)) {  // reached the light
     slots_.AddRadiance(slot, ray.weight);
     RayDone(slot);
     return;
@@ -127,7 +128,7 @@ void RayThread::Finish(const RayRecord& ray) {
   if (shade_.primary) slots_.SetPrimary(slot, shade_.hit, shade_.z, shade_.normal, shade_.albedo);
   slots_.AddRays(slot, static_cast<uint32_t>(shade_.children.size()));
   for (const RayRecord& child : shade_.children) {
-    ++counters_.rays[child.type];
+    ++counters_.rays[static_cast<int>(TypeOf(child))];
     pending_.push_back(child);
   }
   RayDone(slot);
@@ -170,7 +171,7 @@ void RecordHit(const store::BlockView& view, const Hit& hit, RayRecord* ray) {
   ray->tmax = hit.t;
   ray->hit_id = hit.triangle_id;
   ray->normal = EncodeNormal(Normalize(ns));
-  ray->flags = back ? kHitBackFace : 0;
+  ray->bits = static_cast<uint8_t>((ray->bits & ~kBackFaceBit) | (back ? kBackFaceBit : 0));
   const uint32_t m = view.Material(hit.local_triangle);
   ray->material = m == store::kNoMaterial ? store::kNoMaterial16 : static_cast<uint16_t>(m);
 }
@@ -197,12 +198,15 @@ Hit ToHit(const RayRecord& r) {
 // Stack driver.
 
 void RayThread::Route(RayRecord& ray) {
-  const uint32_t block = NthBlockAlong(shared_->octree, ToRay(ray), ray.tmax, ray.cursor);
-  if (block == kInvalidId) {
+  const NextBlock next = FindNextBlock(shared_->octree, ToRay(ray), ray.tmax, ray.resume_t, SkipOf(ray));
+  if (next.block == kInvalidId) {
     Finish(ray);
     return;
   }
-  Enqueue(ray, block);
+  // The resume point once this block is done travels with the ray.
+  ray.resume_t = next.resume_t;
+  SetOrder(&ray, PriorityOf(ray), next.skip);
+  Enqueue(ray, next.block);
 }
 
 void RayThread::Enqueue(const RayRecord& ray, uint32_t block) {
@@ -227,7 +231,7 @@ void RayThread::TraceChunk(const store::BlockView& view, RayRecord* rays, uint32
   batch_hits_.clear();
   batch_index_.clear();
   for (uint32_t i = 0; i < count; ++i) {
-    if (rays[i].type == static_cast<uint8_t>(RayType::kShadow)) continue;
+    if (IsShadow(rays[i])) continue;
     batch_rays_.push_back(ToRay(rays[i]));
     batch_hits_.push_back(ToHit(rays[i]));
     batch_index_.push_back(i);
@@ -242,22 +246,21 @@ void RayThread::TraceChunk(const store::BlockView& view, RayRecord* rays, uint32
   batch_rays_.clear();
   batch_index_.clear();
   for (uint32_t i = 0; i < count; ++i) {
-    if (rays[i].type != static_cast<uint8_t>(RayType::kShadow)) continue;
+    if (!IsShadow(rays[i])) continue;
     batch_rays_.push_back(ToRay(rays[i]));
     batch_index_.push_back(i);
   }
   shadow_flags_.resize(batch_rays_.size());
   view.OccludedBatch(batch_rays_, shadow_flags_);
   for (size_t k = 0; k < batch_index_.size(); ++k)
-    rays[batch_index_[k]].flags = shadow_flags_[k];  // shadow rays use flags for "occluded"
+    if (shadow_flags_[k]) rays[batch_index_[k]].bits |= kOccludedBit;
   (void)radiance;
   for (uint32_t i = 0; i < count; ++i) {
     RayRecord& r = rays[i];
-    if (r.type == static_cast<uint8_t>(RayType::kShadow) && r.flags) {
+    if (r.bits & kOccludedBit) {
       RayDone(r.slot);  // blocked: the light contributes nothing
       continue;
     }
-    ++r.cursor;
     pending_.push_back(r);
   }
   while (!pending_.empty()) {
@@ -374,15 +377,19 @@ const store::BlockView* RayThread::AcquireSync(uint32_t block) {
 
 void RayThread::TraceSync(RayRecord ray) {
   for (;;) {
-    const uint32_t block = NthBlockAlong(shared_->octree, ToRay(ray), ray.tmax, ray.cursor);
-    if (block == kInvalidId) {
+    const NextBlock next =
+        FindNextBlock(shared_->octree, ToRay(ray), ray.tmax, ray.resume_t, SkipOf(ray));
+    if (next.block == kInvalidId) {
       Finish(ray);
       return;
     }
+    const uint32_t block = next.block;
+    ray.resume_t = next.resume_t;
+    SetOrder(&ray, PriorityOf(ray), next.skip);
     ++counters_.block_visits;
     const store::BlockView* view = AcquireSync(block);
     if (!view) return;  // the frame failed
-    if (ray.type == static_cast<uint8_t>(RayType::kShadow)) {
+    if (IsShadow(ray)) {
       const bool occluded = view->Occluded(ToRay(ray));
       shared_->cache->Release(block);
       if (occluded) {
@@ -395,7 +402,6 @@ void RayThread::TraceSync(RayRecord ray) {
       if (h.triangle_id != ray.hit_id || h.t != ray.tmax) RecordHit(*view, h, &ray);
       shared_->cache->Release(block);
     }
-    ++ray.cursor;
   }
 }
 

@@ -79,8 +79,6 @@ class RayThread {
   void Enqueue(const RayRecord& ray, uint32_t block);
   void TraceQueue(uint32_t q);
   void TraceChunk(const store::BlockView& view, RayRecord* rays, uint32_t count);
-  // After a block: advance the cursor, then route or finish.
-  void Advance(RayRecord& ray);
   void Finish(const RayRecord& ray);
   void RayDone(uint32_t slot);
   void DrainInbox();

@@ -63,12 +63,12 @@ void Shader::Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f di
   r.tmax = type == RayType::kShadow ? 1.0f : std::numeric_limits<float>::infinity();
   r.hit_id = kInvalidId;
   r.slot = parent.slot;
-  r.cursor = 0;
+  r.resume_t = -std::numeric_limits<float>::infinity();
   r.weight = weight;
   r.material = store::kNoMaterial16;
-  r.type = static_cast<uint8_t>(type);
+  r.bits = static_cast<uint8_t>(type);
   r.depth = static_cast<uint8_t>(type == RayType::kShadow ? parent.depth : parent.depth + 1);
-  r.priority = parent.priority;
+  SetOrder(&r, PriorityOf(parent), 0);
   out->children.push_back(r);
 }
 
@@ -104,7 +104,7 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
                     ShadeOutput* out) const {
   out->radiance = {0, 0, 0};
   out->children.clear();
-  out->primary = ray.type == static_cast<uint8_t>(RayType::kPrimary);
+  out->primary = TypeOf(ray) == RayType::kPrimary;
   out->hit = ray.hit_id != kInvalidId;
   if (!out->hit) {
     if (background_) out->radiance = ray.weight * scene_.background;
@@ -154,7 +154,7 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
     }
     case MaterialType::kGlass: {
       if (!can_bounce || !NonZero(m.albedo)) break;
-      const bool entering = !(ray.flags & kHitBackFace);
+      const bool entering = !(ray.bits & kBackFaceBit);
       const float eta = entering ? 1.0f / m.ior : m.ior;
       const float cos_i = std::min(1.0f, std::max(0.0f, -Dot(ray.direction, n)));
       float cos_t;

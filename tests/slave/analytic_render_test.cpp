@@ -49,8 +49,8 @@ TEST(AnalyticRender, PointLightOverDiffusePlaneFollowsInverseSquareCosineLaw) {
       const Vec3f p = ray.origin + ray.direction * z;
       const Vec3f d = light - p;
       const double d2 = Dot(d, d);
-      const double cos_theta = d.y / std::sqrt(d2);
-      const double expected = 0.5 / std::numbers::pi * intensity * cos_theta / d2;
+      const double cos_theta = static_cast<double>(d.y) / std::sqrt(d2);
+      const double expected = 0.5 / std::numbers::pi * static_cast<double>(intensity) * cos_theta / d2;
       const double got = r.image.rgba[4 * i];
       worst = std::max(worst, std::fabs(got - expected) / expected);
       ++checked;
@@ -88,7 +88,7 @@ render::Scene FurnaceScene(render::IntegratorType type, int depth, int spp) {
 
 double MeanRed(const image::ImageLayers& image) {
   double sum = 0;
-  for (size_t i = 0; i < image.rgba.size(); i += 4) sum += image.rgba[i];
+  for (size_t i = 0; i < image.rgba.size(); i += 4) sum += static_cast<double>(image.rgba[i]);
   return sum / static_cast<double>(image.rgba.size() / 4);
 }
 
