@@ -1,6 +1,7 @@
 #include "slave/ray_thread.h"
 
 #include <algorithm>
+#include <chrono>
 #include <limits>
 
 #include "common/base/log.h"
@@ -107,7 +108,7 @@ bool RayThread::FeedNextTile() {
     while (!pending_.empty()) {
       RayRecord r = pending_.back();
       pending_.pop_back();
-      Route(r);
+      Route(r, kInvalidId);
     }
   }
   return true;
@@ -197,7 +198,11 @@ Hit ToHit(const RayRecord& r) {
 // ---------------------------------------------------------------------------------------------
 // Stack driver.
 
-void RayThread::Route(RayRecord& ray) {
+void RayThread::Route(RayRecord& ray, uint32_t from_block) {
+  if (from_block != kInvalidId && DoneAfterBlock(*shared_->block_cells, ToRay(ray), from_block)) {
+    Finish(ray);
+    return;
+  }
   const NextBlock next = FindNextBlock(shared_->octree, ToRay(ray), ray.tmax, ray.resume_t, SkipOf(ray));
   if (next.block == kInvalidId) {
     Finish(ray);
@@ -226,7 +231,8 @@ void RayThread::Enqueue(const RayRecord& ray, uint32_t block) {
   counters_.peak_stack_rays = std::max(counters_.peak_stack_rays, queues_.peak_rays());
 }
 
-void RayThread::TraceChunk(const store::BlockView& view, RayRecord* rays, uint32_t count) {
+void RayThread::TraceChunk(const store::BlockView& view, uint32_t block, RayRecord* rays,
+                           uint32_t count) {
   batch_rays_.clear();
   batch_hits_.clear();
   batch_index_.clear();
@@ -256,17 +262,17 @@ void RayThread::TraceChunk(const store::BlockView& view, RayRecord* rays, uint32
     if (shadow_flags_[k]) rays[batch_index_[k]].bits |= kOccludedBit;
   (void)radiance;
   for (uint32_t i = 0; i < count; ++i) {
-    RayRecord& r = rays[i];
+    RayRecord r = rays[i];
     if (r.bits & kOccludedBit) {
       RayDone(r.slot);  // blocked: the light contributes nothing
       continue;
     }
-    pending_.push_back(r);
+    Route(r, block);  // a finished ray's children land in pending_
   }
   while (!pending_.empty()) {
     RayRecord r = pending_.back();
     pending_.pop_back();
-    Route(r);
+    Route(r, kInvalidId);
   }
 }
 
@@ -280,7 +286,7 @@ void RayThread::TraceQueue(uint32_t q) {
     queues_.TakeChunks(q, &taken_chunks_, &last_count);
     for (size_t c = 0; c < taken_chunks_.size(); ++c) {
       const uint32_t n = c + 1 == taken_chunks_.size() ? last_count : kChunkRays;
-      TraceChunk(*view, queues_.chunk(taken_chunks_[c]).rays, n);
+      TraceChunk(*view, block, queues_.chunk(taken_chunks_[c]).rays, n);
     }
     queues_.Recycle(taken_chunks_);
   }
@@ -321,8 +327,13 @@ void RayThread::RunStack() {
     if (NeedFeed() && FeedNextTile()) continue;
     if (queues_.rays() > 0) {  // everything waits for the loader
       FlushResults();
-      std::unique_lock lock(inbox_mu_);
-      inbox_cv_.wait(lock, [&] { return !inbox_.empty() || shared_->abort.load(); });
+      const auto idle_start = std::chrono::steady_clock::now();
+      {
+        std::unique_lock lock(inbox_mu_);
+        inbox_cv_.wait(lock, [&] { return !inbox_.empty() || shared_->abort.load(); });
+      }
+      counters_.idle_seconds +=
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - idle_start).count();
       continue;
     }
     if (tiles_exhausted_) break;
@@ -376,7 +387,11 @@ const store::BlockView* RayThread::AcquireSync(uint32_t block) {
 }
 
 void RayThread::TraceSync(RayRecord ray) {
-  for (;;) {
+  for (uint32_t from = kInvalidId;;) {
+    if (from != kInvalidId && DoneAfterBlock(*shared_->block_cells, ToRay(ray), from)) {
+      Finish(ray);
+      return;
+    }
     const NextBlock next =
         FindNextBlock(shared_->octree, ToRay(ray), ray.tmax, ray.resume_t, SkipOf(ray));
     if (next.block == kInvalidId) {
@@ -402,6 +417,7 @@ void RayThread::TraceSync(RayRecord ray) {
       if (h.triangle_id != ray.hit_id || h.t != ray.tmax) RecordHit(*view, h, &ray);
       shared_->cache->Release(block);
     }
+    from = block;
   }
 }
 

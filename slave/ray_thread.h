@@ -20,6 +20,7 @@
 #include "slave/block_cache.h"
 #include "slave/block_loader.h"
 #include "slave/block_source.h"
+#include "slave/block_walk.h"
 #include "slave/ray_queues.h"
 #include "slave/render_stats.h"
 #include "slave/sample_slots.h"
@@ -32,6 +33,7 @@ namespace raystack::slave {
 struct FrameShared {
   const store::StoreReader* store = nullptr;
   store::OctreeView octree;
+  const std::vector<BlockCell>* block_cells = nullptr;  // by block id (block_walk.h)
   BlockCache* cache = nullptr;
   BlockLoader* loader = nullptr;  // stack mode only
   BlockSource* source = nullptr;  // sync reads
@@ -75,10 +77,11 @@ class RayThread {
   bool FeedNextTile();
   RayRecord PrimaryRay(int x, int y, uint32_t sample, uint32_t slot, uint16_t priority) const;
   // Puts a ray where it goes next: its next block's queue, or finished (stack driver).
-  void Route(RayRecord& ray);
+  // `from_block`: the block the ray has just been traced through (kInvalidId: none yet).
+  void Route(RayRecord& ray, uint32_t from_block);
   void Enqueue(const RayRecord& ray, uint32_t block);
   void TraceQueue(uint32_t q);
-  void TraceChunk(const store::BlockView& view, RayRecord* rays, uint32_t count);
+  void TraceChunk(const store::BlockView& view, uint32_t block, RayRecord* rays, uint32_t count);
   void Finish(const RayRecord& ray);
   void RayDone(uint32_t slot);
   void DrainInbox();

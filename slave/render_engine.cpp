@@ -44,7 +44,8 @@ Expected<std::unique_ptr<RenderEngine>> RenderEngine::Create(const store::StoreR
 RenderEngine::RenderEngine(const store::StoreReader& store, EngineOptions options)
     : store_(store),
       options_(options),
-      source_(std::make_unique<DiskBlockSource>(store, options.faults)) {}
+      source_(std::make_unique<DiskBlockSource>(store, options.faults)),
+      block_cells_(BlockCells(store.octree(), store.blocks().size())) {}
 
 RenderEngine::~RenderEngine() = default;
 
@@ -103,6 +104,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   FrameShared shared;
   shared.store = &store_;
   shared.octree = store_.octree();
+  shared.block_cells = &block_cells_;
   shared.cache = cache_.get();
   shared.source = source_.get();
   shared.shader = &shader;
@@ -156,6 +158,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
     s.peak_stack_bytes += c.peak_stack_bytes;
     s.peak_stack_rays += c.peak_stack_rays;
     s.peak_open_samples += c.peak_open_samples;
+    s.ray_idle_seconds += c.idle_seconds;
   }
   for (uint64_t r : s.rays) s.rays_total += r;
   s.rays_per_second = s.seconds > 0 ? static_cast<double>(s.rays_total) / s.seconds : 0;

@@ -16,6 +16,7 @@
 #include "slave/block_cache.h"
 #include "slave/block_loader.h"
 #include "slave/block_source.h"
+#include "slave/block_walk.h"
 #include "slave/render_stats.h"
 #include "slave/tile_source.h"
 
@@ -59,6 +60,7 @@ class RenderEngine {
   EngineOptions options_;
   std::unique_ptr<BlockCache> cache_;
   std::unique_ptr<DiskBlockSource> source_;
+  std::vector<BlockCell> block_cells_;  // each block's leaf cell, for the walk's early exit
   bool preloaded_ = false;
 };
 

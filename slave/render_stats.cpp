@@ -26,6 +26,7 @@ std::string RenderStats::ToJson() const {
     << ",\n  \"bytes_read\": " << bytes_read << ",\n  \"reads\": " << reads
     << ",\n  \"block_visits\": " << block_visits << ",\n  \"cache_hit_rate\": " << cache_hit_rate
     << ",\n  \"loader_busy_seconds\": " << loader_busy_seconds
+    << ",\n  \"ray_idle_seconds\": " << ray_idle_seconds
     << ",\n  \"cache_budget_bytes\": " << cache_budget_bytes
     << ",\n  \"cache_peak_bytes\": " << cache_peak_bytes << ",\n  \"evictions\": " << evictions
     << ",\n  \"peak_stack_bytes\": " << peak_stack_bytes
@@ -43,11 +44,11 @@ std::string RenderStats::ToText() const {
                  static_cast<unsigned long long>(rays_total), rays_per_second * 1e-6,
                  static_cast<unsigned long long>(rays[0]), static_cast<unsigned long long>(rays[1]),
                  static_cast<unsigned long long>(rays[2]), static_cast<unsigned long long>(rays[3]));
-  s += StrFormat("\n  blocks: %llu loaded (#C), %llu distinct used (#U) of %llu; %.1f MB read in %llu reads; loader busy %.3f s",
+  s += StrFormat("\n  blocks: %llu loaded (#C), %llu distinct used (#U) of %llu; %.1f MB read in %llu reads; loader busy %.3f s; ray threads idle %.3f s",
                  static_cast<unsigned long long>(blocks_loaded),
                  static_cast<unsigned long long>(blocks_distinct),
                  static_cast<unsigned long long>(block_count), static_cast<double>(bytes_read) / 1e6,
-                 static_cast<unsigned long long>(reads), loader_busy_seconds);
+                 static_cast<unsigned long long>(reads), loader_busy_seconds, ray_idle_seconds);
   s += StrFormat("\n  cache: hit rate %.4f, peak %.1f of %.1f MB, %llu evictions",
                  cache_hit_rate, static_cast<double>(cache_peak_bytes) / 1e6,
                  static_cast<double>(cache_budget_bytes) / 1e6,

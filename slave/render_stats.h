@@ -17,6 +17,7 @@ struct ThreadCounters {
   uint64_t peak_stack_bytes = 0;
   uint64_t peak_stack_rays = 0;
   uint64_t peak_open_samples = 0;
+  double idle_seconds = 0;  // asleep with every ray waiting for the loader (stack mode)
 };
 
 struct RenderStats {
@@ -36,6 +37,7 @@ struct RenderStats {
   uint64_t block_visits = 0;
   double cache_hit_rate = 0;     // visits whose block was resident when the ray got there
   double loader_busy_seconds = 0;  // T_io: time with at least one read in flight
+  double ray_idle_seconds = 0;     // summed over ray threads: asleep, every ray waiting for a block
   uint64_t cache_budget_bytes = 0;
   uint64_t cache_peak_bytes = 0;
   uint64_t evictions = 0;
