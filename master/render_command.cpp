@@ -38,7 +38,7 @@ options:
   --feed-fraction P         start the next tile once this fraction of the current one is
                             done (default 0.1)
   --tile-size N             tile side in pixels (default 32)
-  --io-threads N            block reads kept in flight by the loader (default 8)
+  --io-threads N            block reads kept in flight by the loader (default 16)
   --io-latency-us N         add N microseconds to every block read (emulates a network
                             filesystem; for measurements)
   --output FILE             override the scene's output path

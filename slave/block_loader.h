@@ -29,7 +29,7 @@
 namespace raystack::slave {
 
 struct LoaderOptions {
-  int io_threads = 8;                  // reads in flight
+  int io_threads = 16;                 // reads in flight (16: measured best at 1 ms latency)
   uint32_t max_run_bytes = 256 << 10;  // neighbouring blocks merged into one read, up to this
 };
 

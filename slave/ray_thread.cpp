@@ -84,6 +84,7 @@ bool RayThread::FeedNextTile() {
   const uint32_t local = static_cast<uint32_t>(tiles_.size());
   tiles_.push_back({tile, static_cast<uint32_t>(tile.pixels()) * static_cast<uint32_t>(shared_->spp), 0});
   newest_tile_ = local;
+  ++open_tiles_;
   // Highest priority first; pending_ is a LIFO, so push in reverse.
   struct Px {
     uint16_t priority;
@@ -140,7 +141,7 @@ void RayThread::RayDone(uint32_t slot) {
   render::SampleResult result;
   if (!slots_.RayDone(slot, &result)) return;
   ++counters_.samples;
-  ++tiles_[tile].done;
+  if (++tiles_[tile].done == tiles_[tile].total) --open_tiles_;
   results_.push_back(result);
   if (results_.size() >= shared_->result_batch) FlushResults();
 }
@@ -325,6 +326,12 @@ void RayThread::RunStack() {
       continue;
     }
     if (NeedFeed() && FeedNextTile()) continue;
+    // Every ray waits for the loader: rather than sleep, start another tile (a few at most,
+    // which bounds the stack), so there is work to do while blocks are read, and more block
+    // requests in flight to keep a slow disk or a network filesystem busy.
+    if (queues_.rays() > 0 && !tiles_exhausted_ && open_tiles_ < kMaxOpenTiles &&
+        FeedNextTile())
+      continue;
     if (queues_.rays() > 0) {  // everything waits for the loader
       FlushResults();
       const auto idle_start = std::chrono::steady_clock::now();

@@ -97,6 +97,8 @@ class RayThread {
   ThreadCounters counters_;
   std::vector<ActiveTile> tiles_;  // tiles fed and not finished, by local index
   uint32_t newest_tile_ = 0;
+  uint32_t open_tiles_ = 0;  // fed and not finished
+  static constexpr uint32_t kMaxOpenTiles = 4;
   bool tiles_exhausted_ = false;
   std::vector<render::SampleResult> results_;
   ShadeOutput shade_;
