@@ -1,8 +1,11 @@
 #include "common/store/block_view.h"
 
 #include <cmath>
+#include <cstring>
+#include <iterator>
 #include <vector>
 
+#include "common/base/check.h"
 #include "common/base/log.h"
 
 namespace raystack::store {
@@ -21,13 +24,16 @@ Status CheckBvh(std::span<const BvhNode> nodes, uint32_t triangle_count, uint32_
   if (nodes.empty()) {
     return triangle_count == 0 ? OkStatus() : Bad(block_id, "triangles but no BVH nodes");
   }
+  // Items are pushed only from nodes within the depth limit, and each level leaves at most
+  // one sibling pending, so a fixed stack holds them (no allocation per block load).
   struct Item { uint32_t node; int depth; };
-  std::vector<Item> stack{{0, 1}};
+  Item stack[2 * kMaxBvhDepth + 2];
+  int top = 0;
+  stack[top++] = {0, 1};
   uint32_t visited = 0;
   uint64_t leaf_triangles = 0;
-  while (!stack.empty()) {
-    Item item = stack.back();
-    stack.pop_back();
+  while (top > 0) {
+    Item item = stack[--top];
     if (item.node >= nodes.size()) return Bad(block_id, "BVH child index out of range");
     if (item.depth > kMaxBvhDepth) return Bad(block_id, "BVH deeper than 64 levels");
     if (++visited > nodes.size()) return Bad(block_id, "BVH is not a tree");
@@ -43,8 +49,9 @@ Status CheckBvh(std::span<const BvhNode> nodes, uint32_t triangle_count, uint32_
     } else {
       if (n.offset <= item.node + 1 || n.axis > 2)
         return Bad(block_id, "BVH inner node with a bad child or axis");
-      stack.push_back({n.offset, item.depth + 1});
-      stack.push_back({item.node + 1, item.depth + 1});
+      CHECK(top + 2 <= static_cast<int>(std::size(stack)));
+      stack[top++] = {n.offset, item.depth + 1};
+      stack[top++] = {item.node + 1, item.depth + 1};
     }
   }
   if (visited != nodes.size()) return Bad(block_id, "BVH has unreachable nodes");
@@ -93,13 +100,29 @@ Expected<BlockView> BlockView::Parse(const uint8_t* raw, uint64_t size, uint32_t
     v.nz_ = n + 2 * uint64_t{h.vertex_count};
   }
 
-  for (uint64_t i = 0; i < 3 * uint64_t{h.triangle_count}; ++i) {
-    uint32_t index = v.indices32_ ? v.indices32_[i] : v.indices16_[i];
-    if (index >= h.vertex_count) return Bad(block_id, "vertex index out of range");
+  // Reductions without early exits, so the compiler vectorises them: every block is checked
+  // on every load, and a valid block (the common case) is read to the end anyway.
+  const uint64_t index_count = 3 * uint64_t{h.triangle_count};
+  uint32_t max_index = 0;
+  if (v.indices32_) {
+    for (uint64_t i = 0; i < index_count; ++i)
+      max_index = v.indices32_[i] > max_index ? v.indices32_[i] : max_index;
+  } else {
+    for (uint64_t i = 0; i < index_count; ++i)
+      max_index = v.indices16_[i] > max_index ? v.indices16_[i] : max_index;
   }
+  if (index_count > 0 && max_index >= h.vertex_count)
+    return Bad(block_id, "vertex index out of range");
+  // A float is NaN or infinite when its exponent bits are all ones; adding one to the
+  // exponent field carries into the sign bit exactly then. Integer ORs vectorise (a float sum
+  // would not: its order is fixed).
+  uint32_t carry = 0;
   for (uint64_t i = 0; i < 3 * uint64_t{h.vertex_count}; ++i) {
-    if (!std::isfinite(pos[i])) return Bad(block_id, "non-finite vertex coordinate");
+    uint32_t bits;
+    std::memcpy(&bits, &pos[i], sizeof bits);
+    carry |= (bits & 0x7f800000u) + 0x00800000u;
   }
+  if (carry & 0x80000000u) return Bad(block_id, "non-finite vertex coordinate");
   RAYSTACK_RETURN_IF_ERROR(CheckBvh(v.nodes(), h.triangle_count, block_id));
   return v;
 }
