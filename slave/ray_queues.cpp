@@ -47,8 +47,8 @@ void RayQueues::Push(uint32_t q, const RayRecord& ray) {
   ++rays_;
   peak_rays_ = std::max(peak_rays_, rays_);
   if (queue.state == State::kWaiting) ++waiting_rays_;
-  if (PriorityOf(ray) > queue.priority) {
-    queue.priority = PriorityOf(ray);
+  if (ray.priority > queue.priority) {
+    queue.priority = ray.priority;
     // A ready queue whose priority rose is pushed again; the stale entry is skipped later.
     if (queue.state == State::kReady) ready_.push({queue.priority, ++sequence_, q});
   }

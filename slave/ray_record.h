@@ -19,27 +19,22 @@ struct RayRecord {
   float tmax;       // closest hit so far (radiance) or the far end (shadow)
   uint32_t hit_id;  // source triangle id of the closest hit so far (kInvalidId: none)
   uint32_t slot;    // the sample this ray contributes to, in its thread's slot table
-  float resume_t;   // where the octree walk resumes (see block_walk.h); -inf before the first block
   Vec3f weight;     // path throughput (radiance rays) or the contribution if unoccluded (shadow)
   uint32_t normal;  // shading normal at the closest hit, octahedral, facing the ray's origin
   uint16_t material;  // material at the closest hit (16 bits of store::kNoMaterial = none)
   uint8_t bits;       // RayType in the low 4 bits, then kBackFaceBit, kOccludedBit
   uint8_t depth;      // bounces so far
-  uint32_t order;     // priority (high 8 bits) and blocks to skip on resume (low 24 bits)
+  uint16_t priority;   // the pixel's priority, inherited by every child
+  uint16_t reserved;
+  uint32_t reserved2;  // (a waiting ray needs no walk state: its queue names its block)
 };
 static_assert(sizeof(RayRecord) == 64, "a waiting ray costs 64 bytes; keep it so");
 
 inline constexpr uint8_t kBackFaceBit = 0x10;  // the closest hit is on the triangle's back side
 inline constexpr uint8_t kOccludedBit = 0x20;  // a shadow ray found a blocker
-inline constexpr uint32_t kMaxSkip = (1u << 24) - 1;
 
 inline RayType TypeOf(const RayRecord& r) { return static_cast<RayType>(r.bits & 0x0f); }
 inline bool IsShadow(const RayRecord& r) { return TypeOf(r) == RayType::kShadow; }
-inline uint8_t PriorityOf(const RayRecord& r) { return static_cast<uint8_t>(r.order >> 24); }
-inline uint32_t SkipOf(const RayRecord& r) { return r.order & kMaxSkip; }
-inline void SetOrder(RayRecord* r, uint8_t priority, uint32_t skip) {
-  r->order = (uint32_t{priority} << 24) | skip;
-}
 
 // Octahedral unit-vector encoding in 2 x 16 bits (error < 1e-4 rad): the normal rides along
 // with a waiting ray after its block may have been unloaded.

@@ -66,12 +66,11 @@ RayRecord RayThread::PrimaryRay(int x, int y, uint32_t sample, uint32_t slot,
   rec.tmax = r.tmax;
   rec.hit_id = kInvalidId;
   rec.slot = slot;
-  rec.resume_t = -std::numeric_limits<float>::infinity();
   rec.weight = {1, 1, 1};
   rec.material = store::kNoMaterial16;
   rec.bits = static_cast<uint8_t>(RayType::kPrimary);
   rec.depth = 0;
-  SetOrder(&rec, static_cast<uint8_t>(priority), 0);
+  rec.priority = priority;
   return rec;
 }
 
@@ -199,20 +198,20 @@ Hit ToHit(const RayRecord& r) {
 // ---------------------------------------------------------------------------------------------
 // Stack driver.
 
+uint32_t RayThread::NextBlockOf(const RayRecord& ray, uint32_t from_block) const {
+  const Ray r = ToRay(ray);
+  if (from_block == kInvalidId) return shared_->walk->First(r);
+  if (shared_->walk->DoneAfter(r, from_block)) return kInvalidId;
+  return shared_->walk->Next(r, from_block);
+}
+
 void RayThread::Route(RayRecord& ray, uint32_t from_block) {
-  if (from_block != kInvalidId && DoneAfterBlock(*shared_->block_cells, ToRay(ray), from_block)) {
+  const uint32_t block = NextBlockOf(ray, from_block);
+  if (block == kInvalidId) {
     Finish(ray);
     return;
   }
-  const NextBlock next = FindNextBlock(shared_->octree, ToRay(ray), ray.tmax, ray.resume_t, SkipOf(ray));
-  if (next.block == kInvalidId) {
-    Finish(ray);
-    return;
-  }
-  // The resume point once this block is done travels with the ray.
-  ray.resume_t = next.resume_t;
-  SetOrder(&ray, PriorityOf(ray), next.skip);
-  Enqueue(ray, next.block);
+  Enqueue(ray, block);
 }
 
 void RayThread::Enqueue(const RayRecord& ray, uint32_t block) {
@@ -395,19 +394,11 @@ const store::BlockView* RayThread::AcquireSync(uint32_t block) {
 
 void RayThread::TraceSync(RayRecord ray) {
   for (uint32_t from = kInvalidId;;) {
-    if (from != kInvalidId && DoneAfterBlock(*shared_->block_cells, ToRay(ray), from)) {
+    const uint32_t block = NextBlockOf(ray, from);
+    if (block == kInvalidId) {
       Finish(ray);
       return;
     }
-    const NextBlock next =
-        FindNextBlock(shared_->octree, ToRay(ray), ray.tmax, ray.resume_t, SkipOf(ray));
-    if (next.block == kInvalidId) {
-      Finish(ray);
-      return;
-    }
-    const uint32_t block = next.block;
-    ray.resume_t = next.resume_t;
-    SetOrder(&ray, PriorityOf(ray), next.skip);
     ++counters_.block_visits;
     const store::BlockView* view = AcquireSync(block);
     if (!view) return;  // the frame failed

@@ -32,8 +32,7 @@ namespace raystack::slave {
 // What every ray thread of one frame shares (all thread-safe or read-only).
 struct FrameShared {
   const store::StoreReader* store = nullptr;
-  store::OctreeView octree;
-  const std::vector<BlockCell>* block_cells = nullptr;  // by block id (block_walk.h)
+  const BlockWalk* walk = nullptr;  // the order in which rays visit blocks
   BlockCache* cache = nullptr;
   BlockLoader* loader = nullptr;  // stack mode only
   BlockSource* source = nullptr;  // sync reads
@@ -79,6 +78,8 @@ class RayThread {
   // Puts a ray where it goes next: its next block's queue, or finished (stack driver).
   // `from_block`: the block the ray has just been traced through (kInvalidId: none yet).
   void Route(RayRecord& ray, uint32_t from_block);
+  // The block `ray` needs after `from_block` (kInvalidId: its first), or kInvalidId: done.
+  uint32_t NextBlockOf(const RayRecord& ray, uint32_t from_block) const;
   void Enqueue(const RayRecord& ray, uint32_t block);
   void TraceQueue(uint32_t q);
   void TraceChunk(const store::BlockView& view, uint32_t block, RayRecord* rays, uint32_t count);

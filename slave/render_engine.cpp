@@ -45,7 +45,7 @@ RenderEngine::RenderEngine(const store::StoreReader& store, EngineOptions option
     : store_(store),
       options_(options),
       source_(std::make_unique<DiskBlockSource>(store, options.faults)),
-      block_cells_(BlockCells(store.octree(), store.blocks().size())) {}
+      walk_(store.octree(), store.blocks()) {}
 
 RenderEngine::~RenderEngine() = default;
 
@@ -103,8 +103,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   const Shader shader(scene, materials);
   FrameShared shared;
   shared.store = &store_;
-  shared.octree = store_.octree();
-  shared.block_cells = &block_cells_;
+  shared.walk = &walk_;
   shared.cache = cache_.get();
   shared.source = source_.get();
   shared.shader = &shader;

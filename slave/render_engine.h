@@ -60,7 +60,7 @@ class RenderEngine {
   EngineOptions options_;
   std::unique_ptr<BlockCache> cache_;
   std::unique_ptr<DiskBlockSource> source_;
-  std::vector<BlockCell> block_cells_;  // each block's leaf cell, for the walk's early exit
+  BlockWalk walk_;
   bool preloaded_ = false;
 };
 

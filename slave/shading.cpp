@@ -63,12 +63,11 @@ void Shader::Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f di
   r.tmax = type == RayType::kShadow ? 1.0f : std::numeric_limits<float>::infinity();
   r.hit_id = kInvalidId;
   r.slot = parent.slot;
-  r.resume_t = -std::numeric_limits<float>::infinity();
   r.weight = weight;
   r.material = store::kNoMaterial16;
   r.bits = static_cast<uint8_t>(type);
   r.depth = static_cast<uint8_t>(type == RayType::kShadow ? parent.depth : parent.depth + 1);
-  SetOrder(&r, PriorityOf(parent), 0);
+  r.priority = parent.priority;
   out->children.push_back(r);
 }
 

@@ -1,6 +1,6 @@
-// The ray stack's block walk: a ray resumed from its (t, skip) point visits exactly the blocks
-// an uninterrupted front-to-back walk of the octree visits, once each, nearest first; the
-// early exit after a block agrees with the walk; tiles come out once each along a Hilbert
+// The ray stack's block walk: block by block, a ray visits exactly the blocks of one
+// depth-first, nearest-first walk of the octree, once each, with entries never decreasing;
+// the early exit after a block agrees with the walk; tiles come out once each along a Hilbert
 // curve.
 
 #include <gtest/gtest.h>
@@ -13,21 +13,19 @@
 #include <vector>
 
 #include "render_fixture.h"
+#include "common/geometry/bvh.h"
 #include "slave/block_walk.h"
 #include "slave/tile_source.h"
 
 namespace raystack::testing {
 namespace {
 
-using slave::BlockCell;
-using slave::FindNextBlock;
-using slave::NextBlock;
+using slave::BlockWalk;
 
-// Every block of every leaf VisitLeaves reports, front to back, before `tmax`.
-std::vector<uint32_t> BlocksByVisitLeaves(const store::OctreeView& octree, const Ray& ray,
-                                          float tmax) {
+// Every block of every leaf VisitLeaves reports before `tmax` (the store's own walk).
+std::vector<uint32_t> BlocksByVisitLeaves(const store::OctreeView& octree, const Ray& ray) {
   std::vector<uint32_t> blocks;
-  float bound = tmax;
+  float bound = ray.tmax;
   octree.VisitLeaves(ray, &bound, [&](uint32_t, const store::OctreeNode& leaf, float, float) {
     for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b) blocks.push_back(b);
     return true;
@@ -35,20 +33,52 @@ std::vector<uint32_t> BlocksByVisitLeaves(const store::OctreeView& octree, const
   return blocks;
 }
 
-std::vector<uint32_t> BlocksByResumedWalk(const store::OctreeView& octree, const Ray& ray,
-                                          float tmax) {
+std::vector<uint32_t> BlocksByWalk(const BlockWalk& walk, const Ray& ray) {
   std::vector<uint32_t> blocks;
-  float resume_t = -std::numeric_limits<float>::infinity();
-  uint32_t skip = 0;
-  for (;;) {
-    const NextBlock next = FindNextBlock(octree, ray, tmax, resume_t, skip);
-    if (next.block == kInvalidId) break;
-    blocks.push_back(next.block);
-    resume_t = next.resume_t;
-    skip = next.skip;
+  for (uint32_t b = walk.First(ray); b != kInvalidId; b = walk.Next(ray, b)) {
+    blocks.push_back(b);
     if (blocks.size() > 100000) break;  // a walk that never ends fails below
   }
   return blocks;
+}
+
+// The walk's order spelt out plainly: a recursive depth-first walk, each node's children the
+// ray meets sorted by (entry, exit, higher child first), slab distances as IntersectBox has them.
+void ReferenceWalk(const store::OctreeView& octree, const Ray& ray, uint32_t node,
+                   const Bounds3f& cell, std::vector<uint32_t>* out) {
+  const store::OctreeNode& n = octree.nodes()[node];
+  if (n.kind == store::kOctreeLeaf) {
+    for (uint32_t b = n.first; b < n.first + n.count; ++b) out->push_back(b);
+    return;
+  }
+  if (n.kind != store::kOctreeInner) return;
+  struct Child {
+    int i;
+    float enter, exit;
+    Bounds3f cell;
+  };
+  std::vector<Child> children;
+  const RayBoxSetup setup(ray);
+  for (int i = 0; i < 8; ++i) {
+    if (octree.nodes()[n.first + i].kind == store::kOctreeEmpty) continue;
+    const Bounds3f c = store::ChildCell(cell, i);
+    float enter = ray.tmin, exit = std::numeric_limits<float>::infinity();
+    for (int a = 0; a < 3; ++a) {
+      const float near_plane = setup.dir_is_neg[a] ? c.upper[a] : c.lower[a];
+      const float far_plane = setup.dir_is_neg[a] ? c.lower[a] : c.upper[a];
+      const float tn = (near_plane - setup.origin[a]) * setup.inv_dir[a];
+      const float tf = (far_plane - setup.origin[a]) * setup.inv_dir[a] * bvh_internal::kFarScale;
+      enter = tn > enter ? tn : enter;
+      exit = tf < exit ? tf : exit;
+    }
+    const float t1 = ray.tmax * bvh_internal::kFarScale;
+    if (enter > std::min(exit, t1)) continue;
+    children.push_back({i, enter, exit, c});
+  }
+  std::sort(children.begin(), children.end(), [](const Child& a, const Child& b) {
+    return slave::VisitsBefore(a.enter, a.exit, a.i, b.enter, b.exit, b.i);
+  });
+  for (const Child& c : children) ReferenceWalk(octree, ray, n.first + c.i, c.cell, out);
 }
 
 // Rays from outside and from inside the model, in every direction, some axis-parallel and
@@ -86,7 +116,7 @@ std::vector<Ray> TestRays(const store::StoreReader& store, int count) {
   return rays;
 }
 
-// Entry distance of a block's cell along the ray (slab test, as the walk computes it).
+// Entry distance of a block's cell along the ray.
 float CellEntry(const store::BlockEntry& e, const Ray& ray) {
   float enter = ray.tmin;
   for (int a = 0; a < 3; ++a) {
@@ -97,71 +127,74 @@ float CellEntry(const store::BlockEntry& e, const Ray& ray) {
   return enter;
 }
 
-TEST(BlockWalk, ResumedWalkVisitsTheBlocksOfOneFrontToBackWalk) {
+TEST(BlockWalk, VisitsEveryBlockTheRayCrossesOnceNearestFirst) {
   TestStore s = BuildGenerated("spheres:60000", 4);
   const store::OctreeView octree = s.reader->octree();
+  const BlockWalk walk(octree, s.reader->blocks());
   ASSERT_GT(s.reader->blocks().size(), 50u);
   size_t visited = 0;
-  for (const Ray& ray : TestRays(*s.reader, 4000)) {
+  for (Ray ray : TestRays(*s.reader, 4000)) {
     for (const float tmax : {std::numeric_limits<float>::infinity(), 0.4f}) {
-      std::vector<uint32_t> expected = BlocksByVisitLeaves(octree, ray, tmax);
-      const std::vector<uint32_t> walked = BlocksByResumedWalk(octree, ray, tmax);
-      // Nearest first: entries never decrease (the store's walk may order ties otherwise).
+      ray.tmax = tmax;
+      const std::vector<uint32_t> walked = BlocksByWalk(walk, ray);
+      std::vector<uint32_t> reference;
+      ReferenceWalk(octree, ray, 0, octree.root_cell(), &reference);
+      ASSERT_EQ(walked, reference);
+      // Nearest first: entries never decrease.
       for (size_t i = 1; i < walked.size(); ++i)
         ASSERT_LE(CellEntry(s.reader->blocks()[walked[i - 1]], ray),
                   CellEntry(s.reader->blocks()[walked[i]], ray));
-      std::vector<uint32_t> sorted = walked;
+      // The same blocks as the store's own front-to-back walk (which orders ties otherwise).
+      std::vector<uint32_t> sorted = walked, expected = BlocksByVisitLeaves(octree, ray);
       std::sort(sorted.begin(), sorted.end());
       std::sort(expected.begin(), expected.end());
-      ASSERT_EQ(sorted, expected);  // every block once (no block twice, none lost)
-      visited += expected.size();
+      ASSERT_EQ(sorted, expected);
+      visited += walked.size();
     }
   }
   EXPECT_GT(visited, 4000u);  // the rays do cross the model
 }
 
-TEST(BlockWalk, EarlyExitOnlyWhenTheWalkFindsNothingMore) {
+TEST(BlockWalk, ARayWhoseHitShrinksStopsAtTheSameBlockAsOneThatKnewIt) {
   TestStore s = BuildGenerated("spheres:60000", 4);
-  const store::OctreeView octree = s.reader->octree();
-  const std::vector<BlockCell> cells = slave::BlockCells(octree, s.reader->blocks().size());
+  const BlockWalk walk(s.reader->octree(), s.reader->blocks());
   std::mt19937 rng(3);
-  int early = 0;
+  int stopped_early = 0;
   for (Ray ray : TestRays(*s.reader, 3000)) {
-    const std::vector<uint32_t> blocks = BlocksByResumedWalk(octree, ray, ray.tmax);
-    if (blocks.empty()) continue;
-    // Pretend a hit somewhere along the ray, then ask after each block.
-    float resume_t = -std::numeric_limits<float>::infinity();
-    uint32_t skip = 0;
+    const float hit = std::uniform_real_distribution<float>(0.01f, 4.0f)(rng);
+    Ray knowing = ray;
+    knowing.tmax = hit;
+    const std::vector<uint32_t> expected = BlocksByWalk(walk, knowing);
+    // The ray finds its hit in its first block; the rest of its walk uses it.
+    std::vector<uint32_t> got;
+    for (uint32_t b = walk.First(ray); b != kInvalidId; b = walk.Next(ray, b)) {
+      got.push_back(b);
+      ray.tmax = hit;
+    }
+    if (!got.empty() && expected.size() < BlocksByWalk(walk, Ray{ray.origin, ray.direction}).size())
+      ++stopped_early;
+    if (!expected.empty()) {
+      EXPECT_EQ(got, expected);
+    }
+  }
+  EXPECT_GT(stopped_early, 100);
+}
+
+TEST(BlockWalk, DoneAfterOnlyWhenTheWalkHasNothingMore) {
+  TestStore s = BuildGenerated("spheres:60000", 4);
+  const BlockWalk walk(s.reader->octree(), s.reader->blocks());
+  std::mt19937 rng(5);
+  int done = 0;
+  for (Ray ray : TestRays(*s.reader, 3000)) {
     ray.tmax = std::uniform_real_distribution<float>(0.01f, 4.0f)(rng);
-    for (;;) {
-      const NextBlock next = FindNextBlock(octree, ray, ray.tmax, resume_t, skip);
-      if (next.block == kInvalidId) break;
-      resume_t = next.resume_t;
-      skip = next.skip;
-      if (slave::DoneAfterBlock(cells, ray, next.block)) {
-        ++early;
-        EXPECT_EQ(FindNextBlock(octree, ray, ray.tmax, resume_t, skip).block, kInvalidId);
-        break;
+    for (uint32_t b = walk.First(ray); b != kInvalidId; b = walk.Next(ray, b)) {
+      if (walk.DoneAfter(ray, b)) {
+        ++done;
+        EXPECT_EQ(walk.Next(ray, b), kInvalidId);
       }
     }
   }
-  EXPECT_GT(early, 100);
-}
-
-TEST(BlockWalk, BlockCellsHoldEachBlocksLeafCell) {
-  TestStore s = BuildGenerated("spheres:20000", 4);
-  const std::vector<BlockCell> cells =
-      slave::BlockCells(s.reader->octree(), s.reader->blocks().size());
-  for (uint32_t b = 0; b < s.reader->blocks().size(); ++b) {
-    const BlockCell& c = cells[b];
-    const store::BlockEntry& e = s.reader->blocks()[b];
-    for (int a = 0; a < 3; ++a) {  // the converter's cells, bit for bit
-      EXPECT_EQ(c.lower[a], e.cell_lower[a]) << "block " << b;
-      EXPECT_EQ(c.upper[a], e.cell_upper[a]) << "block " << b;
-    }
-    const store::OctreeNode& leaf = s.reader->octree().nodes()[e.octree_leaf];
-    EXPECT_EQ(c.last_in_leaf, b + 1 == leaf.first + leaf.count) << "block " << b;
-  }
+  EXPECT_GT(done, 100);
 }
 
 TEST(GridTileSource, HandsOutEveryTileOnceNeighboursInTurn) {
