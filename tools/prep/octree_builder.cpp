@@ -1,6 +1,7 @@
 #include "tools/prep/octree_builder.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <memory>
 #include <thread>
@@ -12,6 +13,7 @@
 #include "common/store/octree.h"
 #include "tools/prep/block_pipeline.h"
 #include "tools/prep/clip.h"
+#include "tools/prep/write_behind.h"
 
 namespace raystack::prep {
 namespace {
@@ -24,6 +26,10 @@ constexpr int kMaxDepth = 24;
 constexpr double kAimOverTarget = 1.3;
 // Levels in a row where some child kept every triangle of its parent before we give up.
 constexpr int kMaxStall = 4;
+// Bucket files are written in pieces of this size (one being filled per bucket), with at
+// most this many pieces waiting for the writer thread.
+constexpr size_t kBucketWriteBytes = 64 << 10;
+constexpr size_t kBucketWritesQueued = 64;
 // Memory one triangle costs while its bucket is subdivided (the triangle plus ~2.5 refs).
 constexpr uint64_t kBucketBytesPerTriangle = sizeof(PackedTriangle) + 3 * 28;
 
@@ -420,21 +426,33 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
   while (levels < 3 && source.triangles() / (1ull << (3 * levels)) > bucket_capacity_ / 4) ++levels;
   if (depth + levels > kMaxDepth) levels = std::max(1, kMaxDepth - depth);
   const uint32_t count = 1u << (3 * levels);
+  const auto start = std::chrono::steady_clock::now();
   LOG_INFO("prep", "partitioning %llu triangles into %u buckets on disk (depth %d)",
            static_cast<unsigned long long>(source.triangles()), count, depth);
+  // Declared before the buckets, which flush through it until they are destroyed.
+  WriteBehind writer(kBucketWriteBytes, kBucketWritesQueued);
   std::vector<TriangleSpool> buckets;
   buckets.reserve(count);
   for (uint32_t i = 0; i < count; ++i)
     buckets.emplace_back(StrFormat("%s/bucket-d%d-n%u-%u.tmp", options_.temp_dir.c_str(), depth,
                                    node, i),
-                         0, 64 << 10);
+                         writer);
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> slices;
   const CellGrid grid(cell, levels);
+  // The writer thread keeps a core busy copying into the page cache; with the grid lookup,
+  // classifying on the remaining cores keeps up (measured on 2 cores: 8.9 s with one
+  // classifying thread against 11.2 s with two, for the dragon x125).
+  const int classify_threads = std::max(1, options_.threads - 1);
   RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
                                               std::span<const TriangleAttributes> attrs) {
-    return ClassifyBatch(tris, attrs, cell, grid, options_.threads, &slices, &buckets);
+    return ClassifyBatch(tris, attrs, cell, grid, classify_threads, &slices, &buckets);
   }));
   for (TriangleSpool& b : buckets) RAYSTACK_RETURN_IF_ERROR(b.Close());
+  uint64_t bucket_bytes = 0;
+  for (const TriangleSpool& b : buckets) bucket_bytes += b.bytes();
+  LOG_INFO("prep", "partitioned in %.1f s (%.2f GB of bucket files)",
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+           static_cast<double>(bucket_bytes) / 1e9);
 
   // Walk the levels in Morton order, creating inner nodes; buckets become subtrees.
   struct Walk {
