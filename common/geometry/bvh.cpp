@@ -10,12 +10,91 @@
 #include <cstdint>
 #include <limits>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "common/base/check.h"
 
 namespace raystack {
 namespace {
 
 constexpr uint32_t kNoParent = std::numeric_limits<uint32_t>::max();
+
+// Four floats in one SSE register (x, y, z and an unused lane), or a plain array where SSE2 is
+// missing. The builder's inner loops extend boxes and bin centroids for all three axes at
+// once with these; every lane does the IEEE operation the scalar code did, on the same
+// operands in the same order, so the tree is the same bit for bit.
+#if defined(__SSE2__)
+struct F4 {
+  __m128 v;
+  static F4 Load(const Vec3f& p) { return {_mm_set_ps(0.0f, p.z, p.y, p.x)}; }
+  static F4 Splat(float f) { return {_mm_set1_ps(f)}; }
+  friend F4 operator-(F4 a, F4 b) { return {_mm_sub_ps(a.v, b.v)}; }
+  friend F4 operator*(F4 a, F4 b) { return {_mm_mul_ps(a.v, b.v)}; }
+  friend F4 operator+(F4 a, F4 b) { return {_mm_add_ps(a.v, b.v)}; }
+  // std::min(a, b) lane by lane: `b < a ? b : a`, which keeps `a` on ties (-0 against +0).
+  friend F4 MinOf(F4 a, F4 b) { return {_mm_min_ps(b.v, a.v)}; }
+  friend F4 MaxOf(F4 a, F4 b) { return {_mm_max_ps(b.v, a.v)}; }  // `b > a ? b : a`
+  Vec3f ToVec3() const {
+    alignas(16) float f[4];
+    _mm_store_ps(f, v);
+    return {f[0], f[1], f[2]};
+  }
+  float Lane(int a) const {
+    alignas(16) float f[4];
+    _mm_store_ps(f, v);
+    return f[a];
+  }
+  // Bins of (x, y, z) as AxisBinning::BinOf computes them: `f < last ? int(f) : last`.
+  void BinsOf(F4 last, int out[4]) const {
+    const __m128i truncated = _mm_cvttps_epi32(v);
+    const __m128i in_range = _mm_castps_si128(_mm_cmplt_ps(v, last.v));
+    const __m128i clamped = _mm_cvttps_epi32(last.v);
+    const __m128i bins = _mm_or_si128(_mm_and_si128(in_range, truncated),
+                                      _mm_andnot_si128(in_range, clamped));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(out), bins);
+  }
+};
+#else
+struct F4 {
+  float v[4];
+  static F4 Load(const Vec3f& p) { return {{p.x, p.y, p.z, 0.0f}}; }
+  static F4 Splat(float f) { return {{f, f, f, f}}; }
+  template <typename Op>
+  static F4 Each(F4 a, F4 b, Op op) {
+    return {{op(a.v[0], b.v[0]), op(a.v[1], b.v[1]), op(a.v[2], b.v[2]), op(a.v[3], b.v[3])}};
+  }
+  friend F4 operator-(F4 a, F4 b) { return Each(a, b, [](float x, float y) { return x - y; }); }
+  friend F4 operator*(F4 a, F4 b) { return Each(a, b, [](float x, float y) { return x * y; }); }
+  friend F4 operator+(F4 a, F4 b) { return Each(a, b, [](float x, float y) { return x + y; }); }
+  friend F4 MinOf(F4 a, F4 b) { return Each(a, b, [](float x, float y) { return std::min(x, y); }); }
+  friend F4 MaxOf(F4 a, F4 b) { return Each(a, b, [](float x, float y) { return std::max(x, y); }); }
+  Vec3f ToVec3() const { return {v[0], v[1], v[2]}; }
+  float Lane(int a) const { return v[a]; }
+  void BinsOf(F4 last, int out[4]) const {
+    for (int a = 0; a < 4; ++a) out[a] = v[a] < last.v[a] ? static_cast<int>(v[a]) : static_cast<int>(last.v[a]);
+  }
+};
+#endif
+
+// A box in two registers; starts empty (lower +inf, upper -inf) like Bounds3f.
+struct Box4 {
+  F4 lower = F4::Splat(std::numeric_limits<float>::infinity());
+  F4 upper = F4::Splat(-std::numeric_limits<float>::infinity());
+
+  static Box4 Load(const Bounds3f& b) { return {F4::Load(b.lower), F4::Load(b.upper)}; }
+  void Extend(const Box4& b) {
+    lower = MinOf(lower, b.lower);
+    upper = MaxOf(upper, b.upper);
+  }
+  void Extend(F4 p) {
+    lower = MinOf(lower, p);
+    upper = MaxOf(upper, p);
+  }
+  Bounds3f ToBounds() const { return {lower.ToVec3(), upper.ToVec3()}; }
+  float HalfArea() const { return ToBounds().HalfArea(); }
+};
 
 // A range of `order` that still needs a node. `patch` is the parent whose `offset` must point
 // at this node: set for second children only, since a first child sits right after its parent.
@@ -26,17 +105,19 @@ struct BuildTask {
   uint32_t end = 0;
   uint32_t patch = kNoParent;
   int depth = 0;
-  Bounds3f bounds;
-  Bounds3f centroid_bounds;
+  Box4 bounds;
+  Box4 centroid_bounds;
 };
 
 struct Bin {
-  Bounds3f bounds;
-  uint32_t count = 0;
+  Box4 bounds;
 };
 
 // Half the sum keeps the centroid finite for boxes near the float range limit.
-inline Vec3f Centroid(const Bounds3f& b) { return b.lower * 0.5f + b.upper * 0.5f; }
+inline F4 Centroid(const Box4& b) {
+  const F4 half = F4::Splat(0.5f);
+  return b.lower * half + b.upper * half;
+}
 
 // Levels of median splits that bring `count` primitives down to leaves of `max_leaf`.
 int MedianSplitLevels(uint32_t count, uint32_t max_leaf) {
@@ -70,13 +151,17 @@ class BvhBuilder {
  public:
   BvhBuilder(std::span<const BvhBuildPrimitive> prims, const BvhBuildOptions& options,
              std::vector<uint32_t>* order, std::vector<BvhNode>* nodes)
-      : prims_(prims), options_(options), order_(*order), nodes_(*nodes) {
+      : options_(options), order_(*order), nodes_(*nodes) {
+    boxes_.reserve(prims.size());
     centroids_.reserve(prims.size());
-    for (const BvhBuildPrimitive& p : prims) centroids_.push_back(Centroid(p.bounds));
+    for (const BvhBuildPrimitive& p : prims) {
+      boxes_.push_back(Box4::Load(p.bounds));
+      centroids_.push_back(Centroid(boxes_.back()));
+    }
   }
 
   void Build() {
-    const auto count = static_cast<uint32_t>(prims_.size());
+    const auto count = static_cast<uint32_t>(boxes_.size());
     std::array<BuildTask, kBvhMaxDepth + 2> stack;  // pending tasks never exceed depth + 1
     int size = 0;
     BuildTask& root = stack[size++];
@@ -102,7 +187,7 @@ class BvhBuilder {
  private:
   void RangeBounds(BuildTask* task) const {
     for (uint32_t i = task->begin; i < task->end; ++i) {
-      task->bounds.Extend(prims_[order_[i]].bounds);
+      task->bounds.Extend(boxes_[order_[i]]);
       task->centroid_bounds.Extend(centroids_[order_[i]]);
     }
   }
@@ -110,8 +195,8 @@ class BvhBuilder {
   // Fills nodes_[index] for the range of `task`. For an inner node, returns true and sets the
   // children's ranges and bounds; both are non-empty.
   bool BuildNode(const BuildTask& task, uint32_t index, BuildTask* left, BuildTask* right) {
-    const Bounds3f& bounds = task.bounds;
-    const Bounds3f& centroid_bounds = task.centroid_bounds;
+    const Bounds3f bounds = task.bounds.ToBounds();
+    const Bounds3f centroid_bounds = task.centroid_bounds.ToBounds();
     BvhNode& node = nodes_[index];
     for (int a = 0; a < 3; ++a) {
       node.lower[a] = bounds.lower[a];
@@ -141,13 +226,14 @@ class BvhBuilder {
         const float split_cost =
             options_.traversal_cost * area + options_.intersection_cost * split.cost;
         if (may_be_leaf && leaf_cost <= split_cost) return MakeLeaf(node, task);
-        PartitionAtBin(task, split, left, right);
+        PartitionAtBin(task, centroid_bounds, split, left, right);
         node.axis = static_cast<uint8_t>(split.axis);
         return true;
       }
       if (may_be_leaf) return MakeLeaf(node, task);
     }
-    return MakeInner(node, centroid_bounds.MaxAxis(), task, MedianSplit(task), left, right);
+    return MakeInner(node, centroid_bounds.MaxAxis(), task, MedianSplit(task, centroid_bounds),
+                     left, right);
   }
 
   static bool MakeLeaf(BvhNode& node, const BuildTask& task) {
@@ -186,43 +272,51 @@ class BvhBuilder {
     return binning;
   }
 
-  SplitChoice FindSahSplit(const BuildTask& task, const Bounds3f& centroid_bounds) {
-    const int bins = BinCount(task.end - task.begin);
-    auto& bin = bins_;
-    for (auto& axis_bins : bin) std::fill_n(axis_bins.begin(), bins, Bin{});
-    std::array<AxisBinning, 3> binning;
-    for (int a = 0; a < 3; ++a) binning[a] = Binning(centroid_bounds, a, bins);
-
+  // Bins every primitive of the task on the three axes at once (AxisBinning::BinOf per lane).
+  void FillBins(const BuildTask& task, const std::array<AxisBinning, 3>& binning, int bins) {
+    for (int a = 0; a < 3; ++a) {
+      std::fill_n(bins_[a].begin(), bins, Bin{});
+      std::fill_n(bin_counts_[a].begin(), bins, 0u);
+    }
+    const F4 lower = F4::Load({binning[0].lower, binning[1].lower, binning[2].lower});
+    const F4 scale = F4::Load({binning[0].scale, binning[1].scale, binning[2].scale});
+    const F4 last = F4::Splat(static_cast<float>(bins - 1));
+    int bin[4];
     for (uint32_t i = task.begin; i < task.end; ++i) {
       const uint32_t p = order_[i];
-      const Bounds3f& b = prims_[p].bounds;
-      const Vec3f c = centroids_[p];
+      ((centroids_[p] - lower) * scale).BinsOf(last, bin);
       for (int a = 0; a < 3; ++a) {
-        Bin& target = bin[a][binning[a].BinOf(c[a])];
-        target.bounds.Extend(b);
-        ++target.count;
+        bins_[a][bin[a]].bounds.Extend(boxes_[p]);
+        ++bin_counts_[a][bin[a]];
       }
     }
+  }
+
+  SplitChoice FindSahSplit(const BuildTask& task, const Bounds3f& centroid_bounds) {
+    const int bins = BinCount(task.end - task.begin);
+    std::array<AxisBinning, 3> binning;
+    for (int a = 0; a < 3; ++a) binning[a] = Binning(centroid_bounds, a, bins);
+    FillBins(task, binning, bins);
 
     SplitChoice best;
     std::array<float, kBvhMaxBins> right_cost;
     for (int a = 0; a < 3; ++a) {
       if (binning[a].scale == 0) continue;
       // right_cost[k]: area * count of bins (k, bins); 0 when they are all empty.
-      Bounds3f right;
+      Box4 right;
       uint32_t right_count = 0;
       for (int k = bins - 1; k > 0; --k) {
-        right.Extend(bin[a][k].bounds);
-        right_count += bin[a][k].count;
+        right.Extend(bins_[a][k].bounds);
+        right_count += bin_counts_[a][k];
         right_cost[k - 1] = right_count == 0 ? 0.0f
                                              : right.HalfArea() * static_cast<float>(right_count);
       }
-      Bounds3f left;
+      Box4 left;
       uint32_t left_count = 0;
       const uint32_t total = task.end - task.begin;
       for (int k = 0; k < bins - 1; ++k) {
-        left.Extend(bin[a][k].bounds);
-        left_count += bin[a][k].count;
+        left.Extend(bins_[a][k].bounds);
+        left_count += bin_counts_[a][k];
         if (left_count == 0 || left_count == total) continue;
         const float cost = left.HalfArea() * static_cast<float>(left_count) + right_cost[k];
         if (cost < best.cost) best = {a, k, cost};  // strict: ties keep the first, for determinism
@@ -232,15 +326,15 @@ class BvhBuilder {
   }
 
   // Hoare partition that gathers each side's bounds on the way, so children need no pass.
-  void PartitionAtBin(const BuildTask& task, const SplitChoice& split, BuildTask* left,
-                      BuildTask* right) {
+  void PartitionAtBin(const BuildTask& task, const Bounds3f& centroid_bounds,
+                      const SplitChoice& split, BuildTask* left, BuildTask* right) {
     const AxisBinning binning =
-        Binning(task.centroid_bounds, split.axis, BinCount(task.end - task.begin));
+        Binning(centroid_bounds, split.axis, BinCount(task.end - task.begin));
     auto goes_left = [&](uint32_t p) {
-      return binning.BinOf(centroids_[p][split.axis]) <= split.bin;
+      return binning.BinOf(centroids_[p].Lane(split.axis)) <= split.bin;
     };
     auto add = [&](BuildTask* side, uint32_t p) {
-      side->bounds.Extend(prims_[p].bounds);
+      side->bounds.Extend(boxes_[p]);
       side->centroid_bounds.Extend(centroids_[p]);
     };
     uint32_t i = task.begin, j = task.end;
@@ -258,25 +352,26 @@ class BvhBuilder {
 
   // Object median along the widest centroid axis; ties broken by primitive index so the
   // result does not depend on the order the range happens to be in.
-  uint32_t MedianSplit(const BuildTask& task) {
-    const int axis = task.centroid_bounds.MaxAxis();
+  uint32_t MedianSplit(const BuildTask& task, const Bounds3f& centroid_bounds) {
+    const int axis = centroid_bounds.MaxAxis();
     const uint32_t mid = task.begin + (task.end - task.begin) / 2;
     std::nth_element(order_.begin() + task.begin, order_.begin() + mid, order_.begin() + task.end,
                      [&](uint32_t p, uint32_t q) {
-                       const float cp = centroids_[p][axis];
-                       const float cq = centroids_[q][axis];
+                       const float cp = centroids_[p].Lane(axis);
+                       const float cq = centroids_[q].Lane(axis);
                        return cp < cq || (cp == cq && p < q);
                      });
     return mid;
   }
 
-  std::span<const BvhBuildPrimitive> prims_;
   const BvhBuildOptions& options_;
   std::vector<uint32_t>& order_;
   std::vector<BvhNode>& nodes_;
-  std::vector<Vec3f> centroids_;  // by primitive index, computed once
+  std::vector<Box4> boxes_;     // primitive bounds, by primitive index
+  std::vector<F4> centroids_;   // by primitive index, computed once
   // Reused by every node; only the first options_.bins entries per axis are ever touched.
   std::array<std::array<Bin, kBvhMaxBins>, 3> bins_;
+  std::array<std::array<uint32_t, kBvhMaxBins>, 3> bin_counts_;
 };
 
 }  // namespace

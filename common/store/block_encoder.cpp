@@ -1,7 +1,5 @@
 #include "common/store/block_encoder.h"
 
-#include <xxhash.h>
-
 #include <cstring>
 
 #include "common/base/check.h"
@@ -39,6 +37,20 @@ VertexKey KeyOf(const EncodeInput& in, uint32_t tri, int corner, bool attributes
   return k;
 }
 
+// A table slot for a key. Only the probe order depends on it, never which index a vertex
+// gets (first occurrence in BVH order), so blocks do not change with it. A multiply-xorshift
+// of the bits is enough for positions and far cheaper than a general hash call per corner.
+uint64_t HashOf(const VertexKey& key) {
+  uint32_t bits[8];
+  std::memcpy(bits, key.v, sizeof bits);
+  uint64_t h = 0x9e3779b97f4a7c15ull;
+  for (int i = 0; i < key.floats; ++i) {
+    h = (h ^ bits[i]) * 0xff51afd7ed558ccdull;
+    h ^= h >> 32;
+  }
+  return h;
+}
+
 template <typename T>
 T* At(std::vector<uint8_t>* raw, uint64_t offset) {
   return reinterpret_cast<T*>(raw->data() + offset);
@@ -49,7 +61,7 @@ T* At(std::vector<uint8_t>* raw, uint64_t offset) {
 uint32_t BlockEncoder::VertexOf(const EncodeInput& in, uint32_t tri, int corner, bool attributes) {
   const VertexKey key = KeyOf(in, tri, corner, attributes);
   const uint64_t mask = slots_.size() - 1;
-  uint64_t h = XXH3_64bits(key.v, sizeof(float) * static_cast<size_t>(key.floats)) & mask;
+  uint64_t h = HashOf(key) & mask;
   for (;; h = (h + 1) & mask) {
     uint32_t slot = slots_[h];
     if (slot == 0) {

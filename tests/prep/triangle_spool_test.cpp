@@ -11,12 +11,13 @@
 #include <vector>
 
 #include "common/base/temp_dir.h"
+#include "tools/prep/write_behind.h"
 
 namespace raystack::prep {
 namespace {
 
-// Triangle i; every third has normals and uvs, every fifth only uvs.
-PackedTriangle MakeTriangle(uint32_t i, TriangleAttributes* a) {
+// Triangle i; every third has normals and uvs, every fifth only uvs (none when `plain`).
+PackedTriangle MakeTriangle(uint32_t i, TriangleAttributes* a, bool plain = false) {
   PackedTriangle t;
   const float f = static_cast<float>(i);
   t.p[0] = {f, f + 0.5f, -f};
@@ -25,8 +26,9 @@ PackedTriangle MakeTriangle(uint32_t i, TriangleAttributes* a) {
   t.id = i * 7 + 3;
   t.material_and_flags = i % 11;
   *a = TriangleAttributes{};
-  if (i % 3 == 0) t.material_and_flags |= PackedTriangle::kHasNormals | PackedTriangle::kHasUvs;
-  if (i % 5 == 0) t.material_and_flags |= PackedTriangle::kHasUvs;
+  if (i % 3 == 0 && !plain)
+    t.material_and_flags |= PackedTriangle::kHasNormals | PackedTriangle::kHasUvs;
+  if (i % 5 == 0 && !plain) t.material_and_flags |= PackedTriangle::kHasUvs;
   if (t.has_normals() || t.has_uvs()) {
     for (int c = 0; c < 3; ++c) {
       a->n[c] = {f * 0.1f + static_cast<float>(c), 1, 2};
@@ -53,27 +55,27 @@ class TriangleSpoolTest : public ::testing::Test {
     dir_ = std::make_unique<TempDir>(std::move(*dir));
   }
 
-  static void Fill(TriangleSpool* spool, uint32_t n) {
+  static void Fill(TriangleSpool* spool, uint32_t n, bool plain = false) {
     for (uint32_t i = 0; i < n; ++i) {
       TriangleAttributes a;
-      const PackedTriangle t = MakeTriangle(i, &a);
+      const PackedTriangle t = MakeTriangle(i, &a, plain);
       ASSERT_TRUE(spool->Append(t, &a).ok());
     }
     ASSERT_TRUE(spool->Close().ok());
   }
 
   // Reads the spool back and checks it holds triangles 0..n-1 in order.
-  static void ExpectHolds(const TriangleSpool& spool, uint32_t n) {
+  static void ExpectHolds(const TriangleSpool& spool, uint32_t n, bool plain = false) {
     EXPECT_EQ(spool.triangles(), n);
     uint32_t next = 0;
     int batches = 0;
     Status s = spool.ForEach([&](std::span<const PackedTriangle> tris,
                                  std::span<const TriangleAttributes> attrs) {
       ++batches;
-      EXPECT_EQ(tris.size(), attrs.size());
+      EXPECT_EQ(attrs.size(), plain ? 0 : tris.size());
       for (size_t k = 0; k < tris.size(); ++k, ++next) {
         TriangleAttributes expected_attributes;
-        const PackedTriangle expected = MakeTriangle(next, &expected_attributes);
+        const PackedTriangle expected = MakeTriangle(next, &expected_attributes, plain);
         if (!SameTriangle(tris[k], expected)) {
           ADD_FAILURE() << "triangle " << next << " differs";
           return Status::Error("stop");
@@ -152,6 +154,63 @@ TEST_F(TriangleSpoolTest, DestructorRemovesTheSpillFile) {
     ASSERT_TRUE(std::filesystem::exists(path));
   }
   EXPECT_FALSE(std::filesystem::exists(path));
+}
+
+// Without attributes, records are read back a batch at a time rather than one by one.
+TEST_F(TriangleSpoolTest, WithoutAttributesGivesBackEveryTriangleInOrder) {
+  TriangleSpool memory(dir_->File("plain-memory.tmp"), uint64_t{1} << 30);
+  TriangleSpool spilled(dir_->File("plain-spilled.tmp"), 500, 4096);
+  Fill(&memory, kTriangles, /*plain=*/true);
+  Fill(&spilled, kTriangles, /*plain=*/true);
+  EXPECT_TRUE(spilled.spilled());
+  EXPECT_EQ(spilled.bytes(), uint64_t{kTriangles} * sizeof(PackedTriangle));
+  ExpectHolds(memory, kTriangles, /*plain=*/true);
+  ExpectHolds(spilled, kTriangles, /*plain=*/true);
+}
+
+TEST_F(TriangleSpoolTest, TruncatedFileWithoutAttributesIsDamaged) {
+  const std::string path = dir_->File("truncated.tmp");
+  TriangleSpool spool(path, 0);
+  Fill(&spool, 100, /*plain=*/true);
+  std::filesystem::resize_file(path, 99 * sizeof(PackedTriangle) + 10);
+  Status s = spool.ForEach([](auto, auto) { return OkStatus(); });
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("damaged"), std::string::npos) << s.message();
+}
+
+// Spools sharing one writer thread, appended to in turn (as partition buckets are), each get
+// back exactly their own triangles, with and without attributes.
+TEST_F(TriangleSpoolTest, ThroughWriteBehindGivesBackEveryTriangleInOrder) {
+  WriteBehind writer(1000, 3);  // small buffers and queue: many hand-overs and waits
+  std::vector<TriangleSpool> spools;
+  for (int k = 0; k < 4; ++k)
+    spools.emplace_back(dir_->File("behind-" + std::to_string(k) + ".tmp"), writer);
+  for (uint32_t i = 0; i < kTriangles; ++i)
+    for (int k = 0; k < 4; ++k) {
+      TriangleAttributes a;
+      const PackedTriangle t = MakeTriangle(i, &a, /*plain=*/k % 2 == 0);
+      ASSERT_TRUE(spools[k].Append(t, &a).ok());
+    }
+  for (TriangleSpool& spool : spools) ASSERT_TRUE(spool.Close().ok());
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_TRUE(spools[k].spilled());
+    EXPECT_EQ(std::filesystem::file_size(dir_->File("behind-" + std::to_string(k) + ".tmp")),
+              spools[k].bytes());
+    ExpectHolds(spools[k], kTriangles, /*plain=*/k % 2 == 0);
+  }
+}
+
+TEST_F(TriangleSpoolTest, ThroughWriteBehindUnwritablePathIsAnErrorNamingIt) {
+  const std::string file = dir_->File("plain-file");
+  std::ofstream(file) << "not a directory";
+  const std::string path = file + "/spill.tmp";
+  WriteBehind writer(4096, 2);
+  TriangleSpool spool(path, writer);
+  TriangleAttributes a;
+  const PackedTriangle t = MakeTriangle(1, &a);
+  Status s = spool.Append(t, &a);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find(path), std::string::npos) << s.message();
 }
 
 TEST_F(TriangleSpoolTest, UnwritablePathIsAnErrorNamingIt) {

@@ -1,6 +1,7 @@
 #include "tools/prep/octree_builder.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <memory>
 #include <thread>
@@ -12,6 +13,7 @@
 #include "common/store/octree.h"
 #include "tools/prep/block_pipeline.h"
 #include "tools/prep/clip.h"
+#include "tools/prep/write_behind.h"
 
 namespace raystack::prep {
 namespace {
@@ -24,6 +26,10 @@ constexpr int kMaxDepth = 24;
 constexpr double kAimOverTarget = 1.3;
 // Levels in a row where some child kept every triangle of its parent before we give up.
 constexpr int kMaxStall = 4;
+// Bucket files are written in pieces of this size (one being filled per bucket), with at
+// most this many pieces waiting for the writer thread.
+constexpr size_t kBucketWriteBytes = 64 << 10;
+constexpr size_t kBucketWritesQueued = 64;
 // Memory one triangle costs while its bucket is subdivided (the triangle plus ~2.5 refs).
 constexpr uint64_t kBucketBytesPerTriangle = sizeof(PackedTriangle) + 3 * 28;
 
@@ -149,15 +155,16 @@ class Builder {
         if (r.bounds.lower[a] <= mid[a]) lo_mask |= 1 << a;
         if (r.bounds.upper[a] >= mid[a]) hi_mask |= 1 << a;
       }
-      const bool straddles = (lo_mask & hi_mask) != 0;
+      if ((lo_mask & hi_mask) == 0) {
+        // Wholly inside one child (the common case), whose index is the halves it touches:
+        // its box stays as is.
+        kids[hi_mask].push_back(r);
+        continue;
+      }
       for (int i = 0; i < 8; ++i) {
         bool touches = true;
         for (int a = 0; a < 3 && touches; ++a) touches = (i >> a & 1) ? (hi_mask >> a & 1) : (lo_mask >> a & 1);
         if (!touches) continue;
-        if (!straddles) {
-          kids[i].push_back(r);  // wholly inside this child: its box stays as is
-          continue;
-        }
         const Bounds3f b = ClipTriangleToCell(bucket_->triangles[r.tri].p, store::ChildCell(cell, i));
         if (!b.Empty()) kids[i].push_back({r.tri, b});
       }
@@ -284,13 +291,60 @@ void Classify(const PackedTriangle& t, const Bounds3f& bounds, const Bounds3f& c
   }
 }
 
+// The level-`levels` cells below a cell, as their planes along each axis: planes[a][k] is
+// the lower face of the k-th slab, computed by the same midpoint arithmetic as
+// store::ChildCell, so a cell found here is the cell Classify would reach, bit for bit.
+struct CellGrid {
+  int levels = 0;
+  std::vector<float> planes[3];  // (1 << levels) + 1 per axis
+
+  CellGrid(const Bounds3f& cell, int depth) : levels(depth) {
+    const size_t n = size_t{1} << levels;
+    for (int a = 0; a < 3; ++a) {
+      planes[a].assign(n + 1, 0.0f);
+      planes[a][0] = cell.lower[a];
+      planes[a][n] = cell.upper[a];
+      Halve(planes[a], 0, n);
+    }
+  }
+
+  // The Morton index of the one cell that holds `b` strictly inside (touching no face of a
+  // cell, so Classify would neither clip it nor send it to a neighbour); false if none does.
+  bool CellOf(const Bounds3f& b, uint32_t* morton) const {
+    uint32_t slab[3];
+    const size_t n = planes[0].size() - 1;
+    for (int a = 0; a < 3; ++a) {
+      const std::vector<float>& p = planes[a];
+      size_t k = 0;
+      while (k + 1 < n && p[k + 1] < b.lower[a]) ++k;
+      if (!(p[k] < b.lower[a] && b.upper[a] < p[k + 1])) return false;
+      slab[a] = static_cast<uint32_t>(k);
+    }
+    uint32_t m = 0;
+    for (int bit = levels - 1; bit >= 0; --bit)
+      m = m * 8 + ((slab[0] >> bit & 1) | (slab[1] >> bit & 1) << 1 | (slab[2] >> bit & 1) << 2);
+    *morton = m;
+    return true;
+  }
+
+ private:
+  static void Halve(std::vector<float>& p, size_t lo, size_t hi) {
+    if (hi - lo < 2) return;
+    const size_t mid = (lo + hi) / 2;
+    p[mid] = (p[lo] + p[hi]) * 0.5f;
+    Halve(p, lo, mid);
+    Halve(p, mid, hi);
+  }
+};
+
 // Classifies a batch on several threads, then appends to the buckets on this one, slice by
 // slice, so each bucket gets its triangles in the same order as a serial pass would.
 Status ClassifyBatch(std::span<const PackedTriangle> tris, std::span<const TriangleAttributes> attrs,
-                     const Bounds3f& cell, int levels, int threads,
+                     const Bounds3f& cell, const CellGrid& grid, int threads,
                      std::vector<std::vector<std::pair<uint32_t, uint32_t>>>* slices,
                      std::vector<TriangleSpool>* buckets) {
   const size_t n = tris.size();
+  const int levels = grid.levels;
   const size_t parts = std::clamp<size_t>(static_cast<size_t>(threads), 1, std::max<size_t>(n / 256, 1));
   slices->resize(parts);
   auto work = [&](size_t part) {
@@ -300,6 +354,11 @@ Status ClassifyBatch(std::span<const PackedTriangle> tris, std::span<const Trian
     for (size_t i = part * n / parts; i < (part + 1) * n / parts; ++i) {
       const Bounds3f b = ClipTriangleToCell(tris[i].p, cell);
       if (b.Empty()) continue;
+      uint32_t only;
+      if (grid.CellOf(b, &only)) {  // most triangles: a lookup instead of a descent
+        slice.emplace_back(only, static_cast<uint32_t>(i));
+        continue;
+      }
       cells.clear();
       Classify(tris[i], b, cell, levels, 0, &cells);
       for (uint32_t c : cells) slice.emplace_back(c, static_cast<uint32_t>(i));
@@ -367,20 +426,33 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
   while (levels < 3 && source.triangles() / (1ull << (3 * levels)) > bucket_capacity_ / 4) ++levels;
   if (depth + levels > kMaxDepth) levels = std::max(1, kMaxDepth - depth);
   const uint32_t count = 1u << (3 * levels);
+  const auto start = std::chrono::steady_clock::now();
   LOG_INFO("prep", "partitioning %llu triangles into %u buckets on disk (depth %d)",
            static_cast<unsigned long long>(source.triangles()), count, depth);
+  // Declared before the buckets, which flush through it until they are destroyed.
+  WriteBehind writer(kBucketWriteBytes, kBucketWritesQueued);
   std::vector<TriangleSpool> buckets;
   buckets.reserve(count);
   for (uint32_t i = 0; i < count; ++i)
     buckets.emplace_back(StrFormat("%s/bucket-d%d-n%u-%u.tmp", options_.temp_dir.c_str(), depth,
                                    node, i),
-                         0, 64 << 10);
+                         writer);
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> slices;
+  const CellGrid grid(cell, levels);
+  // The writer thread keeps a core busy copying into the page cache; with the grid lookup,
+  // classifying on the remaining cores keeps up (measured on 2 cores: 8.9 s with one
+  // classifying thread against 11.2 s with two, for the dragon x125).
+  const int classify_threads = std::max(1, options_.threads - 1);
   RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
                                               std::span<const TriangleAttributes> attrs) {
-    return ClassifyBatch(tris, attrs, cell, levels, options_.threads, &slices, &buckets);
+    return ClassifyBatch(tris, attrs, cell, grid, classify_threads, &slices, &buckets);
   }));
   for (TriangleSpool& b : buckets) RAYSTACK_RETURN_IF_ERROR(b.Close());
+  uint64_t bucket_bytes = 0;
+  for (const TriangleSpool& b : buckets) bucket_bytes += b.bytes();
+  LOG_INFO("prep", "partitioned in %.1f s (%.2f GB of bucket files)",
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+           static_cast<double>(bucket_bytes) / 1e9);
 
   // Walk the levels in Morton order, creating inner nodes; buckets become subtrees.
   struct Walk {

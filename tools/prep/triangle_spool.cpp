@@ -1,7 +1,13 @@
 #include "tools/prep/triangle_spool.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
+
+#include "tools/prep/write_behind.h"
 
 namespace raystack::prep {
 namespace {
@@ -12,12 +18,17 @@ constexpr size_t kBatch = 8192;
 TriangleSpool::TriangleSpool(std::string path, uint64_t memory_budget, size_t file_buffer)
     : path_(std::move(path)), memory_budget_(memory_budget), file_buffer_(file_buffer) {}
 
+TriangleSpool::TriangleSpool(std::string path, WriteBehind& writer)
+    : path_(std::move(path)), memory_budget_(0), file_buffer_(0), writer_(&writer) {}
+
 TriangleSpool::TriangleSpool(TriangleSpool&& o) noexcept
     : path_(std::move(o.path_)), memory_budget_(o.memory_budget_), file_buffer_(o.file_buffer_),
       memory_(std::move(o.memory_)),
-      file_(o.file_), spilled_(o.spilled_), triangles_(o.triangles_), bytes_(o.bytes_),
+      file_(o.file_), writer_(o.writer_), fd_(o.fd_), pending_(std::move(o.pending_)),
+      spilled_(o.spilled_), triangles_(o.triangles_), bytes_(o.bytes_),
       has_attributes_(o.has_attributes_) {
   o.file_ = nullptr;
+  o.fd_ = -1;
   o.spilled_ = false;
   o.path_.clear();
 }
@@ -27,6 +38,13 @@ TriangleSpool::~TriangleSpool() { Clear(); }
 void TriangleSpool::Clear() {
   if (file_) std::fclose(file_);
   file_ = nullptr;
+  if (fd_ >= 0) {
+    // Writes still queued for this file must not land in a recycled descriptor.
+    (void)writer_->Flush();
+    ::close(fd_);
+  }
+  fd_ = -1;
+  std::vector<uint8_t>().swap(pending_);
   if (spilled_ && !path_.empty()) std::remove(path_.c_str());
   spilled_ = false;
   std::vector<uint8_t>().swap(memory_);
@@ -45,12 +63,36 @@ Status TriangleSpool::Spill() {
   return OkStatus();
 }
 
+Status TriangleSpool::AppendBehind(const PackedTriangle& t, const TriangleAttributes* attributes,
+                                   bool with_attributes) {
+  if (fd_ < 0) {
+    if (spilled_) return Status::Error(path_ + ": appending to a closed spool");
+    fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+    if (fd_ < 0) return Status::Error(path_ + ": cannot create temporary file: " + std::strerror(errno));
+    spilled_ = true;
+    pending_ = writer_->Take();
+  }
+  const size_t n = sizeof t + (with_attributes ? sizeof *attributes : 0);
+  if (pending_.size() + n > writer_->buffer_bytes()) {
+    writer_->Write(fd_, path_, std::move(pending_));
+    pending_ = writer_->Take();
+  }
+  const auto* bytes = reinterpret_cast<const uint8_t*>(&t);
+  pending_.insert(pending_.end(), bytes, bytes + sizeof t);
+  if (with_attributes) {
+    const auto* extra = reinterpret_cast<const uint8_t*>(attributes);
+    pending_.insert(pending_.end(), extra, extra + sizeof *attributes);
+  }
+  return OkStatus();
+}
+
 Status TriangleSpool::Append(const PackedTriangle& t, const TriangleAttributes* attributes) {
   const bool with_attributes = t.has_normals() || t.has_uvs();
   has_attributes_ |= with_attributes;
   const size_t n = sizeof t + (with_attributes ? sizeof *attributes : 0);
   ++triangles_;
   bytes_ += n;
+  if (writer_) return AppendBehind(t, attributes, with_attributes);
   if (!file_) {
     if (memory_.size() + n <= memory_budget_) {
       const size_t at = memory_.size();
@@ -68,6 +110,16 @@ Status TriangleSpool::Append(const PackedTriangle& t, const TriangleAttributes* 
 }
 
 Status TriangleSpool::Close() {
+  if (fd_ >= 0) {
+    if (!pending_.empty()) writer_->Write(fd_, path_, std::move(pending_));
+    std::vector<uint8_t>().swap(pending_);
+    const Status written = writer_->Flush();
+    const bool closed = ::close(fd_) == 0;
+    fd_ = -1;
+    if (!written.ok()) return written;
+    if (!closed) return Status::Error(path_ + ": write failed (disk full?)");
+    return OkStatus();
+  }
   if (!file_) return OkStatus();
   const bool failed = std::fflush(file_) != 0 || std::ferror(file_);
   std::fclose(file_);
@@ -76,7 +128,38 @@ Status TriangleSpool::Close() {
   return OkStatus();
 }
 
+Status TriangleSpool::ForEachPlain(const Visitor& visit) const {
+  std::vector<PackedTriangle> tris(kBatch);
+  if (!spilled_) {
+    const size_t count = memory_.size() / sizeof(PackedTriangle);
+    for (size_t at = 0; at < count; at += kBatch) {
+      const size_t n = std::min(kBatch, count - at);
+      std::memcpy(tris.data(), memory_.data() + at * sizeof(PackedTriangle), n * sizeof(PackedTriangle));
+      RAYSTACK_RETURN_IF_ERROR(visit(std::span<const PackedTriangle>(tris.data(), n), {}));
+    }
+    return OkStatus();
+  }
+  std::FILE* f = std::fopen(path_.c_str(), "rb");
+  if (!f) return Status::Error(path_ + ": cannot reopen temporary file: " + std::strerror(errno));
+  uint64_t seen = 0;
+  Status status;
+  for (;;) {
+    const size_t n = std::fread(tris.data(), sizeof(PackedTriangle), kBatch, f);
+    if (n == 0) break;
+    seen += n;
+    status = visit(std::span<const PackedTriangle>(tris.data(), n), {});
+    if (!status.ok()) break;
+  }
+  const bool damaged = std::ferror(f) || std::fgetc(f) != EOF;
+  std::fclose(f);
+  if (!status.ok()) return status;
+  if (damaged || seen != triangles_) return Status::Error(path_ + ": temporary file is damaged");
+  return OkStatus();
+}
+
 Status TriangleSpool::ForEach(const Visitor& visit) const {
+  // Without attributes every record is one PackedTriangle: batches are read in one piece.
+  if (!has_attributes_) return ForEachPlain(visit);
   std::vector<PackedTriangle> tris;
   std::vector<TriangleAttributes> attrs;
   tris.reserve(kBatch);

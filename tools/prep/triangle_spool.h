@@ -19,11 +19,16 @@ namespace raystack::prep {
 using store::PackedTriangle;
 using store::TriangleAttributes;
 
+class WriteBehind;
+
 class TriangleSpool {
  public:
   // `path` is where it spills (created on first spill); `memory_budget` bytes stay in RAM;
   // `file_buffer` bytes buffer writes once spilled (small when hundreds are open at once).
   TriangleSpool(std::string path, uint64_t memory_budget, size_t file_buffer = 1 << 20);
+  // Spills at once, through `writer` (which must outlive the spool until Close): its buffers
+  // are filled here and written on its thread.
+  TriangleSpool(std::string path, WriteBehind& writer);
   ~TriangleSpool();
   TriangleSpool(TriangleSpool&&) noexcept;
   TriangleSpool& operator=(TriangleSpool&&) = delete;
@@ -48,12 +53,17 @@ class TriangleSpool {
 
  private:
   Status Spill();
+  Status ForEachPlain(const Visitor& visit) const;  // every record a bare PackedTriangle
+  Status AppendBehind(const PackedTriangle& t, const TriangleAttributes* attributes, bool with);
 
   std::string path_;
   uint64_t memory_budget_;
   size_t file_buffer_;
   std::vector<uint8_t> memory_;
   std::FILE* file_ = nullptr;
+  WriteBehind* writer_ = nullptr;  // when set, writes go through it to fd_
+  int fd_ = -1;
+  std::vector<uint8_t> pending_;  // the writer's buffer being filled
   bool spilled_ = false;
   uint64_t triangles_ = 0, bytes_ = 0;
   bool has_attributes_ = false;
