@@ -4,6 +4,7 @@
 #include <bit>
 
 #include "common/base/log.h"
+#include "common/base/thread_name.h"
 
 namespace raystack::slave {
 
@@ -11,9 +12,15 @@ BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, Blo
                          LoaderOptions options, Deliver deliver)
     : store_(store), cache_(cache), source_(source), options_(options),
       deliver_(std::move(deliver)) {
-  loader_ = std::thread([this] { LoaderLoop(); });
+  loader_ = std::thread([this] {
+    SetThreadName("rs-loader");
+    LoaderLoop();
+  });
   for (int i = 0; i < std::max(1, options_.io_threads); ++i)
-    workers_.emplace_back([this] { WorkerLoop(); });
+    workers_.emplace_back([this] {
+      SetThreadName("rs-io");
+      WorkerLoop();
+    });
 }
 
 BlockLoader::~BlockLoader() { Stop(); }

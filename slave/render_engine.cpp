@@ -4,6 +4,7 @@
 #include <thread>
 
 #include "common/base/log.h"
+#include "common/base/thread_name.h"
 #include "slave/ray_thread.h"
 #include "slave/shading.h"
 
@@ -135,6 +136,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   std::vector<std::thread> workers;
   for (auto& t : threads)
     workers.emplace_back([&shared, rt = t.get()] {
+      SetThreadName("rs-ray");
       if (shared.stack)
         rt->RunStack();
       else
