@@ -113,6 +113,7 @@ Status BlockCache::FinishLoad(uint32_t id, std::span<const uint8_t> stored, int 
   Entry& e = entries_[id];
   loads_.fetch_add(1, std::memory_order_relaxed);
   if (!view.ok()) {
+    failures_.emplace(id, view.status());
     used_ -= Charge(id);
     e.state.store(kFailedState, std::memory_order_release);
     changed_.notify_all();
@@ -139,8 +140,9 @@ void BlockCache::Shutdown() {
   changed_.notify_all();
 }
 
-void BlockCache::FailLoad(uint32_t id) {
+void BlockCache::FailLoad(uint32_t id, const Status& why) {
   std::lock_guard lock(mu_);
+  failures_.emplace(id, why);
   used_ -= Charge(id);
   entries_[id].state.store(kFailedState, std::memory_order_release);
   changed_.notify_all();
@@ -157,6 +159,14 @@ BlockCache::Claim BlockCache::WaitWhileLoading(uint32_t id) {
     case kFailedState: return Claim::kFailed;
     default: return Claim::kLoad;  // evicted again already: the caller starts over
   }
+}
+
+Status BlockCache::FailureOf(uint32_t id) const {
+  std::lock_guard lock(mu_);
+  const auto it = failures_.find(id);
+  if (it != failures_.end()) return it->second;
+  return Status::Error(StrFormat("%s: block %u was not loaded (the render is stopping)",
+                                 store_.dir().c_str(), id));
 }
 
 uint64_t BlockCache::used_bytes() const {

@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <unordered_map>
 #include <vector>
 
 #include "common/base/status.h"
@@ -48,8 +49,12 @@ class BlockCache {
   // failed and the error (naming the block) is returned.
   Status FinishLoad(uint32_t id, std::span<const uint8_t> stored, int pins,
                     store::AlignedBuffer* scratch);
-  // A load that could not read its bytes: releases the reservation, marks the block failed.
-  void FailLoad(uint32_t id);
+  // A load that could not read its bytes: releases the reservation, marks the block failed
+  // with `why`.
+  void FailLoad(uint32_t id, const Status& why);
+  // Why block `id` failed (its first error, naming it), for whoever asks for it afterwards:
+  // every asker reports the same cause, whichever reports first.
+  Status FailureOf(uint32_t id) const;
   // Wakes and fails every BeginLoad waiting for room (the render is ending, pins will not be
   // released any more); later BeginLoads fail at once.
   void Shutdown();
@@ -98,6 +103,7 @@ class BlockCache {
   bool shutdown_ = false;               // (under mu_)
   uint64_t used_ = 0;                   // resident + reserved bytes (under mu_)
   std::vector<uint32_t> resident_;      // ids of resident blocks (under mu_)
+  std::unordered_map<uint32_t, Status> failures_;  // (under mu_)
   std::atomic<uint64_t> peak_{0};
   std::atomic<uint64_t> loads_{0}, distinct_{0}, evictions_{0};
 };

@@ -95,7 +95,7 @@ void BlockLoader::LoaderLoop() {
       if (claim == BlockCache::Claim::kFailed) {
         for (uint64_t t = threads; t; t &= t - 1)
           deliver_(static_cast<uint32_t>(std::countr_zero(t)), block,
-                   Status::Error(StrFormat("block %u failed to load earlier", block)));
+                   cache_->FailureOf(block));
         continue;
       }
       if (claim != BlockCache::Claim::kLoad) {
@@ -173,7 +173,7 @@ void BlockLoader::Complete(uint32_t block, const Status& read, std::span<const u
   if (read.ok()) {
     status = cache_->FinishLoad(block, stored, std::popcount(threads), scratch);
   } else {
-    cache_->FailLoad(block);
+    cache_->FailLoad(block, read);
   }
   for (uint64_t t = threads; t; t &= t - 1)
     deliver_(static_cast<uint32_t>(std::countr_zero(t)), block, status);

@@ -364,7 +364,7 @@ const store::BlockView* RayThread::AcquireSync(uint32_t block) {
         const uint32_t ids[1] = {block};
         Status s = shared_->source->ReadRun(ids, &stored_);
         if (!s.ok()) {
-          shared_->cache->FailLoad(block);
+          shared_->cache->FailLoad(block, s);
           shared_->Fail(s);
           return nullptr;
         }
@@ -381,8 +381,7 @@ const store::BlockView* RayThread::AcquireSync(uint32_t block) {
         shared_->cache->WaitWhileLoading(block);
         break;
       case BlockCache::Claim::kFailed:
-        shared_->Fail(Status::Error(StrFormat("%s: block %u could not be loaded",
-                                              shared_->store->dir().c_str(), block)));
+        shared_->Fail(shared_->cache->FailureOf(block));
         return nullptr;
       case BlockCache::Claim::kResident:
       case BlockCache::Claim::kNoRoom:  // (only when asked not to wait)

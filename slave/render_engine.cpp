@@ -68,7 +68,7 @@ Status RenderEngine::Preload(double* seconds) {
       if (s.ok()) {
         s = cache_->FinishLoad(id, stored, 0, &scratch);
       } else {
-        cache_->FailLoad(id);
+        cache_->FailLoad(id, s);
       }
       if (!s.ok()) {
         std::lock_guard lock(mu);
