@@ -1,0 +1,103 @@
+#include "common/mpi/mpi_transport.h"
+
+#include <mpi.h>
+
+#include <cstdlib>
+#include <thread>
+
+#include "common/base/log.h"
+
+namespace raystack::mpi {
+namespace {
+
+constexpr int kTag = 7;
+
+std::string MpiError(int code) {
+  char text[MPI_MAX_ERROR_STRING];
+  int length = 0;
+  MPI_Error_string(code, text, &length);
+  return std::string(text, static_cast<size_t>(length));
+}
+
+}  // namespace
+
+bool LaunchedByMpirun() {
+  return std::getenv("OMPI_COMM_WORLD_SIZE") != nullptr || std::getenv("PMI_SIZE") != nullptr ||
+         std::getenv("PMIX_RANK") != nullptr;
+}
+
+Expected<std::unique_ptr<MpiTransport>> MpiTransport::Init(int* argc, char*** argv) {
+  int provided = 0;
+  if (const int rc = MPI_Init_thread(argc, argv, MPI_THREAD_MULTIPLE, &provided);
+      rc != MPI_SUCCESS)
+    return Status::Error("MPI_Init_thread failed: " + MpiError(rc));
+  // Errors come back as codes (and become Status), instead of aborting the job in MPI.
+  MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
+  if (provided < MPI_THREAD_MULTIPLE) {
+    MPI_Finalize();
+    return Status::Error("this MPI library does not provide MPI_THREAD_MULTIPLE");
+  }
+  int rank = 0, size = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &size);
+  return std::unique_ptr<MpiTransport>(new MpiTransport(rank, size));
+}
+
+MpiTransport::~MpiTransport() { MPI_Finalize(); }
+
+Status MpiTransport::Send(int to, std::span<const uint8_t> bytes) {
+  if (to < 0 || to >= size_) return Status::Error(StrFormat("rank %d: no rank %d", rank_, to));
+  if (bytes.size() > transport::kMaxMessageBytes)
+    return Status::Error(StrFormat("rank %d: message of %zu bytes is too large", rank_,
+                                   bytes.size()));
+  const int rc = MPI_Send(bytes.data(), static_cast<int>(bytes.size()), MPI_BYTE, to, kTag,
+                          MPI_COMM_WORLD);
+  if (rc != MPI_SUCCESS)
+    return Status::Error(StrFormat("rank %d: sending to rank %d failed: %s", rank_, to,
+                                   MpiError(rc).c_str()));
+  return OkStatus();
+}
+
+Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
+    std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  auto pause = std::chrono::microseconds(20);
+  for (;;) {
+    int flag = 0;
+    MPI_Status status;
+    if (const int rc = MPI_Iprobe(MPI_ANY_SOURCE, kTag, MPI_COMM_WORLD, &flag, &status);
+        rc != MPI_SUCCESS)
+      return Status::Error(StrFormat("rank %d: MPI_Iprobe failed: %s", rank_, MpiError(rc).c_str()));
+    if (flag) {
+      int count = 0;
+      MPI_Get_count(&status, MPI_BYTE, &count);
+      transport::Envelope e;
+      e.from = status.MPI_SOURCE;
+      const bool too_large = count < 0 || static_cast<uint64_t>(count) > transport::kMaxMessageBytes;
+      // A message too large is still received (into a small buffer, truncated) so the queue
+      // moves on; the caller gets an error naming the sender.
+      e.bytes.resize(too_large ? 1 : static_cast<size_t>(count));
+      MPI_Status received;
+      const int rc = MPI_Recv(e.bytes.data(), too_large ? 1 : count, MPI_BYTE, e.from, kTag,
+                              MPI_COMM_WORLD, &received);
+      if (too_large)
+        return Status::Error(StrFormat("message from rank %d: %d bytes, more than the %llu a "
+                                       "message may have", e.from, count,
+                                       static_cast<unsigned long long>(transport::kMaxMessageBytes)));
+      if (rc != MPI_SUCCESS)
+        return Status::Error(StrFormat("rank %d: receiving from rank %d failed: %s", rank_,
+                                       e.from, MpiError(rc).c_str()));
+      return std::optional<transport::Envelope>(std::move(e));
+    }
+    if (std::chrono::steady_clock::now() >= deadline) return std::optional<transport::Envelope>();
+    std::this_thread::sleep_for(pause);
+    pause = std::min(pause * 2, std::chrono::microseconds(1000));
+  }
+}
+
+void MpiTransport::Abort(int code) {
+  MPI_Abort(MPI_COMM_WORLD, code);
+  std::abort();
+}
+
+}  // namespace raystack::mpi

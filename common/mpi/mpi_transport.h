@@ -1,0 +1,40 @@
+#pragma once
+// The Transport over MPI (the only code of raystack that includes mpi.h). Every message is
+// one MPI_Send of bytes with one tag on MPI_COMM_WORLD, so MPI keeps the order per pair of
+// ranks. MPI is initialised with MPI_THREAD_MULTIPLE (OpenMPI 4.1 provides it), because a
+// slave's ray threads send pixel batches while its receiver waits for tiles; Init refuses to
+// run with less.
+//
+// Receive probes for any sender and sleeps between probes (MPI has no wait-with-timeout), so
+// an idle rank costs no CPU to speak of. A message larger than kMaxMessageBytes is an error
+// naming its sender (it is still drained, so the next one can be read).
+
+#include <memory>
+
+#include "common/transport/transport.h"
+
+namespace raystack::mpi {
+
+// True when this process was started by mpirun / mpiexec (OpenMPI or MPICH environment), so
+// a front end can decide whether to initialise MPI at all.
+bool LaunchedByMpirun();
+
+class MpiTransport final : public transport::Transport {
+ public:
+  // MPI_Init_thread; one per process. The destructor calls MPI_Finalize.
+  static Expected<std::unique_ptr<MpiTransport>> Init(int* argc, char*** argv);
+  ~MpiTransport() override;
+
+  int rank() const override { return rank_; }
+  int size() const override { return size_; }
+  Status Send(int to, std::span<const uint8_t> bytes) override;
+  Expected<std::optional<transport::Envelope>> Receive(std::chrono::milliseconds timeout) override;
+  // Ends every rank of the job (MPI_Abort), for errors that one rank cannot recover from.
+  [[noreturn]] void Abort(int code);
+
+ private:
+  MpiTransport(int rank, int size) : rank_(rank), size_(size) {}
+  int rank_, size_;
+};
+
+}  // namespace raystack::mpi

@@ -1,0 +1,61 @@
+#pragma once
+// How ranks talk: bytes from one rank to another, in order per pair of ranks. The master and
+// the slaves see only this interface (OSPRay's Fabric); MPI is one backend (common/mpi/, the
+// only code that includes mpi.h), and an in-process backend runs every rank as a thread of one
+// process, for one-process runs and for tests that need no mpirun.
+//
+// Send and Receive may be called from different threads; Receive from one thread at a time.
+// Failures (a peer gone, a message too large) are returned, never thrown.
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "common/base/status.h"
+
+namespace raystack::transport {
+
+// Largest message a transport accepts (a pixel batch of 65,536 samples is 3.4 MB).
+inline constexpr uint64_t kMaxMessageBytes = 16 << 20;
+
+struct Envelope {
+  int from = -1;
+  std::vector<uint8_t> bytes;
+};
+
+class Transport {
+ public:
+  virtual ~Transport() = default;
+  virtual int rank() const = 0;
+  virtual int size() const = 0;
+  // Queues `bytes` for rank `to` (0 <= to < size()); returns once they may be reused.
+  virtual Status Send(int to, std::span<const uint8_t> bytes) = 0;
+  // The next message for this rank, waiting up to `timeout`; nullopt if none came.
+  virtual Expected<std::optional<Envelope>> Receive(std::chrono::milliseconds timeout) = 0;
+};
+
+// Every rank as a thread of this process: Endpoint(r) is rank r's transport. The hub must
+// outlive its endpoints.
+class InProcessHub {
+ public:
+  explicit InProcessHub(int ranks);
+  std::unique_ptr<Transport> Endpoint(int rank);
+  int ranks() const { return static_cast<int>(boxes_.size()); }
+
+ private:
+  friend class InProcessTransport;
+  struct Mailbox {
+    std::mutex mu;
+    std::condition_variable cv;
+    std::deque<Envelope> queue;
+  };
+  std::vector<std::unique_ptr<Mailbox>> boxes_;
+};
+
+}  // namespace raystack::transport

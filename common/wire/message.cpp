@@ -1,0 +1,151 @@
+#include "common/wire/message.h"
+
+#include <cstring>
+
+#include "common/base/check.h"
+#include "common/base/log.h"
+
+namespace raystack::wire {
+namespace {
+
+template <typename T>
+std::vector<uint8_t> Build(uint32_t sender, MessageType type, const T& payload) {
+  std::vector<uint8_t> bytes(sizeof(MessageHeader) + sizeof(T));
+  const MessageHeader h{kMagic, kProtocolVersion, static_cast<uint16_t>(type), sender,
+                        static_cast<uint32_t>(sizeof(T))};
+  std::memcpy(bytes.data(), &h, sizeof h);
+  std::memcpy(bytes.data() + sizeof h, &payload, sizeof(T));
+  return bytes;
+}
+
+// Payload size a type must have (pixel batches: their header's; checked separately).
+uint64_t FixedPayloadBytes(MessageType type) {
+  switch (type) {
+    case MessageType::kHello: return sizeof(Hello);
+    case MessageType::kTileRequest: return sizeof(TileRequest);
+    case MessageType::kTileAssign: return sizeof(TileAssign);
+    case MessageType::kFrameDone: return sizeof(FrameDone);
+    case MessageType::kShutdown: return sizeof(Shutdown);
+    case MessageType::kPixelBatch: return 0;
+  }
+  return 0;
+}
+
+template <typename T>
+T PayloadAs(const Message& m, MessageType type) {
+  CHECK(m.type() == type && m.payload.size() == sizeof(T));
+  T out;
+  std::memcpy(&out, m.payload.data(), sizeof out);
+  return out;
+}
+
+}  // namespace
+
+const char* MessageTypeName(MessageType type) {
+  switch (type) {
+    case MessageType::kHello: return "hello";
+    case MessageType::kTileRequest: return "tile request";
+    case MessageType::kTileAssign: return "tile assignment";
+    case MessageType::kPixelBatch: return "pixel batch";
+    case MessageType::kFrameDone: return "frame done";
+    case MessageType::kShutdown: return "shutdown";
+  }
+  return "unknown";
+}
+
+std::vector<uint8_t> Encode(uint32_t sender, const Hello& m) {
+  return Build(sender, MessageType::kHello, m);
+}
+std::vector<uint8_t> Encode(uint32_t sender, const TileRequest& m) {
+  return Build(sender, MessageType::kTileRequest, m);
+}
+std::vector<uint8_t> Encode(uint32_t sender, const TileAssign& m) {
+  return Build(sender, MessageType::kTileAssign, m);
+}
+std::vector<uint8_t> Encode(uint32_t sender, const FrameDone& m) {
+  return Build(sender, MessageType::kFrameDone, m);
+}
+std::vector<uint8_t> Encode(uint32_t sender, const Shutdown& m) {
+  return Build(sender, MessageType::kShutdown, m);
+}
+
+std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
+                                      std::span<const render::SampleResult> samples) {
+  CHECK(samples.size() <= kMaxBatchSamples);
+  const PixelBatchHeader b{frame, static_cast<uint32_t>(samples.size())};
+  const uint64_t payload = sizeof b + samples.size_bytes();
+  std::vector<uint8_t> bytes(sizeof(MessageHeader) + payload);
+  const MessageHeader h{kMagic, kProtocolVersion, static_cast<uint16_t>(MessageType::kPixelBatch),
+                        sender, static_cast<uint32_t>(payload)};
+  std::memcpy(bytes.data(), &h, sizeof h);
+  std::memcpy(bytes.data() + sizeof h, &b, sizeof b);
+  if (!samples.empty())
+    std::memcpy(bytes.data() + sizeof h + sizeof b, samples.data(), samples.size_bytes());
+  return bytes;
+}
+
+Expected<Message> Decode(std::span<const uint8_t> bytes, int from) {
+  auto bad = [&](const std::string& what) {
+    return Status::Error(StrFormat("message from rank %d: %s", from, what.c_str()));
+  };
+  Message m;
+  if (bytes.size() < sizeof(MessageHeader))
+    return bad(StrFormat("%zu bytes, shorter than a message header", bytes.size()));
+  std::memcpy(&m.header, bytes.data(), sizeof m.header);
+  const MessageHeader& h = m.header;
+  if (h.magic != kMagic) return bad(StrFormat("not a raystack message (magic %08x)", h.magic));
+  if (h.version != kProtocolVersion)
+    return bad(StrFormat("protocol version %u, this build speaks %u (run the same raystack "
+                         "build on every rank)", h.version, kProtocolVersion));
+  if (h.type == 0 || h.type > kMessageTypeCount) return bad(StrFormat("unknown type %u", h.type));
+  if (h.sender != static_cast<uint32_t>(from))
+    return bad(StrFormat("claims to come from rank %u", h.sender));
+  if (uint64_t{h.payload_bytes} != bytes.size() - sizeof(MessageHeader))
+    return bad(StrFormat("%s: header says %u payload bytes, %zu arrived",
+                         MessageTypeName(m.type()), h.payload_bytes,
+                         bytes.size() - sizeof(MessageHeader)));
+  m.payload = bytes.subspan(sizeof(MessageHeader));
+  if (m.type() == MessageType::kPixelBatch) {
+    if (m.payload.size() < sizeof(PixelBatchHeader))
+      return bad("pixel batch without its count");
+    PixelBatchHeader b;
+    std::memcpy(&b, m.payload.data(), sizeof b);
+    if (b.count > kMaxBatchSamples)
+      return bad(StrFormat("pixel batch of %u samples (at most %u)", b.count, kMaxBatchSamples));
+    if (m.payload.size() != sizeof b + uint64_t{b.count} * sizeof(render::SampleResult))
+      return bad(StrFormat("pixel batch of %u samples in %zu bytes", b.count, m.payload.size()));
+  } else if (m.payload.size() != FixedPayloadBytes(m.type())) {
+    return bad(StrFormat("%s of %zu bytes, expected %llu", MessageTypeName(m.type()),
+                         m.payload.size(),
+                         static_cast<unsigned long long>(FixedPayloadBytes(m.type()))));
+  }
+  return m;
+}
+
+Hello Message::hello() const { return PayloadAs<Hello>(*this, MessageType::kHello); }
+TileRequest Message::tile_request() const {
+  return PayloadAs<TileRequest>(*this, MessageType::kTileRequest);
+}
+TileAssign Message::tile_assign() const {
+  return PayloadAs<TileAssign>(*this, MessageType::kTileAssign);
+}
+FrameDone Message::frame_done() const {
+  return PayloadAs<FrameDone>(*this, MessageType::kFrameDone);
+}
+Shutdown Message::shutdown() const { return PayloadAs<Shutdown>(*this, MessageType::kShutdown); }
+
+PixelBatchHeader Message::batch_header() const {
+  CHECK(type() == MessageType::kPixelBatch && payload.size() >= sizeof(PixelBatchHeader));
+  PixelBatchHeader b;
+  std::memcpy(&b, payload.data(), sizeof b);
+  return b;
+}
+
+void Message::batch_samples(std::vector<render::SampleResult>* out) const {
+  const PixelBatchHeader b = batch_header();
+  out->resize(b.count);
+  if (b.count > 0)
+    std::memcpy(out->data(), payload.data() + sizeof b, uint64_t{b.count} * sizeof(render::SampleResult));
+}
+
+}  // namespace raystack::wire

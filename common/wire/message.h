@@ -1,0 +1,109 @@
+#pragma once
+// The messages that cross processes (master <-> slaves): plain, versioned, size-checked.
+//
+// A message is a 16-byte header (magic, protocol version, type, sender rank, payload size)
+// followed by its payload: a fixed-size POD for the small messages, or a count and that many
+// records for pixel batches. Decoding checks every field against the bytes actually received
+// and the rank they came from, so a malformed or hostile message is an error naming its sender
+// (and what is wrong), never a crash, a huge allocation or a misread. All fields are
+// little-endian, as on every machine this runs on (checked at compile time).
+
+#include <bit>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/render/sample_result.h"
+
+namespace raystack::wire {
+
+static_assert(std::endian::native == std::endian::little, "the wire format is little-endian");
+
+inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
+inline constexpr uint16_t kProtocolVersion = 1;
+// Largest payload accepted: a pixel batch of this many samples at most.
+inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
+
+enum class MessageType : uint16_t {
+  kHello = 1,    // a rank announces itself (and its protocol version) to the master
+  kTileRequest,  // a slave thread asks for its next tile
+  kTileAssign,   // the master hands out a tile, or says there are no more
+  kPixelBatch,   // finished samples
+  kFrameDone,    // a slave has finished its part of a frame
+  kShutdown,     // the master ends the job
+};
+inline constexpr uint16_t kMessageTypeCount = 6;
+const char* MessageTypeName(MessageType type);
+
+struct MessageHeader {
+  uint32_t magic;
+  uint16_t version;
+  uint16_t type;
+  uint32_t sender;
+  uint32_t payload_bytes;
+};
+static_assert(sizeof(MessageHeader) == 16);
+
+struct Hello {
+  uint32_t ray_threads;
+  uint32_t reserved;
+};
+struct TileRequest {
+  uint32_t frame;
+  uint32_t thread;  // the slave's ray thread that asks
+};
+struct TileAssign {
+  uint32_t frame;
+  uint32_t thread;
+  int32_t x0, y0, x1, y1;  // [x0, x1) x [y0, y1); empty when `none`
+  uint32_t none;           // 1: no more tiles in this frame
+  uint32_t reserved;
+};
+struct FrameDone {
+  uint32_t frame;
+  uint32_t reserved;
+  uint64_t samples;
+};
+struct Shutdown {
+  uint32_t reason;  // 0: the job is done
+  uint32_t reserved;
+};
+struct PixelBatchHeader {
+  uint32_t frame;
+  uint32_t count;  // SampleResult records that follow
+};
+static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 32 &&
+              sizeof(FrameDone) == 16 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 8);
+
+// Builders: the whole message (header + payload) as bytes.
+std::vector<uint8_t> Encode(uint32_t sender, const Hello& m);
+std::vector<uint8_t> Encode(uint32_t sender, const TileRequest& m);
+std::vector<uint8_t> Encode(uint32_t sender, const TileAssign& m);
+std::vector<uint8_t> Encode(uint32_t sender, const FrameDone& m);
+std::vector<uint8_t> Encode(uint32_t sender, const Shutdown& m);
+std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
+                                      std::span<const render::SampleResult> samples);
+
+// A checked message: the header, and the payload as it arrived (valid while `bytes` is).
+struct Message {
+  MessageHeader header;
+  std::span<const uint8_t> payload;
+  MessageType type() const { return static_cast<MessageType>(header.type); }
+  // Typed views; call the one that matches type() (checked).
+  Hello hello() const;
+  TileRequest tile_request() const;
+  TileAssign tile_assign() const;
+  FrameDone frame_done() const;
+  Shutdown shutdown() const;
+  PixelBatchHeader batch_header() const;
+  // The batch's samples, copied out (the payload need not be aligned for SampleResult).
+  void batch_samples(std::vector<render::SampleResult>* out) const;
+};
+
+// Checks `bytes`, received from rank `from`: magic, version, known type, sizes (the payload's
+// against the header's and the type's), sender == from. The error names the sender rank.
+Expected<Message> Decode(std::span<const uint8_t> bytes, int from);
+
+}  // namespace raystack::wire

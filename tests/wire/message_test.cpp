@@ -1,0 +1,149 @@
+// Messages between ranks: every type round-trips; a malformed or hostile message (truncated,
+// foreign, another protocol version, a wrong size, a huge count, a forged sender) is an error
+// naming the sender, never a crash or a misread.
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include "common/wire/message.h"
+
+namespace raystack::wire {
+namespace {
+
+render::SampleResult Sample(uint32_t i) {
+  render::SampleResult s{};
+  s.pixel = i * 7;
+  s.sample = i % 3;
+  s.rgb[0] = 0.5f * static_cast<float>(i);
+  s.z = static_cast<float>(i) + 0.25f;
+  s.hit = i & 1;
+  return s;
+}
+
+TEST(Message, EveryTypeRoundTrips) {
+  {
+    const Expected<Message> m = Decode(Encode(3, TileRequest{2, 1}), 3);
+    ASSERT_TRUE(m.ok()) << m.status().message();
+    EXPECT_EQ(m->type(), MessageType::kTileRequest);
+    EXPECT_EQ(m->tile_request().frame, 2u);
+    EXPECT_EQ(m->tile_request().thread, 1u);
+  }
+  {
+    const std::vector<uint8_t> bytes = Encode(0, TileAssign{1, 2, 32, 64, 48, 96, 0, 0});
+    const Expected<Message> m = Decode(bytes, 0);
+    ASSERT_TRUE(m.ok()) << m.status().message();
+    const TileAssign t = m->tile_assign();
+    EXPECT_EQ(t.x0, 32);
+    EXPECT_EQ(t.y1, 96);
+    EXPECT_EQ(t.none, 0u);
+  }
+  {
+    const Expected<Message> m = Decode(Encode(5, FrameDone{4, 0, 123456789012ull}), 5);
+    ASSERT_TRUE(m.ok());
+    EXPECT_EQ(m->frame_done().samples, 123456789012ull);
+  }
+  {
+    const Expected<Message> m = Decode(Encode(1, Hello{8, 0}), 1);
+    ASSERT_TRUE(m.ok());
+    EXPECT_EQ(m->hello().ray_threads, 8u);
+  }
+  ASSERT_TRUE(Decode(Encode(0, Shutdown{0, 0}), 0).ok());
+}
+
+TEST(Message, PixelBatchRoundTripsBitForBit) {
+  std::vector<render::SampleResult> samples;
+  for (uint32_t i = 0; i < 1000; ++i) samples.push_back(Sample(i));
+  const std::vector<uint8_t> bytes = EncodePixelBatch(2, 7, samples);
+  const Expected<Message> m = Decode(bytes, 2);
+  ASSERT_TRUE(m.ok()) << m.status().message();
+  EXPECT_EQ(m->batch_header().frame, 7u);
+  std::vector<render::SampleResult> got;
+  m->batch_samples(&got);
+  ASSERT_EQ(got.size(), samples.size());
+  EXPECT_EQ(std::memcmp(got.data(), samples.data(), samples.size() * sizeof samples[0]), 0);
+  // An empty batch is valid too.
+  ASSERT_TRUE(Decode(EncodePixelBatch(2, 7, {}), 2).ok());
+}
+
+void ExpectError(const std::vector<uint8_t>& bytes, int from, const std::string& part) {
+  const Expected<Message> m = Decode(bytes, from);
+  ASSERT_FALSE(m.ok()) << "accepted: " << part;
+  EXPECT_NE(m.status().message().find("rank " + std::to_string(from)), std::string::npos)
+      << m.status().message();
+  EXPECT_NE(m.status().message().find(part), std::string::npos) << m.status().message();
+}
+
+template <typename T>
+void Poke(std::vector<uint8_t>* bytes, size_t offset, T value) {
+  std::memcpy(bytes->data() + offset, &value, sizeof value);
+}
+
+TEST(Message, MalformedMessagesNameTheSender) {
+  const std::vector<uint8_t> good = Encode(4, TileRequest{0, 0});
+  ExpectError({}, 4, "shorter than a message header");
+  ExpectError(std::vector<uint8_t>(good.begin(), good.begin() + 10), 4, "shorter");
+  std::vector<uint8_t> b = good;
+  Poke<uint32_t>(&b, 0, 0xdeadbeef);
+  ExpectError(b, 4, "not a raystack message");
+  b = good;
+  Poke<uint16_t>(&b, 4, 2);
+  ExpectError(b, 4, "protocol version 2");
+  b = good;
+  Poke<uint16_t>(&b, 6, 99);
+  ExpectError(b, 4, "unknown type 99");
+  b = good;
+  Poke<uint16_t>(&b, 6, 0);
+  ExpectError(b, 4, "unknown type 0");
+  ExpectError(good, 3, "claims to come from rank 4");  // forged sender
+  b = good;
+  b.push_back(0);
+  ExpectError(b, 4, "payload bytes");
+  b = good;
+  Poke<uint32_t>(&b, 12, 0xffffffffu);  // a size that would be a huge allocation
+  ExpectError(b, 4, "payload bytes");
+  // A fixed-size message with a consistent but wrong payload size.
+  b = Encode(4, TileAssign{});
+  b.resize(b.size() - 4);
+  Poke<uint32_t>(&b, 12, static_cast<uint32_t>(b.size() - sizeof(MessageHeader)));
+  ExpectError(b, 4, "expected 32");
+}
+
+TEST(Message, HostilePixelBatchesAreRefused) {
+  std::vector<render::SampleResult> samples(10, Sample(1));
+  std::vector<uint8_t> b = EncodePixelBatch(1, 0, samples);
+  Poke<uint32_t>(&b, sizeof(MessageHeader) + 4, 0xffffffffu);  // count
+  ExpectError(b, 1, "samples (at most");
+  b = EncodePixelBatch(1, 0, samples);
+  Poke<uint32_t>(&b, sizeof(MessageHeader) + 4, 11);  // one more than sent
+  ExpectError(b, 1, "pixel batch of 11 samples in");
+  b = EncodePixelBatch(1, 0, samples);
+  b.resize(sizeof(MessageHeader) + 4);
+  Poke<uint32_t>(&b, 12, 4);
+  ExpectError(b, 1, "without its count");
+}
+
+TEST(Message, NoTruncationOrFlippedByteCrashesOrMisreads) {
+  std::vector<render::SampleResult> samples(3, Sample(5));
+  const std::vector<std::vector<uint8_t>> messages = {
+      Encode(2, TileAssign{1, 0, 0, 0, 32, 32, 0, 0}), EncodePixelBatch(2, 1, samples),
+      Encode(2, FrameDone{1, 0, 9})};
+  for (const auto& good : messages) {
+    for (size_t n = 0; n < good.size(); ++n)  // every truncation
+      EXPECT_FALSE(Decode(std::span(good).first(n), 2).ok()) << n;
+    for (size_t i = 0; i < good.size(); ++i) {  // every byte flipped: refused, or header intact
+      std::vector<uint8_t> b = good;
+      b[i] ^= 0xff;
+      const Expected<Message> m = Decode(b, 2);
+      if (m.ok()) {
+        EXPECT_GE(i, sizeof(MessageHeader));  // only payload values can change unnoticed
+        EXPECT_EQ(m->payload.size(), good.size() - sizeof(MessageHeader));
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace raystack::wire
