@@ -1,5 +1,6 @@
 #include "common/wire/message.h"
 
+#include <algorithm>
 #include <cstring>
 
 #include "common/base/check.h"
@@ -26,7 +27,8 @@ uint64_t FixedPayloadBytes(MessageType type) {
     case MessageType::kTileAssign: return sizeof(TileAssign);
     case MessageType::kFrameDone: return sizeof(FrameDone);
     case MessageType::kShutdown: return sizeof(Shutdown);
-    case MessageType::kPixelBatch: return 0;
+    case MessageType::kPixelBatch:
+    case MessageType::kError: return 0;
   }
   return 0;
 }
@@ -49,6 +51,7 @@ const char* MessageTypeName(MessageType type) {
     case MessageType::kPixelBatch: return "pixel batch";
     case MessageType::kFrameDone: return "frame done";
     case MessageType::kShutdown: return "shutdown";
+    case MessageType::kError: return "error";
   }
   return "unknown";
 }
@@ -67,6 +70,16 @@ std::vector<uint8_t> Encode(uint32_t sender, const FrameDone& m) {
 }
 std::vector<uint8_t> Encode(uint32_t sender, const Shutdown& m) {
   return Build(sender, MessageType::kShutdown, m);
+}
+
+std::vector<uint8_t> EncodeError(uint32_t sender, const std::string& text) {
+  const size_t n = std::min<size_t>(text.size(), kMaxErrorText);
+  std::vector<uint8_t> bytes(sizeof(MessageHeader) + n);
+  const MessageHeader h{kMagic, kProtocolVersion, static_cast<uint16_t>(MessageType::kError),
+                        sender, static_cast<uint32_t>(n)};
+  std::memcpy(bytes.data(), &h, sizeof h);
+  std::memcpy(bytes.data() + sizeof h, text.data(), n);
+  return bytes;
 }
 
 std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
@@ -114,6 +127,9 @@ Expected<Message> Decode(std::span<const uint8_t> bytes, int from) {
       return bad(StrFormat("pixel batch of %u samples (at most %u)", b.count, kMaxBatchSamples));
     if (m.payload.size() != sizeof b + uint64_t{b.count} * sizeof(render::SampleResult))
       return bad(StrFormat("pixel batch of %u samples in %zu bytes", b.count, m.payload.size()));
+  } else if (m.type() == MessageType::kError) {
+    if (m.payload.size() > kMaxErrorText)
+      return bad(StrFormat("error text of %zu bytes (at most %u)", m.payload.size(), kMaxErrorText));
   } else if (m.payload.size() != FixedPayloadBytes(m.type())) {
     return bad(StrFormat("%s of %zu bytes, expected %llu", MessageTypeName(m.type()),
                          m.payload.size(),
@@ -139,6 +155,14 @@ PixelBatchHeader Message::batch_header() const {
   PixelBatchHeader b;
   std::memcpy(&b, payload.data(), sizeof b);
   return b;
+}
+
+std::string Message::error_text() const {
+  CHECK(type() == MessageType::kError);
+  std::string text(reinterpret_cast<const char*>(payload.data()), payload.size());
+  for (char& c : text)  // a hostile text cannot drive the terminal
+    if (static_cast<unsigned char>(c) < 0x20 && c != '\n') c = '?';
+  return text;
 }
 
 void Message::batch_samples(std::vector<render::SampleResult>* out) const {

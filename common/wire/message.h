@@ -33,8 +33,10 @@ enum class MessageType : uint16_t {
   kPixelBatch,   // finished samples
   kFrameDone,    // a slave has finished its part of a frame
   kShutdown,     // the master ends the job
+  kError,        // a rank failed: why (text naming the block, file or peer)
 };
-inline constexpr uint16_t kMessageTypeCount = 6;
+inline constexpr uint16_t kMessageTypeCount = 7;
+inline constexpr uint32_t kMaxErrorText = 4096;
 const char* MessageTypeName(MessageType type);
 
 struct MessageHeader {
@@ -61,10 +63,17 @@ struct TileAssign {
   uint32_t none;           // 1: no more tiles in this frame
   uint32_t reserved;
 };
+// A slave's figures for one frame (what the master gathers per slave).
 struct FrameDone {
   uint32_t frame;
-  uint32_t reserved;
+  uint32_t ray_threads;
   uint64_t samples;
+  uint64_t rays;
+  uint64_t tiles;
+  uint64_t blocks_loaded;    // #C, reloads included
+  uint64_t blocks_distinct;  // #U
+  uint64_t bytes_read;       // from the block source (disk or peers)
+  double seconds;            // the frame's render time on this slave
 };
 struct Shutdown {
   uint32_t reason;  // 0: the job is done
@@ -75,7 +84,7 @@ struct PixelBatchHeader {
   uint32_t count;  // SampleResult records that follow
 };
 static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 32 &&
-              sizeof(FrameDone) == 16 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 8);
+              sizeof(FrameDone) == 64 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 8);
 
 // Builders: the whole message (header + payload) as bytes.
 std::vector<uint8_t> Encode(uint32_t sender, const Hello& m);
@@ -83,6 +92,7 @@ std::vector<uint8_t> Encode(uint32_t sender, const TileRequest& m);
 std::vector<uint8_t> Encode(uint32_t sender, const TileAssign& m);
 std::vector<uint8_t> Encode(uint32_t sender, const FrameDone& m);
 std::vector<uint8_t> Encode(uint32_t sender, const Shutdown& m);
+std::vector<uint8_t> EncodeError(uint32_t sender, const std::string& text);  // cut to kMaxErrorText
 std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
                                       std::span<const render::SampleResult> samples);
 
@@ -98,6 +108,7 @@ struct Message {
   FrameDone frame_done() const;
   Shutdown shutdown() const;
   PixelBatchHeader batch_header() const;
+  std::string error_text() const;
   // The batch's samples, copied out (the payload need not be aligned for SampleResult).
   void batch_samples(std::vector<render::SampleResult>* out) const;
 };

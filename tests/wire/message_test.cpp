@@ -41,9 +41,21 @@ TEST(Message, EveryTypeRoundTrips) {
     EXPECT_EQ(t.none, 0u);
   }
   {
-    const Expected<Message> m = Decode(Encode(5, FrameDone{4, 0, 123456789012ull}), 5);
+    FrameDone done{};
+    done.frame = 4;
+    done.samples = 123456789012ull;
+    done.seconds = 1.5;
+    const Expected<Message> m = Decode(Encode(5, done), 5);
     ASSERT_TRUE(m.ok());
     EXPECT_EQ(m->frame_done().samples, 123456789012ull);
+    EXPECT_EQ(m->frame_done().seconds, 1.5);
+  }
+  {
+    const Expected<Message> m = Decode(EncodeError(2, "block 7: damaged\x1b[2J"), 2);
+    ASSERT_TRUE(m.ok());
+    EXPECT_EQ(m->error_text(), "block 7: damaged?[2J");  // control characters neutralised
+    EXPECT_EQ(EncodeError(2, std::string(100000, 'x')).size(),
+              sizeof(MessageHeader) + kMaxErrorText);
   }
   {
     const Expected<Message> m = Decode(Encode(1, Hello{8, 0}), 1);
@@ -129,7 +141,7 @@ TEST(Message, NoTruncationOrFlippedByteCrashesOrMisreads) {
   std::vector<render::SampleResult> samples(3, Sample(5));
   const std::vector<std::vector<uint8_t>> messages = {
       Encode(2, TileAssign{1, 0, 0, 0, 32, 32, 0, 0}), EncodePixelBatch(2, 1, samples),
-      Encode(2, FrameDone{1, 0, 9})};
+      Encode(2, FrameDone{1, 2, 9, 0, 0, 0, 0, 0, 0.5})};
   for (const auto& good : messages) {
     for (size_t n = 0; n < good.size(); ++n)  // every truncation
       EXPECT_FALSE(Decode(std::span(good).first(n), 2).ok()) << n;

@@ -44,51 +44,53 @@ int main(int argc, char** argv) {
       if (to != rank)
         Expect(net.Send(to, wire::Encode(static_cast<uint32_t>(rank), wire::TileRequest{i, 0})).ok(),
                "send", rank);
+  // 2. Rank 1 then sends rank 0 a message forging rank 2 and one of another protocol version;
+  //    ranks 1 and 2 send rank 0 their verdicts once they have read everything.
+  // Rank 0 reads whatever comes (per pair the order holds; across senders it may interleave).
   std::vector<uint32_t> next(static_cast<size_t>(size), 0);
-  for (uint32_t n = 0; n < kMessages * static_cast<uint32_t>(size - 1); ++n) {
+  std::vector<std::string> refusals;
+  int verdicts = 0;
+  auto done = [&] {
+    for (int r = 0; r < size; ++r)
+      if (r != rank && next[r] < kMessages) return false;
+    return rank != 0 || (verdicts == size - 1 && refusals.size() == 2);
+  };
+  while (!done()) {
     auto e = net.Receive(std::chrono::seconds(30));
     if (!e.ok() || !e->has_value()) {
-      Expect(false, "a message arrives", rank);
+      Expect(false, "every message arrives", rank);
       break;
     }
-    const Expected<wire::Message> m = wire::Decode((*e)->bytes, (*e)->from);
-    Expect(m.ok() && m->tile_request().frame == next[(*e)->from]++, "in order per sender", rank);
+    const int from = (*e)->from;
+    const Expected<wire::Message> m = wire::Decode((*e)->bytes, from);
+    if (!m.ok()) {
+      refusals.push_back(m.status().message());
+      continue;
+    }
+    if (m->type() == wire::MessageType::kTileRequest) {
+      Expect(m->tile_request().frame == next[from]++, "in order per sender", rank);
+    } else if (m->type() == wire::MessageType::kFrameDone) {
+      Expect(next[from] == kMessages, "a verdict comes after the sender's requests", rank);
+      ++verdicts;
+      failures += static_cast<int>(m->frame_done().frame);
+      passes += static_cast<int>(m->frame_done().samples);
+    } else {
+      Expect(false, "an expected message type", rank);
+    }
   }
-  for (int r = 0; r < size; ++r)
-    if (r != rank) Expect(next[r] == kMessages, "all messages from rank " + std::to_string(r), rank);
-
-  // 2. Rank 1 sends rank 0 a message forging rank 2 and one of another protocol version.
   if (rank == 1) {
     Expect(net.Send(0, wire::Encode(2, wire::TileRequest{0, 0})).ok(), "send forged", rank);
     std::vector<uint8_t> other = wire::Encode(1, wire::TileRequest{0, 0});
     other[4] = 9;  // version 9
     Expect(net.Send(0, other).ok(), "send other version", rank);
   }
-  // Everyone's verdict goes to rank 0, which also checks the hostile messages (they and the
-  // verdicts may arrive in any order across senders) and prints the total.
   if (rank != 0) {
-    Expect(net.Send(0, wire::Encode(static_cast<uint32_t>(rank),
-                                    wire::FrameDone{static_cast<uint32_t>(failures), 0,
-                                                    static_cast<uint64_t>(passes)})).ok(),
-           "send verdict", rank);
+    wire::FrameDone verdict{};
+    verdict.frame = static_cast<uint32_t>(failures);
+    verdict.samples = static_cast<uint64_t>(passes);
+    Expect(net.Send(0, wire::Encode(static_cast<uint32_t>(rank), verdict)).ok(), "send verdict",
+           rank);
   } else {
-    std::vector<std::string> refusals;
-    int verdicts = 0;
-    while (verdicts < size - 1 || refusals.size() < 2) {
-      auto e = net.Receive(std::chrono::seconds(30));
-      if (!e.ok() || !e->has_value()) {
-        Expect(false, "every verdict and hostile message arrives", rank);
-        break;
-      }
-      const Expected<wire::Message> m = wire::Decode((*e)->bytes, (*e)->from);
-      if (!m.ok()) {
-        refusals.push_back(m.status().message());
-        continue;
-      }
-      ++verdicts;
-      failures += static_cast<int>(m->frame_done().frame);
-      passes += static_cast<int>(m->frame_done().samples);
-    }
     for (const char* expected : {"rank 1: claims to come from rank 2", "rank 1: protocol version 9"}) {
       bool found = false;
       for (const std::string& r : refusals) found = found || r.find(expected) != std::string::npos;

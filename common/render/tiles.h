@@ -1,0 +1,55 @@
+#pragma once
+// Image tiles and the order they are rendered in, shared by the master (which hands them out)
+// and the slaves (which render them). Tiles follow a Hilbert curve over the tile grid:
+// consecutive tiles are neighbours on screen, so they see mostly the same blocks and a small
+// cache is reused instead of reloaded (scanline order sweeps the whole width between two
+// visits of a block).
+
+#include <cstdint>
+#include <vector>
+
+namespace raystack::render {
+
+struct Tile {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // [x0, x1) x [y0, y1)
+  int pixels() const { return (x1 - x0) * (y1 - y0); }
+};
+
+// Position `d` along a Hilbert curve filling a side x side grid (side a power of two).
+inline void HilbertPoint(uint32_t side, uint32_t d, uint32_t* x, uint32_t* y) {
+  *x = *y = 0;
+  for (uint32_t s = 1; s < side; s *= 2) {
+    const uint32_t rx = 1 & (d / 2), ry = 1 & (d ^ rx);
+    if (ry == 0) {  // rotate the quadrant
+      if (rx == 1) {
+        *x = s - 1 - *x;
+        *y = s - 1 - *y;
+      }
+      const uint32_t t = *x;
+      *x = *y;
+      *y = t;
+    }
+    *x += s * rx;
+    *y += s * ry;
+    d /= 4;
+  }
+}
+
+// The frame cut into size x size tiles (cropped at the edges), in Hilbert order.
+inline std::vector<Tile> HilbertTiles(int width, int height, int size) {
+  std::vector<Tile> tiles;
+  const uint32_t nx = static_cast<uint32_t>((width + size - 1) / size);
+  const uint32_t ny = static_cast<uint32_t>((height + size - 1) / size);
+  uint32_t side = 1;
+  while (side < nx || side < ny) side *= 2;
+  for (uint64_t d = 0; d < uint64_t{side} * side; ++d) {
+    uint32_t tx, ty;
+    HilbertPoint(side, static_cast<uint32_t>(d), &tx, &ty);
+    if (tx >= nx || ty >= ny) continue;
+    const int x = static_cast<int>(tx) * size, y = static_cast<int>(ty) * size;
+    tiles.push_back({x, y, x + size < width ? x + size : width, y + size < height ? y + size : height});
+  }
+  return tiles;
+}
+
+}  // namespace raystack::render
