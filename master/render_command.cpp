@@ -16,7 +16,10 @@
 #include "common/render/material_table.h"
 #include "common/render/scene.h"
 #include "common/store/store_reader.h"
+#include "common/mpi/mpi_transport.h"
+#include "master/master_node.h"
 #include "slave/render_engine.h"
+#include "slave/slave_node.h"
 
 namespace raystack::master {
 namespace {
@@ -209,6 +212,131 @@ Status Run(const Args& args) {
   return OkStatus();
 }
 
+// ---------------------------------------------------------------------------------------------
+// Under mpirun with more than one rank: rank 0 is the master (tiles, film, output), ranks 1..N
+// the slaves (a render engine each). Every rank reads the scene file; only slaves open the
+// store.
+
+void WriteStats(const std::string& path, const std::string& json) {
+  if (path.empty()) return;
+  std::ofstream out(path);
+  out << json;
+  if (!out) LOG_ERROR("render", "%s: cannot write the statistics", path.c_str());
+}
+
+std::string FiguresJson(size_t frame, const FrameFigures& f) {
+  std::string s = StrFormat("{\n  \"frame\": %zu,\n  \"seconds\": %g,\n  \"imbalance\": %g,"
+                            "\n  \"slaves\": [", frame, f.seconds, f.imbalance());
+  for (size_t i = 0; i < f.slaves.size(); ++i) {
+    const SlaveFigures& x = f.slaves[i];
+    s += StrFormat("%s\n    {\"rank\": %d, \"seconds\": %g, \"rays\": %llu, \"samples\": %llu, "
+                   "\"tiles\": %llu, \"blocks_loaded\": %llu, \"blocks_distinct\": %llu, "
+                   "\"bytes_read\": %llu, \"bytes_to_master\": %llu, \"pixel_bytes\": %llu, "
+                   "\"bytes_from_master\": %llu}",
+                   i ? "," : "", x.rank, x.done.seconds,
+                   static_cast<unsigned long long>(x.done.rays),
+                   static_cast<unsigned long long>(x.done.samples),
+                   static_cast<unsigned long long>(x.done.tiles),
+                   static_cast<unsigned long long>(x.done.blocks_loaded),
+                   static_cast<unsigned long long>(x.done.blocks_distinct),
+                   static_cast<unsigned long long>(x.done.bytes_read),
+                   static_cast<unsigned long long>(x.bytes_received),
+                   static_cast<unsigned long long>(x.pixel_bytes),
+                   static_cast<unsigned long long>(x.bytes_sent));
+  }
+  return s + "\n  ]\n}";
+}
+
+Status RunMaster(const Args& args, const render::Scene& scene, transport::Transport* net) {
+  const std::string output = args.output.empty() ? scene.output : args.output;
+  const size_t frames = scene.cameras.size();
+  MasterNode master(net);
+  std::string json = "[\n";
+  for (size_t f = 0; f < frames; ++f) {
+    const render::Camera camera(scene.cameras[f]);
+    render::Film film(camera.width(), camera.height());
+    const uint64_t total = static_cast<uint64_t>(camera.width()) * camera.height() *
+                           static_cast<uint64_t>(scene.integrator.spp);
+    FrameFigures figures;
+    Status status;
+    {
+      ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
+                                args.quiet);
+      uint64_t shown = 0;
+      status = master.RunFrame(static_cast<uint32_t>(f),
+                               render::HilbertTiles(camera.width(), camera.height(), args.tile_size),
+                               &film, [&] {
+                                 const uint64_t done = film.samples_merged();
+                                 progress.Update(done - shown);
+                                 shown = done;
+                               },
+                               &figures);
+    }
+    if (!status.ok()) {
+      master.Shutdown(1);
+      return status;
+    }
+    const image::ImageLayers image = film.Resolve();
+    const std::string exr = FramePath(output, f, frames, ".exr");
+    RAYSTACK_RETURN_IF_ERROR(image::WriteExr(exr, image));
+    if (args.png)
+      RAYSTACK_RETURN_IF_ERROR(image::WritePng(FramePath(output, f, frames, ".png"), image, args.exposure));
+    if (!args.quiet) {
+      std::printf("frame %zu: %d slaves, %.3f s, imbalance %.3f\n", f, net->size() - 1,
+                  figures.seconds, figures.imbalance());
+      for (const SlaveFigures& s : figures.slaves)
+        std::printf("  rank %d: %.3f s, %llu rays, %llu tiles, %llu blocks loaded (%llu distinct), "
+                    "%.1f MB read, %.1f MB sent to the master\n",
+                    s.rank, s.done.seconds, static_cast<unsigned long long>(s.done.rays),
+                    static_cast<unsigned long long>(s.done.tiles),
+                    static_cast<unsigned long long>(s.done.blocks_loaded),
+                    static_cast<unsigned long long>(s.done.blocks_distinct),
+                    static_cast<double>(s.done.bytes_read) / 1e6,
+                    static_cast<double>(s.bytes_received) / 1e6);
+      std::printf("  wrote %s\n", exr.c_str());
+    }
+    json += FiguresJson(f, figures) + (f + 1 < frames ? ",\n" : "\n");
+  }
+  master.Shutdown(0);
+  WriteStats(args.stats, json + "]\n");
+  return OkStatus();
+}
+
+Status RunSlave(const Args& args, const render::Scene& scene, transport::Transport* net) {
+  Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene.store);
+  Expected<std::unique_ptr<slave::RenderEngine>> engine =
+      store.ok() ? slave::RenderEngine::Create(**store, args.engine)
+                 : Expected<std::unique_ptr<slave::RenderEngine>>(store.status());
+  if (!engine.ok()) {  // tell the master, which ends the job
+    const Status s = engine.status();
+    (void)net->Send(0, wire::EncodeError(static_cast<uint32_t>(net->rank()), s.message()));
+    return s;
+  }
+  const render::MaterialTable materials = render::MaterialTable::Build((*store)->materials(), scene);
+  slave::SlaveNode node(net, engine->get());
+  for (size_t f = 0; f < scene.cameras.size(); ++f) {
+    const render::Camera camera(scene.cameras[f]);
+    slave::RenderStats stats;
+    RAYSTACK_RETURN_IF_ERROR(node.RunFrame(static_cast<uint32_t>(f), scene, materials, camera, &stats));
+  }
+  Expected<uint32_t> reason = node.WaitForShutdown();
+  if (!reason.ok()) return reason.status();
+  return OkStatus();
+}
+
+Status RunDistributed(const Args& args, transport::Transport* net) {
+  Expected<render::Scene> scene = render::LoadScene(args.scene);
+  if (!scene.ok()) return scene.status();
+  if (net->rank() == 0) {
+    const std::string output = args.output.empty() ? scene->output : args.output;
+    for (size_t f = 0; f < scene->cameras.size(); ++f)
+      RAYSTACK_RETURN_IF_ERROR(
+          image::CheckWritable(FramePath(output, f, scene->cameras.size(), ".exr")));
+    return RunMaster(args, *scene, net);
+  }
+  return RunSlave(args, *scene, net);
+}
+
 }  // namespace
 
 int RenderCommand(int argc, char** argv) {
@@ -222,6 +350,25 @@ int RenderCommand(int argc, char** argv) {
   if (!s.ok()) {
     std::fprintf(stderr, "raystack render: %s\n", s.message().c_str());
     return 2;
+  }
+  if (mpi::LaunchedByMpirun()) {
+    Expected<std::unique_ptr<mpi::MpiTransport>> net = mpi::MpiTransport::Init(&argc, &argv);
+    if (!net.ok()) {
+      std::fprintf(stderr, "raystack render: %s\n", net.status().message().c_str());
+      return 1;
+    }
+    if ((*net)->size() > 1) {
+      const int rank = (*net)->rank();
+      if (rank > 0) args.quiet = true;  // the master reports
+      s = RunDistributed(args, net->get());
+      if (!s.ok()) {
+        std::fprintf(stderr, "raystack render (rank %d): %s\n", rank, s.message().c_str());
+        // A rank that cannot go on ends the whole job rather than leave the others waiting.
+        (*net)->Abort(1);
+      }
+      return 0;
+    }
+    // mpirun -np 1: one process plays both roles, as without mpirun.
   }
   s = Run(args);
   if (!s.ok()) {

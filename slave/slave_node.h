@@ -1,0 +1,38 @@
+#pragma once
+// A slave's side of a distributed frame (ranks 1..N): its render engine pulls tiles from the
+// master and pushes finished samples back to it, through a Transport. The ray threads ask for
+// tiles through RemoteTiles, which keeps one tile in reserve per thread (requested as soon as
+// the previous one is taken), so a tile request's round trip hides behind work; samples go out
+// in batches from the ray threads as they finish (the engine's result batch, ~1000 samples),
+// in the order their pixels' priorities gave them.
+
+#include <cstdint>
+
+#include "common/base/status.h"
+#include "common/render/camera.h"
+#include "common/render/material_table.h"
+#include "common/render/scene.h"
+#include "common/transport/transport.h"
+#include "slave/render_engine.h"
+#include "slave/render_stats.h"
+
+namespace raystack::slave {
+
+class SlaveNode {
+ public:
+  SlaveNode(transport::Transport* net, RenderEngine* engine) : net_(net), engine_(engine) {}
+
+  // Renders this slave's share of frame `frame`, then reports it done (with its figures) to
+  // the master. On failure the master is told why (an error message) before this returns it.
+  Status RunFrame(uint32_t frame, const render::Scene& scene,
+                  const render::MaterialTable& materials, const render::Camera& camera,
+                  RenderStats* stats);
+  // Waits for the master's shutdown; returns its reason (0: done).
+  Expected<uint32_t> WaitForShutdown();
+
+ private:
+  transport::Transport* net_;
+  RenderEngine* engine_;
+};
+
+}  // namespace raystack::slave
