@@ -140,6 +140,11 @@ void BlockCache::Shutdown() {
   changed_.notify_all();
 }
 
+void BlockCache::Reopen() {
+  std::lock_guard lock(mu_);
+  shutdown_ = false;
+}
+
 void BlockCache::FailLoad(uint32_t id, const Status& why) {
   std::lock_guard lock(mu_);
   failures_.emplace(id, why);

@@ -58,6 +58,8 @@ class BlockCache {
   // Wakes and fails every BeginLoad waiting for room (the render is ending, pins will not be
   // released any more); later BeginLoads fail at once.
   void Shutdown();
+  // Allows loads again after Shutdown: the next frame's loader starts (resident blocks stay).
+  void Reopen();
   // Waits until a block another thread is loading is resident or failed.
   Claim WaitWhileLoading(uint32_t id);
 

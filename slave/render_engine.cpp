@@ -123,6 +123,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   for (auto& t : threads) shared.threads.push_back(t.get());
 
   std::unique_ptr<BlockLoader> loader;
+  cache_->Reopen();  // the last frame's loader shut it
   if (shared.stack) {
     loader = std::make_unique<BlockLoader>(
         store_, cache_.get(), source_.get(), options_.loader,

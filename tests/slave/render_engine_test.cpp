@@ -192,3 +192,41 @@ INSTANTIATE_TEST_SUITE_P(Modes, Faults,
 
 }  // namespace
 }  // namespace raystack::testing
+
+namespace raystack::testing {
+namespace {
+
+// One engine renders frame after frame (the same engine, as for a scene's cameras in turn):
+// every frame equals a fresh engine's image, with a cache far smaller than the store (blocks
+// are evicted and reloaded across frames) and with one that holds every block (then later
+// frames load nothing: the cache stays warm).
+TEST(RenderEngine, FramesInSequenceMatchAFreshEngineAndKeepTheCacheWarm) {
+  TestStore s = BuildGenerated("spheres:30000");
+  render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
+  const render::MaterialTable materials = render::MaterialTable::Build(s.reader->materials(), scene);
+  const render::Camera camera(scene.cameras[0]);
+  const int all_blocks = static_cast<int>(s.reader->blocks().size());
+  for (TraceMode mode : {TraceMode::kStack, TraceMode::kSync}) {
+    for (int budget_blocks : {6, all_blocks}) {
+      auto engine = slave::RenderEngine::Create(*s.reader, Mode(mode, Budget(*s.reader, budget_blocks)));
+      ASSERT_TRUE(engine.ok());
+      const RenderOutcome fresh = Render(*s.reader, scene, Mode(mode, Budget(*s.reader, budget_blocks)));
+      ASSERT_TRUE(fresh.status.ok()) << fresh.status.message();
+      for (int frame = 0; frame < 3; ++frame) {
+        render::Film film(camera.width(), camera.height());
+        render::FilmSink sink(&film);
+        slave::GridTileSource tiles(camera.width(), camera.height(), 16);
+        slave::RenderStats stats;
+        const Status st = (*engine)->RenderFrame(scene, materials, camera, tiles, sink, &stats);
+        ASSERT_TRUE(st.ok()) << "frame " << frame << ": " << st.message();
+        EXPECT_TRUE(SameBits(film.Resolve().rgba, fresh.image.rgba)) << "frame " << frame;
+        if (frame > 0 && budget_blocks == all_blocks) {
+          EXPECT_EQ(stats.blocks_loaded, 0u) << "frame " << frame;
+        }
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace raystack::testing
