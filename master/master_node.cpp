@@ -23,11 +23,32 @@ Status MasterNode::Send(int to, const std::vector<uint8_t>& bytes, FrameFigures*
   return net_->Send(to, bytes);
 }
 
-void MasterNode::Shutdown(uint32_t reason) {
+bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
+  std::vector<bool> acknowledged(static_cast<size_t>(net_->size()), false);
+  int waiting = 0;
   for (int r = 1; r < net_->size(); ++r) {
     const Status s = net_->Send(r, wire::Encode(0, wire::Shutdown{reason, 0}));
-    if (!s.ok()) LOG_WARNING("master", "%s", s.message().c_str());
+    if (s.ok()) {
+      ++waiting;
+    } else {
+      LOG_WARNING("master", "%s", s.message().c_str());
+    }
   }
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (waiting > 0 && std::chrono::steady_clock::now() < deadline) {
+    Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(100));
+    if (!got.ok()) break;
+    if (!got->has_value()) continue;
+    const Expected<wire::Message> m = wire::Decode((*got)->bytes, (*got)->from);
+    const int from = (*got)->from;
+    if (m.ok() && m->type() == wire::MessageType::kShutdown && from > 0 &&
+        from < net_->size() && !acknowledged[static_cast<size_t>(from)]) {
+      acknowledged[static_cast<size_t>(from)] = true;
+      --waiting;
+    }
+  }
+  early_.clear();
+  return waiting == 0;
 }
 
 Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, render::Film* film,

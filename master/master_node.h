@@ -3,6 +3,7 @@
 // slaves' pixel batches into the film as they arrive, and gathers each slave's figures. It
 // sees the slaves only through a Transport (MPI, or ranks as threads in one process).
 
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <functional>
@@ -41,8 +42,10 @@ class MasterNode {
   // ends the frame with an error naming the rank.
   Status RunFrame(uint32_t frame, std::vector<render::Tile> tiles, render::Film* film,
                   const std::function<void()>& on_progress, FrameFigures* figures);
-  // Tells every slave the job is over (reason 0) or failed (1).
-  void Shutdown(uint32_t reason);
+  // Tells every slave the job is over (reason 0) or failed (1), then reads (and drops) what
+  // they still send until each has acknowledged: a slave blocked sending a pixel batch must be
+  // able to finish before every rank ends. False if some slave did not answer within `timeout`.
+  bool Shutdown(uint32_t reason, std::chrono::milliseconds timeout = std::chrono::seconds(30));
 
  private:
   Status Send(int to, const std::vector<uint8_t>& bytes, FrameFigures* figures);

@@ -297,7 +297,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
     }
     json += FiguresJson(f, figures) + (f + 1 < frames ? ",\n" : "\n");
   }
-  master.Shutdown(0);
+  if (!master.Shutdown(0)) LOG_WARNING("master", "a slave did not acknowledge the end of the job");
   WriteStats(args.stats, json + "]\n");
   return OkStatus();
 }
@@ -317,7 +317,12 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
   for (size_t f = 0; f < scene.cameras.size(); ++f) {
     const render::Camera camera(scene.cameras[f]);
     slave::RenderStats stats;
-    RAYSTACK_RETURN_IF_ERROR(node.RunFrame(static_cast<uint32_t>(f), scene, materials, camera, &stats));
+    const Status s = node.RunFrame(static_cast<uint32_t>(f), scene, materials, camera, &stats);
+    if (!s.ok()) {
+      // The master has been told (or told us): wait for its word so every rank ends cleanly.
+      if (!node.shut_down()) (void)node.WaitForShutdown(std::chrono::seconds(30));
+      return node.shut_down() ? OkStatus() : s;
+    }
   }
   Expected<uint32_t> reason = node.WaitForShutdown();
   if (!reason.ok()) return reason.status();
@@ -363,8 +368,10 @@ int RenderCommand(int argc, char** argv) {
       s = RunDistributed(args, net->get());
       if (!s.ok()) {
         std::fprintf(stderr, "raystack render (rank %d): %s\n", rank, s.message().c_str());
-        // A rank that cannot go on ends the whole job rather than leave the others waiting.
-        (*net)->Abort(1);
+        // The master has ended the job on every rank; a slave whose master did not answer
+        // ends it the hard way rather than leave the others waiting.
+        if (rank > 0) (*net)->Abort(1);
+        return 1;
       }
       return 0;
     }

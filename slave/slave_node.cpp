@@ -151,6 +151,7 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
     } else if (m->type() == wire::MessageType::kTileAssign) {
       status = tiles.Deliver(m->tile_assign());
     } else if (m->type() == wire::MessageType::kShutdown) {
+      shut_down_ = true;
       status = Status::Error("the master ended the job during the frame");
     } else {
       status = Status::Error(StrFormat("the master sent a %s during a frame",
@@ -162,6 +163,10 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   if (status.ok()) status = render_status;
   if (status.ok()) status = sink.error();
   if (!status.ok()) {
+    if (shut_down_) {  // the master ended the job: nothing more will be sent from here
+      (void)net_->Send(0, wire::Encode(me, wire::Shutdown{1, 0}));
+      return status;
+    }
     const Status told = net_->Send(0, wire::EncodeError(me, status.message()));
     if (!told.ok()) LOG_ERROR("slave", "%s", told.message().c_str());
     return status;
@@ -179,14 +184,26 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   return net_->Send(0, wire::Encode(me, d));
 }
 
-Expected<uint32_t> SlaveNode::WaitForShutdown() {
+Expected<uint32_t> SlaveNode::WaitForShutdown(std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
   for (;;) {
-    Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::seconds(1));
+    Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(200));
     if (!got.ok()) return got.status();
-    if (!got->has_value()) continue;
+    if (!got->has_value()) {
+      if (std::chrono::steady_clock::now() > deadline)
+        return Status::Error("the master did not end the job in time");
+      continue;
+    }
     const Expected<wire::Message> m = wire::Decode((*got)->bytes, (*got)->from);
     if (!m.ok()) return m.status();
-    if (m->type() == wire::MessageType::kShutdown) return m->shutdown().reason;
+    if (m->type() == wire::MessageType::kShutdown) {
+      shut_down_ = true;
+      // The acknowledgement: this rank sends nothing more.
+      RAYSTACK_RETURN_IF_ERROR(net_->Send(0, wire::Encode(static_cast<uint32_t>(net_->rank()),
+                                                          wire::Shutdown{0, 0})));
+      return m->shutdown().reason;
+    }
+    if (m->type() == wire::MessageType::kTileAssign) continue;  // a late answer to a failed frame
     return Status::Error(StrFormat("rank %d sent a %s after the last frame", (*got)->from,
                                    wire::MessageTypeName(m->type())));
   }

@@ -6,6 +6,7 @@
 // in batches from the ray threads as they finish (the engine's result batch, ~1000 samples),
 // in the order their pixels' priorities gave them.
 
+#include <chrono>
 #include <cstdint>
 
 #include "common/base/status.h"
@@ -23,16 +24,20 @@ class SlaveNode {
   SlaveNode(transport::Transport* net, RenderEngine* engine) : net_(net), engine_(engine) {}
 
   // Renders this slave's share of frame `frame`, then reports it done (with its figures) to
-  // the master. On failure the master is told why (an error message) before this returns it.
+  // the master. On failure the master is told why (an error message) before this returns it,
+  // unless the failure is the master's own shutdown (then shut_down() is true).
   Status RunFrame(uint32_t frame, const render::Scene& scene,
                   const render::MaterialTable& materials, const render::Camera& camera,
                   RenderStats* stats);
-  // Waits for the master's shutdown; returns its reason (0: done).
-  Expected<uint32_t> WaitForShutdown();
+  // Waits for the master's shutdown (at most `timeout`), acknowledges it; returns its reason
+  // (0: done).
+  Expected<uint32_t> WaitForShutdown(std::chrono::milliseconds timeout = std::chrono::hours(24 * 365));
+  bool shut_down() const { return shut_down_; }
 
  private:
   transport::Transport* net_;
   RenderEngine* engine_;
+  bool shut_down_ = false;  // the master's shutdown has arrived
 };
 
 }  // namespace raystack::slave

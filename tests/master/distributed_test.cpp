@@ -90,7 +90,7 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
     out.frames.push_back(film.Resolve());
     out.figures.push_back(figures);
   }
-  node.Shutdown(out.master.ok() ? 0 : 1);
+  EXPECT_TRUE(node.Shutdown(out.master.ok() ? 0 : 1));
   for (std::thread& t : threads) t.join();
   return out;
 }
@@ -218,7 +218,7 @@ TEST(Distributed, ASlaveThatFailsEndsTheJobWithItsError) {
       slave::SlaveNode node(net.get(), engine->get());
       slave::RenderStats stats;
       slave_status[r - 1] = node.RunFrame(0, scene, materials, render::Camera(scene.cameras[0]), &stats);
-      if (slave_status[r - 1].ok()) (void)node.WaitForShutdown();
+      if (!node.shut_down()) (void)node.WaitForShutdown(std::chrono::seconds(30));
     });
   auto net = hub.Endpoint(0);
   master::MasterNode node(net.get());
@@ -227,7 +227,7 @@ TEST(Distributed, ASlaveThatFailsEndsTheJobWithItsError) {
   master::FrameFigures figures;
   const Status status = node.RunFrame(0, render::HilbertTiles(camera.width(), camera.height(), 8),
                                       &film, [] {}, &figures);
-  node.Shutdown(1);
+  EXPECT_TRUE(node.Shutdown(1));  // every slave acknowledges, the failed one too
   for (std::thread& t : threads) t.join();
   ASSERT_FALSE(status.ok());
   EXPECT_NE(status.message().find("damaged"), std::string::npos) << status.message();

@@ -1,0 +1,107 @@
+// `mpirun -np N raystack render` as a user runs it: rank 0 the master, ranks 1..N-1 slaves.
+// The EXR equals the one-process EXR byte for byte (Whitted and seeded path tracing, two
+// cameras); a damaged block ends the whole job with an error naming it, never a hang.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "common/base/temp_dir.h"
+#include "tests/prep/run_process.h"
+
+namespace raystack::testing {
+namespace {
+
+using prep::testing::kPrepBinary;
+using prep::testing::ProcessResult;
+using prep::testing::RunProcess;
+using prep::testing::Slurp;
+
+const std::string kRaystack = RAYSTACK_BINARY_DIR "/master/raystack";
+
+class DistributedCli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Expected<TempDir> dir = TempDir::Create();
+    ASSERT_TRUE(dir.ok());
+    dir_ = std::make_unique<TempDir>(std::move(*dir));
+    const ProcessResult prep = RunProcess(
+        {kPrepBinary, "--generate", "spheres:30000", "-o", dir_->File("store"),
+         "--target-block-kb", "8", "-q"},
+        dir_->path());
+    ASSERT_EQ(prep.exit_code, 0) << prep.err;
+  }
+
+  std::string Scene(const std::string& integrator) {
+    const std::string path = dir_->File("scene.json");
+    std::ofstream(path) << R"({ "store": "store",
+      "cameras": [ { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 72, "height": 48 },
+                   { "position": [4, 3, 6], "look_at": [0, 0.5, 0], "width": 72, "height": 48 } ],
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "materials": { "default": { "type": "diffuse", "albedo": [0.7, 0.6, 0.5] } },
+      "integrator": )" << integrator << R"(,
+      "output": "out.exr" })";
+    return path;
+  }
+
+  // Renders with `np` ranks (0: without mpirun), 2 ray threads each, a small block cache.
+  ProcessResult Render(const std::string& scene, int np, const std::string& out) {
+    std::vector<std::string> argv;
+    if (np > 0)
+      argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
+    for (const std::string& a : {kRaystack, std::string("render"), scene, std::string("--threads"),
+                                 std::string("2"), std::string("--cache-mb"), std::string("1"),
+                                 std::string("--output"), out, std::string("--no-png"),
+                                 std::string("-q")})
+      argv.push_back(a);
+    if (np > 0) argv[0] = RAYSTACK_MPIRUN;
+    return RunProcess(argv, dir_->path());
+  }
+
+  std::unique_ptr<TempDir> dir_;
+};
+
+TEST_F(DistributedCli, ImagesEqualTheOneProcessImage) {
+  for (const std::string integrator :
+       {R"({ "type": "whitted", "max_depth": 3, "spp": 1, "seed": 1 })",
+        R"({ "type": "path", "max_depth": 4, "spp": 2, "seed": 5 })"}) {
+    const std::string scene = Scene(integrator);
+    const ProcessResult one = Render(scene, 0, dir_->File("one.exr"));
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    for (int np : {1, 3, 5}) {
+      const std::string out = dir_->File("np" + std::to_string(np) + ".exr");
+      const ProcessResult r = Render(scene, np, out);
+      ASSERT_EQ(r.exit_code, 0) << "np " << np << ": " << r.err << r.out;
+      for (const char* frame : {"-0", "-1"}) {  // both cameras
+        const std::string a = Slurp(dir_->File(std::string("one") + frame + ".exr"));
+        const std::string b = Slurp(dir_->File("np" + std::to_string(np) + frame + ".exr"));
+        ASSERT_FALSE(a.empty());
+        EXPECT_TRUE(a == b) << "np " << np << ", frame '" << frame << "', " << integrator;
+      }
+    }
+  }
+}
+
+TEST_F(DistributedCli, ADamagedBlockEndsTheJobNamingIt) {
+  // Flip a byte in the middle of the block file.
+  const std::string blocks = dir_->File("store/blocks.bin");
+  std::fstream f(blocks, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekg(0, std::ios::end);
+  const auto size = static_cast<std::streamoff>(f.tellg());
+  char c;
+  f.seekg(size / 2);
+  f.read(&c, 1);
+  c = static_cast<char>(c ^ 0x5a);
+  f.seekp(size / 2);
+  f.write(&c, 1);
+  f.close();
+  const std::string scene = Scene(R"({ "type": "whitted" })");
+  const ProcessResult r = Render(scene, 3, dir_->File("bad.exr"));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("damaged"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("block "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("rank "), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace raystack::testing
