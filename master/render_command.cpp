@@ -41,6 +41,11 @@ options:
   --feed-fraction P         start the next tile once this fraction of the current one is
                             done (default 0.1)
   --tile-size N             tile side in pixels (default 32)
+  --tile-ahead P            under mpirun, a slave thread asks for its next tile once this
+                            fraction of its current one is done (default 0: at once)
+  --batch N                 samples per pixel batch a slave sends (default 1024)
+  --checkpoint-s S          write the EXR every S seconds while rendering (atomically: a
+                            temporary file, then a rename; default 0: only at the end)
   --io-threads N            block reads kept in flight by the loader (default 16)
   --io-latency-us N         add N microseconds to every block read (emulates a network
                             filesystem; for measurements)
@@ -61,6 +66,7 @@ struct Args {
   float exposure = 0;
   std::string stats;
   bool quiet = false;
+  double checkpoint_s = 0;
 };
 
 template <typename T>
@@ -105,6 +111,12 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.feed_fraction, 0, 1));
     } else if (arg == "--tile-size") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->tile_size, 1, 4096));
+    } else if (arg == "--tile-ahead") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.tile_ahead, 0, 1));
+    } else if (arg == "--batch") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.result_batch, 1, 65536));
+    } else if (arg == "--checkpoint-s") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->checkpoint_s, 0, 1e9));
     } else if (arg == "--io-threads") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.loader.io_threads, 1, 256));
     } else if (arg == "--io-latency-us") {
@@ -145,6 +157,26 @@ std::string FramePath(const std::string& path, size_t frame, size_t frames, cons
   return stem;
 }
 
+// Writes the film to the frame's EXR every `every_s` seconds while it renders (atomically, so
+// a reader never sees half a file and a crash leaves the last checkpoint).
+class Checkpoints {
+ public:
+  Checkpoints(double every_s, std::string path) : every_s_(every_s), path_(std::move(path)) {}
+  void Maybe(const render::Film& film) {
+    if (every_s_ <= 0) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (std::chrono::duration<double>(now - last_).count() < every_s_) return;
+    last_ = now;
+    const Status s = image::WriteExr(path_, film.Resolve());
+    if (!s.ok()) LOG_WARNING("render", "checkpoint: %s", s.message().c_str());
+  }
+
+ private:
+  double every_s_;
+  std::string path_;
+  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
 Status Run(const Args& args) {
   Expected<render::Scene> scene = render::LoadScene(args.scene);
   if (!scene.ok()) return scene.status();
@@ -177,11 +209,13 @@ Status Run(const Args& args) {
       std::thread render([&] {
         status = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
       });
+      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
       uint64_t shown = 0;
       for (;;) {
         const uint64_t done = film.samples_merged();
         progress.Update(done - shown);
         shown = done;
+        checkpoints.Maybe(film);
         if (done >= total) break;
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
         if (status.ok() && film.samples_merged() == shown && !render.joinable()) break;
@@ -263,12 +297,14 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
       uint64_t shown = 0;
+      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
       status = master.RunFrame(static_cast<uint32_t>(f),
                                render::HilbertTiles(camera.width(), camera.height(), args.tile_size),
                                &film, [&] {
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);
                                  shown = done;
+                                 checkpoints.Maybe(film);
                                },
                                &figures);
     }

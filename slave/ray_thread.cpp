@@ -84,6 +84,8 @@ bool RayThread::FeedNextTile() {
   tiles_.push_back({tile, static_cast<uint32_t>(tile.pixels()) * static_cast<uint32_t>(shared_->spp), 0});
   newest_tile_ = local;
   ++open_tiles_;
+  ahead_asked_ = false;
+  AskAhead();
   // Highest priority first; pending_ is a LIFO, so push in reverse.
   struct Px {
     uint16_t priority;
@@ -141,8 +143,17 @@ void RayThread::RayDone(uint32_t slot) {
   if (!slots_.RayDone(slot, &result)) return;
   ++counters_.samples;
   if (++tiles_[tile].done == tiles_[tile].total) --open_tiles_;
+  if (tile == newest_tile_) AskAhead();
   results_.push_back(result);
   if (results_.size() >= shared_->result_batch) FlushResults();
+}
+
+void RayThread::AskAhead() {
+  if (ahead_asked_ || tiles_exhausted_) return;
+  const ActiveTile& t = tiles_[newest_tile_];
+  if (static_cast<double>(t.done) < shared_->tile_ahead * static_cast<double>(t.total)) return;
+  ahead_asked_ = true;
+  shared_->tiles->Ahead(index_);
 }
 
 void RayThread::FlushResults() {

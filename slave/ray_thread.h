@@ -44,6 +44,7 @@ struct FrameShared {
   int spp = 1;
   uint64_t seed = 1;
   double feed_fraction = 0.1;
+  double tile_ahead = 0.0;
   size_t result_batch = 1024;
 
   // The first error ends the frame on every thread.
@@ -87,6 +88,8 @@ class RayThread {
   void RayDone(uint32_t slot);
   void DrainInbox();
   void FlushResults();
+  // Thesis P_ra: once the newest tile is this far along, the tile source may fetch the next.
+  void AskAhead();
   // Sync driver pieces.
   void TraceSync(RayRecord ray);
   const store::BlockView* AcquireSync(uint32_t block);
@@ -99,6 +102,7 @@ class RayThread {
   std::vector<ActiveTile> tiles_;  // tiles fed and not finished, by local index
   uint32_t newest_tile_ = 0;
   uint32_t open_tiles_ = 0;  // fed and not finished
+  bool ahead_asked_ = false;  // TileSource::Ahead called for the newest tile
   static constexpr uint32_t kMaxOpenTiles = 4;
   bool tiles_exhausted_ = false;
   std::vector<render::SampleResult> results_;

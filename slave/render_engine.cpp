@@ -114,6 +114,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   shared.spp = scene.integrator.spp;
   shared.seed = scene.integrator.seed;
   shared.feed_fraction = options_.feed_fraction;
+  shared.tile_ahead = options_.tile_ahead;
   shared.result_batch = options_.result_batch;
   shared.stack = options_.mode != TraceMode::kSync;
 

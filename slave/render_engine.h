@@ -30,6 +30,7 @@ struct EngineOptions {
   TraceMode mode = TraceMode::kStack;
   int threads = 2;
   double feed_fraction = 0.1;               // P_pr
+  double tile_ahead = 0.0;                  // P_ra: ask for the next tile at this share done
   uint64_t cache_bytes = uint64_t{512} << 20;  // ignored in incore mode
   LoaderOptions loader;
   FaultOptions faults;

@@ -28,9 +28,15 @@ class RemoteTiles final : public TileSource {
     if (!s.has_tile) return false;
     *tile = s.tile;
     s.has_tile = false;
-    Request(thread, &s);  // the next one, while this one renders
     ++tiles_;
     return true;
+  }
+
+  // The next tile, fetched while this one renders (at --tile-ahead of it).
+  void Ahead(uint32_t thread) override {
+    Slot& s = slots_[thread];
+    std::lock_guard lock(mu_);
+    if (!s.requested && !s.has_tile && !s.exhausted) Request(thread, &s);
   }
 
   // From the receiving thread.

@@ -17,6 +17,9 @@ class TileSource {
   virtual ~TileSource() = default;
   // The next tile for ray thread `thread`, false when the frame has no more. Thread-safe.
   virtual bool Next(uint32_t thread, Tile* tile) = 0;
+  // Ray thread `thread` will soon ask for its next tile (it has done the --tile-ahead share of
+  // its current one): a source that must fetch tiles from afar starts now.
+  virtual void Ahead(uint32_t /*thread*/) {}
 };
 
 // The whole frame in one process: its tiles in Hilbert order (common/render/tiles.h), handed
