@@ -140,6 +140,10 @@ Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, ren
       case wire::MessageType::kShutdown:
         return Status::Error(StrFormat("rank %d sent a %s, which only the master sends", e.from,
                                        wire::MessageTypeName(m->type())));
+      case wire::MessageType::kBlockRequest:
+      case wire::MessageType::kBlockData:
+        return Status::Error(StrFormat("rank %d sent the master a %s, which slaves exchange "
+                                       "among themselves", e.from, wire::MessageTypeName(m->type())));
     }
     if (std::chrono::steady_clock::now() - last_progress > std::chrono::milliseconds(100)) {
       on_progress();

@@ -1,7 +1,8 @@
 #pragma once
-// Where the loader gets block bytes. Today the store's blocks.bin on a local disk or a shared
-// filesystem (`--blocks loc`); later a peer slave's memory. One virtual call per read run,
-// never per ray. Fault injection lives here so every loader path can be tested against it.
+// Where the loader gets block bytes: the store's blocks.bin on a local disk or a shared
+// filesystem (`--blocks loc`, DiskBlockSource), or the slaves' memories (`--blocks rem`,
+// PeerBlocks in peer_blocks.h). One virtual call per read run, never per ray. Fault injection
+// lives in the disk source so every loader path can be tested against it.
 
 #include <atomic>
 #include <cstdint>
@@ -25,6 +26,8 @@ class BlockSource {
   // Reads the stored (compressed) bytes of `ids`, which are consecutive in blocks.bin, into
   // `bytes`, in one request. Thread-safe.
   virtual Status ReadRun(std::span<const uint32_t> ids, std::vector<uint8_t>* bytes) = 0;
+  virtual uint64_t reads() const = 0;       // ReadRun calls so far
+  virtual uint64_t bytes_read() const = 0;  // stored bytes delivered so far
 };
 
 class DiskBlockSource final : public BlockSource {
@@ -33,8 +36,8 @@ class DiskBlockSource final : public BlockSource {
       : store_(store), faults_(faults) {}
   Status ReadRun(std::span<const uint32_t> ids, std::vector<uint8_t>* bytes) override;
 
-  uint64_t reads() const { return reads_.load(); }
-  uint64_t bytes_read() const { return bytes_.load(); }
+  uint64_t reads() const override { return reads_.load(); }
+  uint64_t bytes_read() const override { return bytes_.load(); }
 
  private:
   const store::StoreReader& store_;

@@ -27,13 +27,15 @@ Expected<TraceMode> ParseTraceMode(const std::string& name) {
 }
 
 Expected<std::unique_ptr<RenderEngine>> RenderEngine::Create(const store::StoreReader& store,
-                                                             EngineOptions options) {
+                                                             EngineOptions options,
+                                                             BlockSource* source) {
   if (options.threads < 1 || options.threads > BlockLoader::kMaxRayThreads)
     return Status::Error(StrFormat("--threads must be in [1, %d], got %d",
                                    BlockLoader::kMaxRayThreads, options.threads));
   if (!(options.feed_fraction >= 0 && options.feed_fraction <= 1))
     return Status::Error("--feed-fraction must be in [0, 1]");
   std::unique_ptr<RenderEngine> engine(new RenderEngine(store, options));
+  if (source) engine->source_ = source;
   const uint64_t budget =
       options.mode == TraceMode::kIncore ? BlockCache::kUnlimited : options.cache_bytes;
   Expected<std::unique_ptr<BlockCache>> cache = BlockCache::Create(store, budget);
@@ -45,7 +47,8 @@ Expected<std::unique_ptr<RenderEngine>> RenderEngine::Create(const store::StoreR
 RenderEngine::RenderEngine(const store::StoreReader& store, EngineOptions options)
     : store_(store),
       options_(options),
-      source_(std::make_unique<DiskBlockSource>(store, options.faults)),
+      disk_(std::make_unique<DiskBlockSource>(store, options.faults)),
+      source_(disk_.get()),
       walk_(store.octree(), store.blocks()) {}
 
 RenderEngine::~RenderEngine() = default;
@@ -106,7 +109,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   shared.store = &store_;
   shared.walk = &walk_;
   shared.cache = cache_.get();
-  shared.source = source_.get();
+  shared.source = source_;
   shared.shader = &shader;
   shared.camera = &camera;
   shared.tiles = &tiles;
@@ -127,7 +130,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   cache_->Reopen();  // the last frame's loader shut it
   if (shared.stack) {
     loader = std::make_unique<BlockLoader>(
-        store_, cache_.get(), source_.get(), options_.loader,
+        store_, cache_.get(), source_, options_.loader,
         [&threads](uint32_t thread, uint32_t block, const Status& status) {
           threads[thread]->Deliver(block, status);
         });

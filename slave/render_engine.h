@@ -39,8 +39,11 @@ struct EngineOptions {
 
 class RenderEngine {
  public:
+  // `source`: where blocks come from instead of the store's own file (e.g. the peers, for
+  // --blocks rem); it must outlive the engine.
   static Expected<std::unique_ptr<RenderEngine>> Create(const store::StoreReader& store,
-                                                        EngineOptions options);
+                                                        EngineOptions options,
+                                                        BlockSource* source = nullptr);
   ~RenderEngine();
 
   // Renders every tile `tiles` hands out, with `scene`'s lights, integrator and background,
@@ -60,7 +63,8 @@ class RenderEngine {
   const store::StoreReader& store_;
   EngineOptions options_;
   std::unique_ptr<BlockCache> cache_;
-  std::unique_ptr<DiskBlockSource> source_;
+  std::unique_ptr<DiskBlockSource> disk_;
+  BlockSource* source_;  // disk_, or the one given to Create
   BlockWalk walk_;
   bool preloaded_ = false;
 };

@@ -1,5 +1,7 @@
 #include "slave/slave_node.h"
 
+#include "slave/peer_blocks.h"
+
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -8,11 +10,10 @@
 #include <vector>
 
 #include "common/base/log.h"
+#include "common/base/thread_name.h"
 #include "common/wire/message.h"
 
 namespace raystack::slave {
-namespace {
-
 // Tiles from the master: one slot per ray thread, holding the tile in reserve (or the news
 // that there are no more). The receiving thread fills slots; ray threads take from them.
 class RemoteTiles final : public TileSource {
@@ -97,6 +98,8 @@ class RemoteTiles final : public TileSource {
   std::atomic<uint64_t> tiles_{0};
 };
 
+namespace {
+
 // Samples to the master, a batch per call (ray threads call it concurrently; Send is
 // thread-safe).
 class RemoteSink final : public render::SampleSink {
@@ -127,52 +130,100 @@ class RemoteSink final : public render::SampleSink {
 
 }  // namespace
 
+SlaveNode::SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers)
+    : net_(net), engine_(engine), peers_(peers) {
+  receiver_ = std::thread([this] {
+    SetThreadName("rs-receive");
+    ReceiveLoop();
+  });
+}
+
+SlaveNode::~SlaveNode() {
+  {
+    std::lock_guard lock(mu_);
+    stop_ = true;
+  }
+  receiver_.join();
+  if (peers_) peers_->Stop();
+}
+
+void SlaveNode::Failed(const Status& status) {  // holds mu_
+  if (error_.ok()) error_ = status;
+  if (tiles_) tiles_->Fail();
+  changed_.notify_all();
+}
+
+void SlaveNode::ReceiveLoop() {
+  for (;;) {
+    {
+      std::lock_guard lock(mu_);
+      if (stop_) return;
+    }
+    Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(20));
+    std::lock_guard lock(mu_);
+    if (!got.ok()) {
+      Failed(got.status());
+      continue;
+    }
+    if (!got->has_value()) continue;
+    const int from = (*got)->from;
+    const Expected<wire::Message> m = wire::Decode((*got)->bytes, from);
+    if (!m.ok()) {
+      Failed(m.status());
+      continue;
+    }
+    const wire::MessageType type = m->type();
+    if (from == 0 && type == wire::MessageType::kTileAssign) {
+      const Status s = tiles_ ? tiles_->Deliver(m->tile_assign())
+                              : Status::Error("the master assigned a tile between frames");
+      if (!s.ok()) Failed(s);
+    } else if (from == 0 && type == wire::MessageType::kShutdown) {
+      shut_down_ = true;
+      shutdown_reason_ = m->shutdown().reason;
+      if (tiles_) tiles_->Fail();  // ray threads waiting for a tile give up
+      if (peers_) peers_->Stop();
+      changed_.notify_all();
+    } else if (from > 0 && peers_ && type == wire::MessageType::kBlockRequest) {
+      const Status s = peers_->OnRequest(from, m->block_request());
+      if (!s.ok()) Failed(s);
+    } else if (from > 0 && peers_ && type == wire::MessageType::kBlockData) {
+      const Status s = peers_->OnData(from, m.value());
+      if (!s.ok()) Failed(s);
+    } else {
+      Failed(Status::Error(StrFormat("rank %d sent this slave a %s it has no use for", from,
+                                     wire::MessageTypeName(type))));
+    }
+  }
+}
+
 Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
                            const render::MaterialTable& materials, const render::Camera& camera,
                            RenderStats* stats) {
   const uint32_t me = static_cast<uint32_t>(net_->rank());
   RemoteTiles tiles(net_, frame, engine_->options().threads);
   RemoteSink sink(net_, frame);
-  std::atomic<bool> rendered{false};
-  Status render_status;
-  std::thread render([&] {
-    render_status = engine_->RenderFrame(scene, materials, camera, tiles, sink, stats);
-    rendered.store(true);
-  });
-  // This thread receives: tile assignments for the ray threads, or the master's shutdown.
-  Status status;
-  while (!rendered.load() && status.ok()) {
-    Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(20));
-    if (!got.ok()) {
-      status = got.status();
-      break;
-    }
-    if (!got->has_value()) continue;
-    const Expected<wire::Message> m = wire::Decode((*got)->bytes, (*got)->from);
-    if (!m.ok()) {
-      status = m.status();
-    } else if ((*got)->from != 0) {
-      status = Status::Error(StrFormat("rank %d sent a %s to a slave", (*got)->from,
-                                       wire::MessageTypeName(m->type())));
-    } else if (m->type() == wire::MessageType::kTileAssign) {
-      status = tiles.Deliver(m->tile_assign());
-    } else if (m->type() == wire::MessageType::kShutdown) {
-      shut_down_ = true;
-      status = Status::Error("the master ended the job during the frame");
-    } else {
-      status = Status::Error(StrFormat("the master sent a %s during a frame",
-                                       wire::MessageTypeName(m->type())));
-    }
+  {
+    std::lock_guard lock(mu_);
+    if (shut_down_) return Status::Error("the master ended the job");
+    tiles_ = &tiles;
+    if (!error_.ok()) tiles.Fail();
   }
-  if (!status.ok()) tiles.Fail();  // ray threads waiting for a tile give up
-  render.join();
-  if (status.ok()) status = render_status;
+  const uint64_t from_peers = peers_ ? peers_->bytes_from_peers() : 0;
+  const uint64_t to_peers = peers_ ? peers_->bytes_to_peers() : 0;
+  Status status = engine_->RenderFrame(scene, materials, camera, tiles, sink, stats);
+  bool shut_down;
+  {
+    std::lock_guard lock(mu_);
+    tiles_ = nullptr;
+    if (!error_.ok()) status = error_;  // the receiving side's failure came first
+    shut_down = shut_down_;
+  }
   if (status.ok()) status = sink.error();
+  if (shut_down) {  // the master ended the job: this rank sends nothing more but the ack
+    (void)net_->Send(0, wire::Encode(me, wire::Shutdown{1, 0}));
+    return status.ok() ? Status::Error("the master ended the job during the frame") : status;
+  }
   if (!status.ok()) {
-    if (shut_down_) {  // the master ended the job: nothing more will be sent from here
-      (void)net_->Send(0, wire::Encode(me, wire::Shutdown{1, 0}));
-      return status;
-    }
     const Status told = net_->Send(0, wire::EncodeError(me, status.message()));
     if (!told.ok()) LOG_ERROR("slave", "%s", told.message().c_str());
     return status;
@@ -187,32 +238,23 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   d.blocks_distinct = stats->blocks_distinct;
   d.bytes_read = stats->bytes_read;
   d.seconds = stats->seconds;
+  if (peers_) {
+    d.bytes_from_peers = peers_->bytes_from_peers() - from_peers;
+    d.bytes_to_peers = peers_->bytes_to_peers() - to_peers;
+  }
   return net_->Send(0, wire::Encode(me, d));
 }
 
 Expected<uint32_t> SlaveNode::WaitForShutdown(std::chrono::milliseconds timeout) {
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  for (;;) {
-    Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(200));
-    if (!got.ok()) return got.status();
-    if (!got->has_value()) {
-      if (std::chrono::steady_clock::now() > deadline)
-        return Status::Error("the master did not end the job in time");
-      continue;
-    }
-    const Expected<wire::Message> m = wire::Decode((*got)->bytes, (*got)->from);
-    if (!m.ok()) return m.status();
-    if (m->type() == wire::MessageType::kShutdown) {
-      shut_down_ = true;
-      // The acknowledgement: this rank sends nothing more.
-      RAYSTACK_RETURN_IF_ERROR(net_->Send(0, wire::Encode(static_cast<uint32_t>(net_->rank()),
-                                                          wire::Shutdown{0, 0})));
-      return m->shutdown().reason;
-    }
-    if (m->type() == wire::MessageType::kTileAssign) continue;  // a late answer to a failed frame
-    return Status::Error(StrFormat("rank %d sent a %s after the last frame", (*got)->from,
-                                   wire::MessageTypeName(m->type())));
-  }
+  std::unique_lock lock(mu_);
+  if (!changed_.wait_for(lock, timeout, [&] { return shut_down_ || !error_.ok(); }))
+    return Status::Error("the master did not end the job in time");
+  if (!shut_down_) return error_;
+  lock.unlock();
+  // The acknowledgement: this rank sends nothing more.
+  RAYSTACK_RETURN_IF_ERROR(net_->Send(0, wire::Encode(static_cast<uint32_t>(net_->rank()),
+                                                      wire::Shutdown{0, 0})));
+  return shutdown_reason_;
 }
 
 }  // namespace raystack::slave

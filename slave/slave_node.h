@@ -7,7 +7,10 @@
 // in the order their pixels' priorities gave them.
 
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
+#include <mutex>
+#include <thread>
 
 #include "common/base/status.h"
 #include "common/render/camera.h"
@@ -19,9 +22,16 @@
 
 namespace raystack::slave {
 
+class RemoteTiles;
+class PeerBlocks;
+
+// A receiving thread runs for the node's whole life: tile assignments for the frame being
+// rendered, the master's shutdown, and (with --blocks rem) the peers' block requests and
+// answers, which must be served between frames and after this slave's last frame too.
 class SlaveNode {
  public:
-  SlaveNode(transport::Transport* net, RenderEngine* engine) : net_(net), engine_(engine) {}
+  SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers = nullptr);
+  ~SlaveNode();
 
   // Renders this slave's share of frame `frame`, then reports it done (with its figures) to
   // the master. On failure the master is told why (an error message) before this returns it,
@@ -32,12 +42,26 @@ class SlaveNode {
   // Waits for the master's shutdown (at most `timeout`), acknowledges it; returns its reason
   // (0: done).
   Expected<uint32_t> WaitForShutdown(std::chrono::milliseconds timeout = std::chrono::hours(24 * 365));
-  bool shut_down() const { return shut_down_; }
+  bool shut_down() const {
+    std::lock_guard lock(mu_);
+    return shut_down_;
+  }
 
  private:
+  void ReceiveLoop();
+  void Failed(const Status& status);  // holds mu_
+
   transport::Transport* net_;
   RenderEngine* engine_;
-  bool shut_down_ = false;  // the master's shutdown has arrived
+  PeerBlocks* peers_;
+  std::thread receiver_;
+  mutable std::mutex mu_;
+  std::condition_variable changed_;
+  bool stop_ = false;
+  RemoteTiles* tiles_ = nullptr;  // the frame being rendered, if any
+  bool shut_down_ = false;        // the master's shutdown has arrived
+  uint32_t shutdown_reason_ = 0;
+  Status error_;                  // a failure on the receiving side
 };
 
 }  // namespace raystack::slave

@@ -27,7 +27,9 @@ uint64_t FixedPayloadBytes(MessageType type) {
     case MessageType::kTileAssign: return sizeof(TileAssign);
     case MessageType::kFrameDone: return sizeof(FrameDone);
     case MessageType::kShutdown: return sizeof(Shutdown);
+    case MessageType::kBlockRequest: return sizeof(BlockRequest);
     case MessageType::kPixelBatch:
+    case MessageType::kBlockData:
     case MessageType::kError: return 0;
   }
   return 0;
@@ -52,6 +54,8 @@ const char* MessageTypeName(MessageType type) {
     case MessageType::kFrameDone: return "frame done";
     case MessageType::kShutdown: return "shutdown";
     case MessageType::kError: return "error";
+    case MessageType::kBlockRequest: return "block request";
+    case MessageType::kBlockData: return "block data";
   }
   return "unknown";
 }
@@ -70,6 +74,23 @@ std::vector<uint8_t> Encode(uint32_t sender, const FrameDone& m) {
 }
 std::vector<uint8_t> Encode(uint32_t sender, const Shutdown& m) {
   return Build(sender, MessageType::kShutdown, m);
+}
+
+std::vector<uint8_t> Encode(uint32_t sender, const BlockRequest& m) {
+  return Build(sender, MessageType::kBlockRequest, m);
+}
+
+std::vector<uint8_t> EncodeBlockData(uint32_t sender, const BlockDataHeader& d,
+                                     std::span<const uint8_t> stored) {
+  const uint64_t payload = sizeof d + stored.size();
+  CHECK(payload <= 0xffffffffu);
+  std::vector<uint8_t> bytes(sizeof(MessageHeader) + payload);
+  const MessageHeader h{kMagic, kProtocolVersion, static_cast<uint16_t>(MessageType::kBlockData),
+                        sender, static_cast<uint32_t>(payload)};
+  std::memcpy(bytes.data(), &h, sizeof h);
+  std::memcpy(bytes.data() + sizeof h, &d, sizeof d);
+  if (!stored.empty()) std::memcpy(bytes.data() + sizeof h + sizeof d, stored.data(), stored.size());
+  return bytes;
 }
 
 std::vector<uint8_t> EncodeError(uint32_t sender, const std::string& text) {
@@ -127,6 +148,12 @@ Expected<Message> Decode(std::span<const uint8_t> bytes, int from) {
       return bad(StrFormat("pixel batch of %u samples (at most %u)", b.count, kMaxBatchSamples));
     if (m.payload.size() != sizeof b + uint64_t{b.count} * sizeof(render::SampleResult))
       return bad(StrFormat("pixel batch of %u samples in %zu bytes", b.count, m.payload.size()));
+  } else if (m.type() == MessageType::kBlockData) {
+    if (m.payload.size() < sizeof(BlockDataHeader)) return bad("block data without its header");
+    BlockDataHeader d;
+    std::memcpy(&d, m.payload.data(), sizeof d);
+    if (d.failed > 1 || (d.failed && m.payload.size() != sizeof d))
+      return bad("block data with a bad failure flag");
   } else if (m.type() == MessageType::kError) {
     if (m.payload.size() > kMaxErrorText)
       return bad(StrFormat("error text of %zu bytes (at most %u)", m.payload.size(), kMaxErrorText));
@@ -163,6 +190,22 @@ std::string Message::error_text() const {
   for (char& c : text)  // a hostile text cannot drive the terminal
     if (static_cast<unsigned char>(c) < 0x20 && c != '\n') c = '?';
   return text;
+}
+
+BlockRequest Message::block_request() const {
+  return PayloadAs<BlockRequest>(*this, MessageType::kBlockRequest);
+}
+
+BlockDataHeader Message::block_data_header() const {
+  CHECK(type() == MessageType::kBlockData && payload.size() >= sizeof(BlockDataHeader));
+  BlockDataHeader d;
+  std::memcpy(&d, payload.data(), sizeof d);
+  return d;
+}
+
+std::span<const uint8_t> Message::block_data() const {
+  CHECK(type() == MessageType::kBlockData);
+  return payload.subspan(sizeof(BlockDataHeader));
 }
 
 void Message::batch_samples(std::vector<render::SampleResult>* out) const {

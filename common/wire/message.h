@@ -34,8 +34,10 @@ enum class MessageType : uint16_t {
   kFrameDone,    // a slave has finished its part of a frame
   kShutdown,     // the master ends the job
   kError,        // a rank failed: why (text naming the block, file or peer)
+  kBlockRequest, // a slave asks a block's owner for a run of blocks (--blocks rem)
+  kBlockData,    // the owner's answer: the run's stored bytes, or that it failed
 };
-inline constexpr uint16_t kMessageTypeCount = 7;
+inline constexpr uint16_t kMessageTypeCount = 9;
 inline constexpr uint32_t kMaxErrorText = 4096;
 const char* MessageTypeName(MessageType type);
 
@@ -74,17 +76,32 @@ struct FrameDone {
   uint64_t blocks_distinct;  // #U
   uint64_t bytes_read;       // from the block source (disk or peers)
   double seconds;            // the frame's render time on this slave
+  uint64_t bytes_from_peers;  // --blocks rem: block bytes fetched from other slaves
+  uint64_t bytes_to_peers;    // --blocks rem: block bytes served to other slaves
 };
 struct Shutdown {
   uint32_t reason;  // 0: the job is done
   uint32_t reserved;
+};
+struct BlockRequest {
+  uint32_t request;  // the asker's number for it, echoed in the answer
+  uint32_t first;    // blocks [first, first + count), consecutive in blocks.bin
+  uint32_t count;
+  uint32_t reserved;
+};
+struct BlockDataHeader {  // followed by the run's stored bytes (none when failed)
+  uint32_t request;
+  uint32_t first;
+  uint32_t count;
+  uint32_t failed;  // 1: the owner could not read them (its own log says why)
 };
 struct PixelBatchHeader {
   uint32_t frame;
   uint32_t count;  // SampleResult records that follow
 };
 static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 32 &&
-              sizeof(FrameDone) == 64 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 8);
+              sizeof(FrameDone) == 80 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 8 &&
+              sizeof(BlockRequest) == 16 && sizeof(BlockDataHeader) == 16);
 
 // Builders: the whole message (header + payload) as bytes.
 std::vector<uint8_t> Encode(uint32_t sender, const Hello& m);
@@ -92,6 +109,9 @@ std::vector<uint8_t> Encode(uint32_t sender, const TileRequest& m);
 std::vector<uint8_t> Encode(uint32_t sender, const TileAssign& m);
 std::vector<uint8_t> Encode(uint32_t sender, const FrameDone& m);
 std::vector<uint8_t> Encode(uint32_t sender, const Shutdown& m);
+std::vector<uint8_t> Encode(uint32_t sender, const BlockRequest& m);
+std::vector<uint8_t> EncodeBlockData(uint32_t sender, const BlockDataHeader& h,
+                                     std::span<const uint8_t> stored);
 std::vector<uint8_t> EncodeError(uint32_t sender, const std::string& text);  // cut to kMaxErrorText
 std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
                                       std::span<const render::SampleResult> samples);
@@ -109,6 +129,9 @@ struct Message {
   Shutdown shutdown() const;
   PixelBatchHeader batch_header() const;
   std::string error_text() const;
+  BlockRequest block_request() const;
+  BlockDataHeader block_data_header() const;
+  std::span<const uint8_t> block_data() const;  // the stored bytes after the header
   // The batch's samples, copied out (the payload need not be aligned for SampleResult).
   void batch_samples(std::vector<render::SampleResult>* out) const;
 };
