@@ -18,6 +18,7 @@
 #include "common/store/store_reader.h"
 #include "common/mpi/mpi_transport.h"
 #include "master/master_node.h"
+#include "slave/peer_blocks.h"
 #include "slave/render_engine.h"
 #include "slave/slave_node.h"
 
@@ -47,6 +48,11 @@ options:
   --checkpoint-s S          write the EXR every S seconds while rendering (atomically: a
                             temporary file, then a rename; default 0: only at the end)
   --io-threads N            block reads kept in flight by the loader (default 16)
+  --blocks loc|rem|auto     under mpirun, where a slave gets a missing block: loc, the store
+                            itself (local disk or shared filesystem); rem, the memory of the
+                            block's owner among the slaves (each block is read from disk once,
+                            by its owner, whose share counts against its --cache-mb); auto
+                            (default): rem when a slave's share fits half its budget, else loc
   --io-latency-us N         add N microseconds to every block read (emulates a network
                             filesystem; for measurements)
   --output FILE             override the scene's output path
@@ -67,6 +73,7 @@ struct Args {
   std::string stats;
   bool quiet = false;
   double checkpoint_s = 0;
+  std::string blocks = "auto";
 };
 
 template <typename T>
@@ -111,6 +118,10 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.feed_fraction, 0, 1));
     } else if (arg == "--tile-size") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->tile_size, 1, 4096));
+    } else if (arg == "--blocks") {
+      RAYSTACK_RETURN_IF_ERROR(value(&a->blocks));
+      if (a->blocks != "loc" && a->blocks != "rem" && a->blocks != "auto")
+        return Status::Error("--blocks must be loc, rem or auto, got '" + a->blocks + "'");
     } else if (arg == "--tile-ahead") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.tile_ahead, 0, 1));
     } else if (arg == "--batch") {
@@ -265,7 +276,8 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
     const SlaveFigures& x = f.slaves[i];
     s += StrFormat("%s\n    {\"rank\": %d, \"seconds\": %g, \"rays\": %llu, \"samples\": %llu, "
                    "\"tiles\": %llu, \"blocks_loaded\": %llu, \"blocks_distinct\": %llu, "
-                   "\"bytes_read\": %llu, \"bytes_to_master\": %llu, \"pixel_bytes\": %llu, "
+                   "\"bytes_read\": %llu, \"bytes_from_peers\": %llu, \"bytes_to_peers\": %llu, "
+                   "\"bytes_to_master\": %llu, \"pixel_bytes\": %llu, "
                    "\"bytes_from_master\": %llu}",
                    i ? "," : "", x.rank, x.done.seconds,
                    static_cast<unsigned long long>(x.done.rays),
@@ -274,6 +286,8 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
                    static_cast<unsigned long long>(x.done.blocks_loaded),
                    static_cast<unsigned long long>(x.done.blocks_distinct),
                    static_cast<unsigned long long>(x.done.bytes_read),
+                   static_cast<unsigned long long>(x.done.bytes_from_peers),
+                   static_cast<unsigned long long>(x.done.bytes_to_peers),
                    static_cast<unsigned long long>(x.bytes_received),
                    static_cast<unsigned long long>(x.pixel_bytes),
                    static_cast<unsigned long long>(x.bytes_sent));
@@ -322,12 +336,15 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                   figures.seconds, figures.imbalance());
       for (const SlaveFigures& s : figures.slaves)
         std::printf("  rank %d: %.3f s, %llu rays, %llu tiles, %llu blocks loaded (%llu distinct), "
-                    "%.1f MB read, %.1f MB sent to the master\n",
+                    "%.1f MB of blocks (%.1f MB from peers, %.1f MB to peers), %.1f MB sent to "
+                    "the master\n",
                     s.rank, s.done.seconds, static_cast<unsigned long long>(s.done.rays),
                     static_cast<unsigned long long>(s.done.tiles),
                     static_cast<unsigned long long>(s.done.blocks_loaded),
                     static_cast<unsigned long long>(s.done.blocks_distinct),
                     static_cast<double>(s.done.bytes_read) / 1e6,
+                    static_cast<double>(s.done.bytes_from_peers) / 1e6,
+                    static_cast<double>(s.done.bytes_to_peers) / 1e6,
                     static_cast<double>(s.bytes_received) / 1e6);
       std::printf("  wrote %s\n", exr.c_str());
     }
@@ -338,10 +355,41 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
   return OkStatus();
 }
 
+// --blocks auto: rem when each slave's share of the store (stored bytes) fits in half of its
+// cache budget, leaving the other half for decoded blocks; otherwise loc. Every rank decides
+// the same from the same inputs.
+bool UseRemoteBlocks(const Args& args, const store::StoreReader& store, int slaves,
+                     std::string* why) {
+  uint64_t stored = 0;
+  for (const store::BlockEntry& e : store.blocks()) stored += e.stored_bytes;
+  const uint64_t share = stored / static_cast<uint64_t>(slaves);
+  const bool fits = share <= args.engine.cache_bytes / 2;
+  *why = StrFormat("store %.1f MB on disk, %.1f MB per slave's share, %.1f MB cache per slave",
+                   static_cast<double>(stored) / 1e6, static_cast<double>(share) / 1e6,
+                   static_cast<double>(args.engine.cache_bytes) / 1e6);
+  if (args.blocks == "rem") return true;
+  if (args.blocks == "loc") return false;
+  return fits;
+}
+
 Status RunSlave(const Args& args, const render::Scene& scene, transport::Transport* net) {
   Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene.store);
+  std::unique_ptr<slave::PeerBlocks> peers;
+  slave::EngineOptions options = args.engine;
+  std::string why;
+  if (store.ok() && UseRemoteBlocks(args, **store, net->size() - 1, &why)) {
+    peers = std::make_unique<slave::PeerBlocks>(net, **store, args.engine.faults);
+    // The share this slave keeps for its peers counts against its budget.
+    if (peers->owned_bytes() >= options.cache_bytes)
+      store = Status::Error(StrFormat("--blocks rem: this slave's share of the store (%.1f MB) "
+                                      "does not fit its --cache-mb (%.1f MB); use --blocks loc "
+                                      "or more slaves", static_cast<double>(peers->owned_bytes()) / 1e6,
+                                      static_cast<double>(options.cache_bytes) / 1e6));
+    else
+      options.cache_bytes -= peers->owned_bytes();
+  }
   Expected<std::unique_ptr<slave::RenderEngine>> engine =
-      store.ok() ? slave::RenderEngine::Create(**store, args.engine)
+      store.ok() ? slave::RenderEngine::Create(**store, options, peers.get())
                  : Expected<std::unique_ptr<slave::RenderEngine>>(store.status());
   if (!engine.ok()) {  // tell the master, which ends the job
     const Status s = engine.status();
@@ -349,7 +397,7 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
     return s;
   }
   const render::MaterialTable materials = render::MaterialTable::Build((*store)->materials(), scene);
-  slave::SlaveNode node(net, engine->get());
+  slave::SlaveNode node(net, engine->get(), peers.get());
   for (size_t f = 0; f < scene.cameras.size(); ++f) {
     const render::Camera camera(scene.cameras[f]);
     slave::RenderStats stats;
@@ -373,6 +421,15 @@ Status RunDistributed(const Args& args, transport::Transport* net) {
     for (size_t f = 0; f < scene->cameras.size(); ++f)
       RAYSTACK_RETURN_IF_ERROR(
           image::CheckWritable(FramePath(output, f, scene->cameras.size(), ".exr")));
+    if (!args.quiet) {  // which block mode the slaves use, and why
+      Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
+      if (store.ok()) {
+        std::string why;
+        const bool rem = UseRemoteBlocks(args, **store, net->size() - 1, &why);
+        std::printf("blocks: %s (--blocks %s; %s)\n", rem ? "rem" : "loc", args.blocks.c_str(),
+                    why.c_str());
+      }
+    }
     return RunMaster(args, *scene, net);
   }
   return RunSlave(args, *scene, net);

@@ -45,14 +45,15 @@ class DistributedCli : public ::testing::Test {
   }
 
   // Renders with `np` ranks (0: without mpirun), 2 ray threads each, a small block cache.
-  ProcessResult Render(const std::string& scene, int np, const std::string& out) {
+  ProcessResult Render(const std::string& scene, int np, const std::string& out,
+                       const std::string& blocks = "loc") {
     std::vector<std::string> argv;
     if (np > 0)
       argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
     for (const std::string& a : {kRaystack, std::string("render"), scene, std::string("--threads"),
                                  std::string("2"), std::string("--cache-mb"), std::string("1"),
                                  std::string("--output"), out, std::string("--no-png"),
-                                 std::string("-q")})
+                                 std::string("--blocks"), blocks, std::string("-q")})
       argv.push_back(a);
     if (np > 0) argv[0] = RAYSTACK_MPIRUN;
     return RunProcess(argv, dir_->path());
@@ -68,15 +69,17 @@ TEST_F(DistributedCli, ImagesEqualTheOneProcessImage) {
     const std::string scene = Scene(integrator);
     const ProcessResult one = Render(scene, 0, dir_->File("one.exr"));
     ASSERT_EQ(one.exit_code, 0) << one.err;
-    for (int np : {1, 3, 5}) {
+    for (const auto& [np, blocks] : std::vector<std::pair<int, std::string>>{
+             {1, "loc"}, {3, "loc"}, {5, "loc"}, {3, "rem"}, {5, "rem"}}) {
       const std::string out = dir_->File("np" + std::to_string(np) + ".exr");
-      const ProcessResult r = Render(scene, np, out);
+      const ProcessResult r = Render(scene, np, out, blocks);
       ASSERT_EQ(r.exit_code, 0) << "np " << np << ": " << r.err << r.out;
       for (const char* frame : {"-0", "-1"}) {  // both cameras
         const std::string a = Slurp(dir_->File(std::string("one") + frame + ".exr"));
         const std::string b = Slurp(dir_->File("np" + std::to_string(np) + frame + ".exr"));
         ASSERT_FALSE(a.empty());
-        EXPECT_TRUE(a == b) << "np " << np << ", frame '" << frame << "', " << integrator;
+        EXPECT_TRUE(a == b) << "np " << np << " " << blocks << ", frame '" << frame << "', "
+                            << integrator;
       }
     }
   }

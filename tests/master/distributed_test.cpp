@@ -12,6 +12,7 @@
 #include "common/wire/message.h"
 #include "master/master_node.h"
 #include "master/tile_scheduler.h"
+#include "slave/peer_blocks.h"
 #include "slave/slave_node.h"
 #include "tests/slave/render_fixture.h"
 
@@ -51,23 +52,28 @@ EngineOptions Options(const store::StoreReader& store) {
 struct JobOutcome {
   Status master;
   std::vector<Status> slaves;
+  std::vector<uint64_t> disk_reads, owned_blocks;  // per slave, with --blocks rem
   std::vector<image::ImageLayers> frames;
   std::vector<master::FrameFigures> figures;
 };
 
 JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, int slaves,
-                  int tile = 8) {
+                  bool rem = false, int tile = 8) {
   JobOutcome out;
   transport::InProcessHub hub(slaves + 1);
   out.slaves.resize(static_cast<size_t>(slaves));
+  out.disk_reads.resize(static_cast<size_t>(slaves));
+  out.owned_blocks.resize(static_cast<size_t>(slaves));
   std::vector<std::thread> threads;
   for (int r = 1; r <= slaves; ++r) {
     threads.emplace_back([&, r] {
       auto net = hub.Endpoint(r);
-      auto engine = slave::RenderEngine::Create(store, Options(store));
+      std::unique_ptr<slave::PeerBlocks> peers;
+      if (rem) peers = std::make_unique<slave::PeerBlocks>(net.get(), store, slave::FaultOptions{});
+      auto engine = slave::RenderEngine::Create(store, Options(store), peers.get());
       ASSERT_TRUE(engine.ok());
       const render::MaterialTable materials = render::MaterialTable::Build(store.materials(), scene);
-      slave::SlaveNode node(net.get(), engine->get());
+      slave::SlaveNode node(net.get(), engine->get(), peers.get());
       Status& status = out.slaves[static_cast<size_t>(r - 1)];
       for (size_t f = 0; f < scene.cameras.size() && status.ok(); ++f) {
         slave::RenderStats stats;
@@ -75,6 +81,12 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
                                render::Camera(scene.cameras[f]), &stats);
       }
       if (status.ok()) status = node.WaitForShutdown().status();
+      if (peers) {
+        out.disk_reads[static_cast<size_t>(r - 1)] = peers->disk_reads();
+        for (uint32_t b = 0; b < store.blocks().size(); ++b)
+          out.owned_blocks[static_cast<size_t>(r - 1)] +=
+              slave::BlockOwner(b, static_cast<uint32_t>(store.blocks().size()), slaves) == r;
+      }
     });
   }
   auto net = hub.Endpoint(0);
@@ -95,12 +107,15 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
   return out;
 }
 
-class DistributedImage : public ::testing::TestWithParam<render::IntegratorType> {};
+class DistributedImage
+    : public ::testing::TestWithParam<std::tuple<render::IntegratorType, bool>> {};
 
+// loc (every slave reads the store) and rem (blocks from their owners' memories).
 TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
   TestStore s = BuildGenerated("spheres:30000");
-  render::Scene scene = TestScene(*s.reader, GetParam());
-  if (GetParam() == render::IntegratorType::kPath) scene.default_material.type = render::MaterialType::kDiffuse;
+  const auto [integrator, rem] = GetParam();
+  render::Scene scene = TestScene(*s.reader, integrator);
+  if (integrator == render::IntegratorType::kPath) scene.default_material.type = render::MaterialType::kDiffuse;
   // The reference: one process, one engine, frame after frame.
   std::vector<image::ImageLayers> reference;
   for (size_t f = 0; f < scene.cameras.size(); ++f) {
@@ -111,9 +126,24 @@ TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
     reference.push_back(r.image);
   }
   for (int slaves : {1, 2, 4}) {
-    const JobOutcome job = RunJob(*s.reader, scene, slaves);
+    const JobOutcome job = RunJob(*s.reader, scene, slaves, rem);
     ASSERT_TRUE(job.master.ok()) << job.master.message();
     for (const Status& st : job.slaves) ASSERT_TRUE(st.ok()) << st.message();
+    if (rem) {
+      // Each block is read from disk at most once in the whole job, by its owner.
+      uint64_t reads = 0;
+      for (int i = 0; i < slaves; ++i) {
+        EXPECT_LE(job.disk_reads[i], job.owned_blocks[i]) << "slave " << i + 1;
+        reads += job.disk_reads[i];
+      }
+      EXPECT_LE(reads, s.reader->blocks().size());
+      EXPECT_GT(reads, 0u);
+      if (slaves > 1) {
+        uint64_t from_peers = 0;
+        for (const auto& x : job.figures[0].slaves) from_peers += x.done.bytes_from_peers;
+        EXPECT_GT(from_peers, 0u);
+      }
+    }
     ASSERT_EQ(job.frames.size(), scene.cameras.size());
     for (size_t f = 0; f < scene.cameras.size(); ++f) {
       EXPECT_TRUE(SameBits(job.frames[f].rgba, reference[f].rgba)) << slaves << " slaves, frame " << f;
@@ -131,9 +161,10 @@ TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Integrators, DistributedImage,
-                         ::testing::Values(render::IntegratorType::kWhitted,
-                                           render::IntegratorType::kPath));
+INSTANTIATE_TEST_SUITE_P(IntegratorsAndBlocks, DistributedImage,
+                         ::testing::Combine(::testing::Values(render::IntegratorType::kWhitted,
+                                                              render::IntegratorType::kPath),
+                                            ::testing::Bool()));
 
 TEST(TileScheduler, EveryTileOnceEachSlaveStartsInItsOwnRegion) {
   const std::vector<render::Tile> tiles = render::HilbertTiles(200, 120, 16);
