@@ -9,14 +9,29 @@
 namespace raystack::wire {
 namespace {
 
+// A whole message: the header, `head` (the payload's fixed part) and `tail` (its records or
+// bytes, if any).
+std::vector<uint8_t> Assemble(uint32_t sender, MessageType type, std::span<const uint8_t> head,
+                              std::span<const uint8_t> tail = {}) {
+  const uint64_t payload = head.size() + tail.size();
+  CHECK(payload <= 0xffffffffu);
+  std::vector<uint8_t> bytes(sizeof(MessageHeader) + payload);
+  const MessageHeader h{kMagic, kProtocolVersion, static_cast<uint16_t>(type), sender,
+                        static_cast<uint32_t>(payload)};
+  std::memcpy(bytes.data(), &h, sizeof h);
+  if (!head.empty()) std::memcpy(bytes.data() + sizeof h, head.data(), head.size());
+  if (!tail.empty()) std::memcpy(bytes.data() + sizeof h + head.size(), tail.data(), tail.size());
+  return bytes;
+}
+
+template <typename T>
+std::span<const uint8_t> BytesOf(const T& value) {
+  return {reinterpret_cast<const uint8_t*>(&value), sizeof value};
+}
+
 template <typename T>
 std::vector<uint8_t> Build(uint32_t sender, MessageType type, const T& payload) {
-  std::vector<uint8_t> bytes(sizeof(MessageHeader) + sizeof(T));
-  const MessageHeader h{kMagic, kProtocolVersion, static_cast<uint16_t>(type), sender,
-                        static_cast<uint32_t>(sizeof(T))};
-  std::memcpy(bytes.data(), &h, sizeof h);
-  std::memcpy(bytes.data() + sizeof h, &payload, sizeof(T));
-  return bytes;
+  return Assemble(sender, type, BytesOf(payload));
 }
 
 // Payload size a type must have (pixel batches: their header's; checked separately).
@@ -82,40 +97,21 @@ std::vector<uint8_t> Encode(uint32_t sender, const BlockRequest& m) {
 
 std::vector<uint8_t> EncodeBlockData(uint32_t sender, const BlockDataHeader& d,
                                      std::span<const uint8_t> stored) {
-  const uint64_t payload = sizeof d + stored.size();
-  CHECK(payload <= 0xffffffffu);
-  std::vector<uint8_t> bytes(sizeof(MessageHeader) + payload);
-  const MessageHeader h{kMagic, kProtocolVersion, static_cast<uint16_t>(MessageType::kBlockData),
-                        sender, static_cast<uint32_t>(payload)};
-  std::memcpy(bytes.data(), &h, sizeof h);
-  std::memcpy(bytes.data() + sizeof h, &d, sizeof d);
-  if (!stored.empty()) std::memcpy(bytes.data() + sizeof h + sizeof d, stored.data(), stored.size());
-  return bytes;
+  return Assemble(sender, MessageType::kBlockData, BytesOf(d), stored);
 }
 
 std::vector<uint8_t> EncodeError(uint32_t sender, const std::string& text) {
   const size_t n = std::min<size_t>(text.size(), kMaxErrorText);
-  std::vector<uint8_t> bytes(sizeof(MessageHeader) + n);
-  const MessageHeader h{kMagic, kProtocolVersion, static_cast<uint16_t>(MessageType::kError),
-                        sender, static_cast<uint32_t>(n)};
-  std::memcpy(bytes.data(), &h, sizeof h);
-  std::memcpy(bytes.data() + sizeof h, text.data(), n);
-  return bytes;
+  return Assemble(sender, MessageType::kError,
+                  {reinterpret_cast<const uint8_t*>(text.data()), n});
 }
 
 std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
                                       std::span<const render::SampleResult> samples) {
   CHECK(samples.size() <= kMaxBatchSamples);
   const PixelBatchHeader b{frame, static_cast<uint32_t>(samples.size())};
-  const uint64_t payload = sizeof b + samples.size_bytes();
-  std::vector<uint8_t> bytes(sizeof(MessageHeader) + payload);
-  const MessageHeader h{kMagic, kProtocolVersion, static_cast<uint16_t>(MessageType::kPixelBatch),
-                        sender, static_cast<uint32_t>(payload)};
-  std::memcpy(bytes.data(), &h, sizeof h);
-  std::memcpy(bytes.data() + sizeof h, &b, sizeof b);
-  if (!samples.empty())
-    std::memcpy(bytes.data() + sizeof h + sizeof b, samples.data(), samples.size_bytes());
-  return bytes;
+  return Assemble(sender, MessageType::kPixelBatch, BytesOf(b),
+                  {reinterpret_cast<const uint8_t*>(samples.data()), samples.size_bytes()});
 }
 
 Expected<Message> Decode(std::span<const uint8_t> bytes, int from) {
