@@ -91,7 +91,7 @@ Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
     }
     if (std::chrono::steady_clock::now() >= deadline) return std::optional<transport::Envelope>();
     std::this_thread::sleep_for(pause);
-    pause = std::min(pause * 2, std::chrono::microseconds(1000));
+    pause = std::min(pause * 2, std::chrono::microseconds(100));
   }
 }
 
