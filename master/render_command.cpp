@@ -391,10 +391,11 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
   Expected<std::unique_ptr<slave::RenderEngine>> engine =
       store.ok() ? slave::RenderEngine::Create(**store, options, peers.get())
                  : Expected<std::unique_ptr<slave::RenderEngine>>(store.status());
-  if (!engine.ok()) {  // tell the master, which ends the job
+  if (!engine.ok()) {  // tell the master, which reports it and ends the job on every rank
     const Status s = engine.status();
     (void)net->Send(0, wire::EncodeError(static_cast<uint32_t>(net->rank()), s.message()));
-    return s;
+    slave::SlaveNode waiting(net, nullptr);  // only to hear (and acknowledge) the shutdown
+    return waiting.WaitForShutdown(std::chrono::seconds(30)).ok() ? OkStatus() : s;
   }
   const render::MaterialTable materials = render::MaterialTable::Build((*store)->materials(), scene);
   slave::SlaveNode node(net, engine->get(), peers.get());
