@@ -22,18 +22,18 @@ struct RayRecord {
   Vec3f weight;     // path throughput (radiance rays) or the contribution if unoccluded (shadow)
   uint32_t normal;  // shading normal at the closest hit, octahedral, facing the ray's origin
   uint16_t material;  // material at the closest hit (16 bits of store::kNoMaterial = none)
-  uint8_t bits;       // RayType in the low 4 bits, then kBackFaceBit, kOccludedBit
+  uint8_t type;       // RayType
   uint8_t depth;      // bounces so far
-  uint16_t priority;   // the pixel's priority, inherited by every child
-  uint16_t reserved;
-  uint32_t reserved2;  // (a waiting ray needs no walk state: its queue names its block)
+  uint16_t priority;  // the pixel's priority, inherited by every child
+  uint8_t flags;      // kHitBackFace, kOccluded
+  uint8_t reserved[5];  // (no walk state: the queue a ray waits in names its block)
 };
 static_assert(sizeof(RayRecord) == 64, "a waiting ray costs 64 bytes; keep it so");
 
-inline constexpr uint8_t kBackFaceBit = 0x10;  // the closest hit is on the triangle's back side
-inline constexpr uint8_t kOccludedBit = 0x20;  // a shadow ray found a blocker
+inline constexpr uint8_t kHitBackFace = 1;  // the closest hit is on the triangle's back side
+inline constexpr uint8_t kOccluded = 2;     // a shadow ray found a blocker
 
-inline RayType TypeOf(const RayRecord& r) { return static_cast<RayType>(r.bits & 0x0f); }
+inline RayType TypeOf(const RayRecord& r) { return static_cast<RayType>(r.type); }
 inline bool IsShadow(const RayRecord& r) { return TypeOf(r) == RayType::kShadow; }
 
 // Octahedral unit-vector encoding in 2 x 16 bits (error < 1e-4 rad): the normal rides along

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <limits>
 
 #include "common/base/log.h"
 #include "common/render/pixel_priority.h"
@@ -68,7 +67,7 @@ RayRecord RayThread::PrimaryRay(int x, int y, uint32_t sample, uint32_t slot,
   rec.slot = slot;
   rec.weight = {1, 1, 1};
   rec.material = store::kNoMaterial16;
-  rec.bits = static_cast<uint8_t>(RayType::kPrimary);
+  rec.type = static_cast<uint8_t>(RayType::kPrimary);
   rec.depth = 0;
   rec.priority = priority;
   return rec;
@@ -183,7 +182,7 @@ void RecordHit(const store::BlockView& view, const Hit& hit, RayRecord* ray) {
   ray->tmax = hit.t;
   ray->hit_id = hit.triangle_id;
   ray->normal = EncodeNormal(Normalize(ns));
-  ray->bits = static_cast<uint8_t>((ray->bits & ~kBackFaceBit) | (back ? kBackFaceBit : 0));
+  ray->flags = back ? kHitBackFace : 0;
   const uint32_t m = view.Material(hit.local_triangle);
   ray->material = m == store::kNoMaterial ? store::kNoMaterial16 : static_cast<uint16_t>(m);
 }
@@ -259,7 +258,6 @@ void RayThread::TraceChunk(const store::BlockView& view, uint32_t block, RayReco
     const Hit& h = batch_hits_[k];
     if (h.triangle_id != r.hit_id || h.t != r.tmax) RecordHit(view, h, &r);
   }
-  const size_t radiance = batch_index_.size();
   batch_rays_.clear();
   batch_index_.clear();
   for (uint32_t i = 0; i < count; ++i) {
@@ -270,11 +268,10 @@ void RayThread::TraceChunk(const store::BlockView& view, uint32_t block, RayReco
   shadow_flags_.resize(batch_rays_.size());
   view.OccludedBatch(batch_rays_, shadow_flags_);
   for (size_t k = 0; k < batch_index_.size(); ++k)
-    if (shadow_flags_[k]) rays[batch_index_[k]].bits |= kOccludedBit;
-  (void)radiance;
+    if (shadow_flags_[k]) rays[batch_index_[k]].flags |= kOccluded;
   for (uint32_t i = 0; i < count; ++i) {
     RayRecord r = rays[i];
-    if (r.bits & kOccludedBit) {
+    if (r.flags & kOccluded) {
       RayDone(r.slot);  // blocked: the light contributes nothing
       continue;
     }

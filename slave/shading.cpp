@@ -65,7 +65,7 @@ void Shader::Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f di
   r.slot = parent.slot;
   r.weight = weight;
   r.material = store::kNoMaterial16;
-  r.bits = static_cast<uint8_t>(type);
+  r.type = static_cast<uint8_t>(type);
   r.depth = static_cast<uint8_t>(type == RayType::kShadow ? parent.depth : parent.depth + 1);
   r.priority = parent.priority;
   out->children.push_back(r);
@@ -153,7 +153,7 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
     }
     case MaterialType::kGlass: {
       if (!can_bounce || !NonZero(m.albedo)) break;
-      const bool entering = !(ray.bits & kBackFaceBit);
+      const bool entering = !(ray.flags & kHitBackFace);
       const float eta = entering ? 1.0f / m.ior : m.ior;
       const float cos_i = std::min(1.0f, std::max(0.0f, -Dot(ray.direction, n)));
       float cos_t;
