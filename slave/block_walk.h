@@ -9,10 +9,9 @@
 //
 // A waiting ray keeps no walk state: the queue it waits in names its block, and the next block
 // is that block's successor in the walk, found by climbing from the block's leaf only as far
-// as a later sibling exists (usually a level or two), never from the root again. Children's
-// slab distances come from 9 planes per axis computed once per node, tested 4 at a time
-// (SSE2), with IntersectBox's exact expressions and slack, so no hit on a cell boundary is
-// lost.
+// as a later sibling exists (usually a level or two), never from the root again. Children are
+// tested with the store's OctreeChildHits (IntersectBox's exact expressions and slack, 4
+// children at a time), so no hit on a cell boundary is lost.
 //
 // Thread-safe after construction (read-only).
 
@@ -27,10 +26,6 @@
 #include "common/geometry/ray.h"
 #include "common/store/format.h"
 #include "common/store/octree.h"
-
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
 
 namespace raystack::slave {
 
@@ -99,61 +94,8 @@ inline bool VisitsBefore(float enter_a, float exit_a, int child_a, float enter_b
 
 inline uint32_t BlockWalk::Children(const Slabs& s, uint32_t first_child, const Cell& cell,
                                     float mid[3], float enter[8], float exit[8]) const {
-  constexpr float kInf = std::numeric_limits<float>::infinity();
-  // Children's faces lie on 3 planes per axis (lower, mid, upper): 9 near and 9 far slab
-  // distances, combined per child, give each child exactly what a box test of its own would.
-  float t_near[3][2], t_far[3][2];  // [axis][half of the child along that axis]
-  for (int a = 0; a < 3; ++a) {
-    mid[a] = (cell.lower[a] + cell.upper[a]) * 0.5f;  // as ChildCell computes it
-    const float planes[3] = {cell.lower[a], mid[a], cell.upper[a]};
-    float tn[3], tf[3];
-    for (int k = 0; k < 3; ++k) {
-      tn[k] = (planes[k] - s.box.origin[a]) * s.box.inv_dir[a];
-      tf[k] = (planes[k] - s.box.origin[a]) * s.box.inv_dir[a] * bvh_internal::kFarScale;
-    }
-    for (int h = 0; h < 2; ++h) {
-      t_near[a][h] = tn[s.box.dir_is_neg[a] ? h + 1 : h];
-      t_far[a][h] = tf[s.box.dir_is_neg[a] ? h : h + 1];
-    }
-  }
-  uint32_t keep = 0;
-  for (int i = 0; i < 8; ++i)
-    keep |= uint32_t{nodes_[first_child + i].kind != store::kOctreeEmpty} << i;
-#if defined(__SSE2__)
-  const __m128 nx = _mm_setr_ps(t_near[0][0], t_near[0][1], t_near[0][0], t_near[0][1]);
-  const __m128 ny = _mm_setr_ps(t_near[1][0], t_near[1][0], t_near[1][1], t_near[1][1]);
-  const __m128 fx = _mm_setr_ps(t_far[0][0], t_far[0][1], t_far[0][0], t_far[0][1]);
-  const __m128 fy = _mm_setr_ps(t_far[1][0], t_far[1][0], t_far[1][1], t_far[1][1]);
-  const __m128 tmin = _mm_set1_ps(s.tmin), inf = _mm_set1_ps(kInf), t1 = _mm_set1_ps(s.t1);
-  for (int z = 0; z < 2; ++z) {  // children 0-3 (lower z half), 4-7 (upper)
-    // MAXPS(a, b) is a > b ? a : b and MINPS(a, b) is a < b ? a : b: IntersectBox's selects,
-    // in its axis order, so NaN slabs (a ray in a cell's plane) are dropped the same way.
-    __m128 e = _mm_max_ps(nx, tmin);
-    e = _mm_max_ps(ny, e);
-    e = _mm_max_ps(_mm_set1_ps(t_near[2][z]), e);
-    __m128 x = _mm_min_ps(fx, inf);
-    x = _mm_min_ps(fy, x);
-    x = _mm_min_ps(_mm_set1_ps(t_far[2][z]), x);
-    const uint32_t missed =
-        static_cast<uint32_t>(_mm_movemask_ps(_mm_cmpgt_ps(e, _mm_min_ps(x, t1))));
-    keep &= ~(missed << (4 * z));
-    _mm_storeu_ps(enter + 4 * z, e);
-    _mm_storeu_ps(exit + 4 * z, x);
-  }
-#else
-  for (int i = 0; i < 8; ++i) {
-    float e = s.tmin, x = kInf;
-    for (int a = 0; a < 3; ++a) {
-      const int h = (i >> a) & 1;
-      e = t_near[a][h] > e ? t_near[a][h] : e;
-      x = t_far[a][h] < x ? t_far[a][h] : x;
-    }
-    if (e > (x < s.t1 ? x : s.t1)) keep &= ~(1u << i);
-    enter[i] = e;
-    exit[i] = x;
-  }
-#endif
-  return keep;
+  return store::OctreeChildHits(s.box, s.tmin, s.t1, cell.lower, cell.upper,
+                                &nodes_[first_child], mid, enter, exit);
 }
 
 inline void BlockWalk::Push(Frame* f, uint32_t keep, const float enter[8], const float exit[8]) {

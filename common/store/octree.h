@@ -3,13 +3,19 @@
 // empty, and which blocks fill each leaf. It answers two questions for a ray: which leaves it
 // crosses, front to back, and where each starts and ends along the ray.
 
+#include <bit>
 #include <cstdint>
+#include <limits>
 #include <span>
 
 #include "common/geometry/bounds.h"
 #include "common/geometry/bvh.h"
 #include "common/geometry/ray.h"
 #include "common/store/format.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace raystack::store {
 
@@ -23,6 +29,70 @@ inline Bounds3f ChildCell(const Bounds3f& parent, int i) {
   c.upper = {(i & 1) ? parent.upper.x : mid.x, (i & 2) ? parent.upper.y : mid.y,
              (i & 4) ? parent.upper.z : mid.z};
   return c;
+}
+
+// The children of an inner node with cell [lower, upper] (`children`: its 8 child nodes) that
+// `s`'s ray meets within [tmin, t1]: returns their mask (bit i: child i, non-empty ones only)
+// and writes each child's entry and (slack-widened, unclamped) exit distance, and the node's
+// mid planes as ChildCell computes them. Every child face lies on one of 3 planes per axis
+// (lower, mid, upper), so 9 near and 9 far slab distances, computed with IntersectBox's exact
+// expressions and combined per child in its axis order (max/min selects, so NaN slabs of a ray
+// lying in a plane are dropped alike), give each child exactly what its own box test would.
+// SSE2 tests 4 children at a time.
+inline uint32_t OctreeChildHits(const RayBoxSetup& s, float tmin, float t1, const float lower[3],
+                                const float upper[3], const OctreeNode* children, float mid[3],
+                                float enter[8], float exit[8]) {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  float t_near[3][2], t_far[3][2];  // [axis][half of the child along that axis]
+  for (int a = 0; a < 3; ++a) {
+    mid[a] = (lower[a] + upper[a]) * 0.5f;
+    const float planes[3] = {lower[a], mid[a], upper[a]};
+    float tn[3], tf[3];
+    for (int k = 0; k < 3; ++k) {
+      tn[k] = (planes[k] - s.origin[a]) * s.inv_dir[a];
+      tf[k] = (planes[k] - s.origin[a]) * s.inv_dir[a] * bvh_internal::kFarScale;
+    }
+    for (int h = 0; h < 2; ++h) {
+      t_near[a][h] = tn[s.dir_is_neg[a] ? h + 1 : h];
+      t_far[a][h] = tf[s.dir_is_neg[a] ? h : h + 1];
+    }
+  }
+  uint32_t keep = 0;
+  for (int i = 0; i < 8; ++i) keep |= uint32_t{children[i].kind != kOctreeEmpty} << i;
+#if defined(__SSE2__)
+  const __m128 nx = _mm_setr_ps(t_near[0][0], t_near[0][1], t_near[0][0], t_near[0][1]);
+  const __m128 ny = _mm_setr_ps(t_near[1][0], t_near[1][0], t_near[1][1], t_near[1][1]);
+  const __m128 fx = _mm_setr_ps(t_far[0][0], t_far[0][1], t_far[0][0], t_far[0][1]);
+  const __m128 fy = _mm_setr_ps(t_far[1][0], t_far[1][0], t_far[1][1], t_far[1][1]);
+  const __m128 t0v = _mm_set1_ps(tmin), inf = _mm_set1_ps(kInf), t1v = _mm_set1_ps(t1);
+  for (int z = 0; z < 2; ++z) {  // children 0-3 (lower z half), 4-7 (upper)
+    // MAXPS(a, b) is a > b ? a : b and MINPS(a, b) is a < b ? a : b: the scalar selects.
+    __m128 e = _mm_max_ps(nx, t0v);
+    e = _mm_max_ps(ny, e);
+    e = _mm_max_ps(_mm_set1_ps(t_near[2][z]), e);
+    __m128 x = _mm_min_ps(fx, inf);
+    x = _mm_min_ps(fy, x);
+    x = _mm_min_ps(_mm_set1_ps(t_far[2][z]), x);
+    const uint32_t missed =
+        static_cast<uint32_t>(_mm_movemask_ps(_mm_cmpgt_ps(e, _mm_min_ps(x, t1v))));
+    keep &= ~(missed << (4 * z));
+    _mm_storeu_ps(enter + 4 * z, e);
+    _mm_storeu_ps(exit + 4 * z, x);
+  }
+#else
+  for (int i = 0; i < 8; ++i) {
+    float e = tmin, x = kInf;
+    for (int a = 0; a < 3; ++a) {
+      const int h = (i >> a) & 1;
+      e = t_near[a][h] > e ? t_near[a][h] : e;
+      x = t_far[a][h] < x ? t_far[a][h] : x;
+    }
+    if (e > (x < t1 ? x : t1)) keep &= ~(1u << i);
+    enter[i] = e;
+    exit[i] = x;
+  }
+#endif
+  return keep;
 }
 
 class OctreeView {
@@ -77,42 +147,17 @@ void OctreeView::VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const {
       continue;
     }
     if (node.kind != kOctreeInner) continue;
-    // The midpoint as ChildCell computes it, so child cells agree bit for bit.
-    const float mid[3] = {(item.lower[0] + item.upper[0]) * 0.5f,
-                          (item.lower[1] + item.upper[1]) * 0.5f,
-                          (item.lower[2] + item.upper[2]) * 0.5f};
-    // Every child face lies on one of 3 planes per axis (lower, mid, upper), so the slab
-    // distances IntersectBox would compute for the 8 children are 9 near and 9 far values,
-    // computed once here with IntersectBox's exact expressions and combined per child in
-    // its order: the same results for a fraction of the work.
-    float t_near[3][3], t_far[3][3];  // [axis][plane: 0 lower, 1 mid, 2 upper]
-    for (int a = 0; a < 3; ++a) {
-      const float planes[3] = {item.lower[a], mid[a], item.upper[a]};
-      for (int k = 0; k < 3; ++k) {
-        t_near[a][k] = (planes[k] - setup.origin[a]) * setup.inv_dir[a];
-        t_far[a][k] = (planes[k] - setup.origin[a]) * setup.inv_dir[a] * bvh_internal::kFarScale;
-      }
-    }
-    const float t1_limit = *tmax * bvh_internal::kFarScale;
+    float mid[3], enter[8], exit[8];
+    uint32_t keep = OctreeChildHits(setup, ray.tmin, *tmax * bvh_internal::kFarScale, item.lower,
+                                    item.upper, &nodes_[node.first], mid, enter, exit);
     // Children the ray meets, sorted far to near so the nearest is popped first.
     Item hits[8];
     int n = 0;
-    for (int i = 0; i < 8; ++i) {
-      if (nodes_[node.first + i].kind == kOctreeEmpty) continue;
-      float enter = ray.tmin, exit = t1_limit;
-      for (int a = 0; a < 3; ++a) {
-        // Child i spans planes [0, 1] or [1, 2] on axis a; the near one depends on the sign.
-        const int half = (i >> a) & 1;
-        const int near_plane = setup.dir_is_neg[a] ? half + 1 : half;
-        const int far_plane = setup.dir_is_neg[a] ? half : half + 1;
-        const float tn = t_near[a][near_plane], tf = t_far[a][far_plane];
-        enter = tn > enter ? tn : enter;
-        exit = tf < exit ? tf : exit;
-      }
-      if (enter > exit) continue;
+    for (; keep; keep &= keep - 1) {
+      const int i = std::countr_zero(keep);
       Item& c = hits[n++];
       c.node = node.first + static_cast<uint32_t>(i);
-      c.t_enter = enter;
+      c.t_enter = enter[i];
       for (int a = 0; a < 3; ++a) {
         const bool upper_half = (i >> a) & 1;
         c.lower[a] = upper_half ? mid[a] : item.lower[a];
