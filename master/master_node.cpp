@@ -102,7 +102,6 @@ Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, ren
         render::Tile t;
         if (scheduler.Next(e.from - 1, &t)) {
           a.x0 = t.x0, a.y0 = t.y0, a.x1 = t.x1, a.y1 = t.y1;
-          ++from.done.tiles;  // counted here; the slave's own count replaces it when done
         } else {
           a.none = 1;
         }

@@ -1,5 +1,6 @@
 #include "master/render_command.h"
 
+#include <atomic>
 #include <charconv>
 #include <chrono>
 #include <cstdio>
@@ -168,6 +169,42 @@ std::string FramePath(const std::string& path, size_t frame, size_t frames, cons
   return stem;
 }
 
+Status WriteStats(const std::string& path, const std::string& json) {
+  if (path.empty()) return OkStatus();
+  std::ofstream out(path);
+  out << json;
+  if (!out) return Status::Error(path + ": cannot write the statistics");
+  return OkStatus();
+}
+
+std::string OutputOf(const Args& args, const render::Scene& scene) {
+  return args.output.empty() ? scene.output : args.output;
+}
+
+// Fails before any rendering when a frame's EXR could not be written.
+Status CheckOutputs(const Args& args, const render::Scene& scene) {
+  const size_t frames = scene.cameras.size();
+  for (size_t f = 0; f < frames; ++f)
+    RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(OutputOf(args, scene), f, frames, ".exr")));
+  return OkStatus();
+}
+
+// Writes frame `f`'s EXR (and the PNG quick look) from the film; returns the EXR's path.
+Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, size_t f,
+                                 const render::Film& film) {
+  const size_t frames = scene.cameras.size();
+  const std::string output = OutputOf(args, scene);
+  const image::ImageLayers image = film.Resolve();
+  const std::string exr = FramePath(output, f, frames, ".exr");
+  RAYSTACK_RETURN_IF_ERROR(image::WriteExr(exr, image));
+  if (args.png)
+    RAYSTACK_RETURN_IF_ERROR(image::WritePng(FramePath(output, f, frames, ".png"), image, args.exposure));
+  if (film.nonfinite_dropped() > 0)
+    LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
+                static_cast<unsigned long long>(film.nonfinite_dropped()));
+  return exr;
+}
+
 // Writes the film to the frame's EXR every `every_s` seconds while it renders (atomically, so
 // a reader never sees half a file and a crash leaves the last checkpoint).
 class Checkpoints {
@@ -191,10 +228,9 @@ class Checkpoints {
 Status Run(const Args& args) {
   Expected<render::Scene> scene = render::LoadScene(args.scene);
   if (!scene.ok()) return scene.status();
-  const std::string output = args.output.empty() ? scene->output : args.output;
+  const std::string output = OutputOf(args, *scene);
   const size_t frames = scene->cameras.size();
-  for (size_t f = 0; f < frames; ++f)
-    RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(output, f, frames, ".exr")));
+  RAYSTACK_RETURN_IF_ERROR(CheckOutputs(args, *scene));
 
   Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
   if (!store.ok()) return store.status();
@@ -217,57 +253,37 @@ Status Run(const Args& args) {
     {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
+      std::atomic<bool> finished{false};
       std::thread render([&] {
         status = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
+        finished.store(true);
       });
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
       uint64_t shown = 0;
-      for (;;) {
+      while (!finished.load()) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
         const uint64_t done = film.samples_merged();
         progress.Update(done - shown);
         shown = done;
         checkpoints.Maybe(film);
-        if (done >= total) break;
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
-        if (status.ok() && film.samples_merged() == shown && !render.joinable()) break;
-        // RenderFrame's end is seen through the film; an error ends it early.
-        if (!status.ok()) break;
       }
       render.join();
       progress.Update(film.samples_merged() - shown);
     }
     RAYSTACK_RETURN_IF_ERROR(status);
-    const image::ImageLayers image = film.Resolve();
-    const std::string exr = FramePath(output, f, frames, ".exr");
-    RAYSTACK_RETURN_IF_ERROR(image::WriteExr(exr, image));
-    if (args.png) RAYSTACK_RETURN_IF_ERROR(image::WritePng(FramePath(output, f, frames, ".png"), image, args.exposure));
-    if (film.nonfinite_dropped() > 0)
-      LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
-                  static_cast<unsigned long long>(film.nonfinite_dropped()));
-    if (!args.quiet) std::printf("frame %zu: %s\n  wrote %s\n", f, stats.ToText().c_str(), exr.c_str());
+    Expected<std::string> exr = WriteFrame(args, *scene, f, film);
+    if (!exr.ok()) return exr.status();
+    if (!args.quiet) std::printf("frame %zu: %s\n  wrote %s\n", f, stats.ToText().c_str(), exr->c_str());
     stats_json += stats.ToJson();
     if (f + 1 < frames) stats_json += ",";
   }
-  stats_json += "]\n";
-  if (!args.stats.empty()) {
-    std::ofstream out(args.stats);
-    out << stats_json;
-    if (!out) return Status::Error(args.stats + ": cannot write the statistics");
-  }
-  return OkStatus();
+  return WriteStats(args.stats, stats_json + "]\n");
 }
 
 // ---------------------------------------------------------------------------------------------
 // Under mpirun with more than one rank: rank 0 is the master (tiles, film, output), ranks 1..N
 // the slaves (a render engine each). Every rank reads the scene file; only slaves open the
 // store.
-
-void WriteStats(const std::string& path, const std::string& json) {
-  if (path.empty()) return;
-  std::ofstream out(path);
-  out << json;
-  if (!out) LOG_ERROR("render", "%s: cannot write the statistics", path.c_str());
-}
 
 std::string FiguresJson(size_t frame, const FrameFigures& f) {
   std::string s = StrFormat("{\n  \"frame\": %zu,\n  \"seconds\": %g,\n  \"imbalance\": %g,"
@@ -296,7 +312,7 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
 }
 
 Status RunMaster(const Args& args, const render::Scene& scene, transport::Transport* net) {
-  const std::string output = args.output.empty() ? scene.output : args.output;
+  const std::string output = OutputOf(args, scene);
   const size_t frames = scene.cameras.size();
   MasterNode master(net);
   std::string json = "[\n";
@@ -322,15 +338,12 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                                },
                                &figures);
     }
-    if (!status.ok()) {
+    Expected<std::string> exr = status.ok() ? WriteFrame(args, scene, f, film)
+                                            : Expected<std::string>(status);
+    if (!exr.ok()) {  // every rank ends, none is left waiting
       master.Shutdown(1);
-      return status;
+      return exr.status();
     }
-    const image::ImageLayers image = film.Resolve();
-    const std::string exr = FramePath(output, f, frames, ".exr");
-    RAYSTACK_RETURN_IF_ERROR(image::WriteExr(exr, image));
-    if (args.png)
-      RAYSTACK_RETURN_IF_ERROR(image::WritePng(FramePath(output, f, frames, ".png"), image, args.exposure));
     if (!args.quiet) {
       std::printf("frame %zu: %d slaves, %.3f s, imbalance %.3f\n", f, net->size() - 1,
                   figures.seconds, figures.imbalance());
@@ -346,13 +359,12 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                     static_cast<double>(s.done.bytes_from_peers) / 1e6,
                     static_cast<double>(s.done.bytes_to_peers) / 1e6,
                     static_cast<double>(s.bytes_received) / 1e6);
-      std::printf("  wrote %s\n", exr.c_str());
+      std::printf("  wrote %s\n", exr->c_str());
     }
     json += FiguresJson(f, figures) + (f + 1 < frames ? ",\n" : "\n");
   }
   if (!master.Shutdown(0)) LOG_WARNING("master", "a slave did not acknowledge the end of the job");
-  WriteStats(args.stats, json + "]\n");
-  return OkStatus();
+  return WriteStats(args.stats, json + "]\n");
 }
 
 // --blocks auto: rem when each slave's share of the store (stored bytes) fits in half of its
@@ -418,10 +430,10 @@ Status RunDistributed(const Args& args, transport::Transport* net) {
   Expected<render::Scene> scene = render::LoadScene(args.scene);
   if (!scene.ok()) return scene.status();
   if (net->rank() == 0) {
-    const std::string output = args.output.empty() ? scene->output : args.output;
-    for (size_t f = 0; f < scene->cameras.size(); ++f)
-      RAYSTACK_RETURN_IF_ERROR(
-          image::CheckWritable(FramePath(output, f, scene->cameras.size(), ".exr")));
+    if (Status s = CheckOutputs(args, *scene); !s.ok()) {  // before the slaves start a frame
+      MasterNode(net).Shutdown(1);
+      return s;
+    }
     if (!args.quiet) {  // which block mode the slaves use, and why
       Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
       if (store.ok()) {
