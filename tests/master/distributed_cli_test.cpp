@@ -8,6 +8,7 @@
 
 #include "common/base/temp_dir.h"
 #include "tests/prep/run_process.h"
+#include "tests/support/store_dir_fixture.h"
 
 namespace raystack::testing {
 namespace {
@@ -17,20 +18,11 @@ using prep::testing::ProcessResult;
 using prep::testing::RunProcess;
 using prep::testing::Slurp;
 
-const std::string kRaystack = RAYSTACK_BINARY_DIR "/master/raystack";
+const std::string& kRaystack = kRaystackBinary;
 
-class DistributedCli : public ::testing::Test {
+class DistributedCli : public StoreDirFixture {
  protected:
-  void SetUp() override {
-    Expected<TempDir> dir = TempDir::Create();
-    ASSERT_TRUE(dir.ok());
-    dir_ = std::make_unique<TempDir>(std::move(*dir));
-    const ProcessResult prep = RunProcess(
-        {kPrepBinary, "--generate", "spheres:30000", "-o", dir_->File("store"),
-         "--target-block-kb", "8", "-q"},
-        dir_->path());
-    ASSERT_EQ(prep.exit_code, 0) << prep.err;
-  }
+  void SetUp() override { MakeStore("spheres:30000"); }
 
   std::string Scene(const std::string& integrator) {
     const std::string path = dir_->File("scene.json");
@@ -58,8 +50,6 @@ class DistributedCli : public ::testing::Test {
     if (np > 0) argv[0] = RAYSTACK_MPIRUN;
     return RunProcess(argv, dir_->path());
   }
-
-  std::unique_ptr<TempDir> dir_;
 };
 
 TEST_F(DistributedCli, ImagesEqualTheOneProcessImage) {

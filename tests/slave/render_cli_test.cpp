@@ -10,6 +10,7 @@
 #include "common/base/temp_dir.h"
 #include "common/image/exr_io.h"
 #include "tests/prep/run_process.h"
+#include "tests/support/store_dir_fixture.h"
 
 namespace raystack::testing {
 namespace {
@@ -19,20 +20,11 @@ using prep::testing::ProcessResult;
 using prep::testing::RunProcess;
 using prep::testing::Slurp;
 
-const std::string kRaystack = RAYSTACK_BINARY_DIR "/master/raystack";
+const std::string& kRaystack = kRaystackBinary;
 
-class RenderCli : public ::testing::Test {
+class RenderCli : public StoreDirFixture {
  protected:
-  void SetUp() override {
-    Expected<TempDir> dir = TempDir::Create();
-    ASSERT_TRUE(dir.ok());
-    dir_ = std::make_unique<TempDir>(std::move(*dir));
-    const ProcessResult prep = RunProcess(
-        {kPrepBinary, "--generate", "spheres:20000", "-o", dir_->File("store"),
-         "--target-block-kb", "8", "-q"},
-        dir_->path());
-    ASSERT_EQ(prep.exit_code, 0) << prep.err;
-  }
+  void SetUp() override { MakeStore("spheres:20000"); }
 
   std::string WriteScene(const std::string& body) {
     const std::string path = dir_->File("scene.json");
@@ -47,8 +39,6 @@ class RenderCli : public ::testing::Test {
       "integrator": { "type": "whitted", "max_depth": 3, "spp": 1, "seed": 1 },
       "output": "out.exr")" + extra + " }");
   }
-
-  std::unique_ptr<TempDir> dir_;
 };
 
 TEST_F(RenderCli, WritesEveryLayerAPngAndStatistics) {
