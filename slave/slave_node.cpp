@@ -1,7 +1,5 @@
 #include "slave/slave_node.h"
 
-#include "slave/peer_blocks.h"
-
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -12,8 +10,10 @@
 #include "common/base/log.h"
 #include "common/base/thread_name.h"
 #include "common/wire/message.h"
+#include "slave/peer_blocks.h"
 
 namespace raystack::slave {
+
 // Tiles from the master: one slot per ray thread, holding the tile in reserve (or the news
 // that there are no more). The receiving thread fills slots; ray threads take from them.
 class RemoteTiles final : public TileSource {
