@@ -416,9 +416,9 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
     slave::RenderStats stats;
     const Status s = node.RunFrame(static_cast<uint32_t>(f), scene, materials, camera, &stats);
     if (!s.ok()) {
-      // The master has been told (or told us): wait for its word so every rank ends cleanly.
-      if (!node.shut_down()) (void)node.WaitForShutdown(std::chrono::seconds(30));
-      return node.shut_down() ? OkStatus() : s;
+      // The master has been told (or told us): wait for its word, and acknowledge it, so
+      // every rank ends cleanly.
+      return node.WaitForShutdown(std::chrono::seconds(30)).ok() ? OkStatus() : s;
     }
   }
   Expected<uint32_t> reason = node.WaitForShutdown();

@@ -174,9 +174,12 @@ void SlaveNode::ReceiveLoop() {
     }
     const wire::MessageType type = m->type();
     if (from == 0 && type == wire::MessageType::kTileAssign) {
-      const Status s = tiles_ ? tiles_->Deliver(m->tile_assign())
-                              : Status::Error("the master assigned a tile between frames");
-      if (!s.ok()) Failed(s);
+      // Between frames, only a late answer to a request of a frame that failed can come:
+      // nothing waits for it any more.
+      if (tiles_) {
+        const Status s = tiles_->Deliver(m->tile_assign());
+        if (!s.ok()) Failed(s);
+      }
     } else if (from == 0 && type == wire::MessageType::kShutdown) {
       shut_down_ = true;
       shutdown_reason_ = m->shutdown().reason;
@@ -203,8 +206,12 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   RemoteTiles tiles(net_, frame, engine_->options().threads);
   RemoteSink sink(net_, frame);
   {
-    std::lock_guard lock(mu_);
-    if (shut_down_) return Status::Error("the master ended the job");
+    std::unique_lock lock(mu_);
+    if (shut_down_) {
+      lock.unlock();
+      (void)Acknowledge();  // a failed send: the master times out on this rank
+      return Status::Error("the master ended the job");
+    }
     tiles_ = &tiles;
     if (!error_.ok()) tiles.Fail();
   }
@@ -220,7 +227,7 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   }
   if (status.ok()) status = sink.error();
   if (shut_down) {  // the master ended the job: this rank sends nothing more but the ack
-    (void)net_->Send(0, wire::Encode(me, wire::Shutdown{1, 0}));
+    (void)Acknowledge();
     return status.ok() ? Status::Error("the master ended the job during the frame") : status;
   }
   if (!status.ok()) {
@@ -246,15 +253,24 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
 }
 
 Expected<uint32_t> SlaveNode::WaitForShutdown(std::chrono::milliseconds timeout) {
+  // Only the shutdown ends the wait: the master drains its slaves until each acknowledges it,
+  // failed ones too (a failure seen after the frame changes nothing about the end).
   std::unique_lock lock(mu_);
-  if (!changed_.wait_for(lock, timeout, [&] { return shut_down_ || !error_.ok(); }))
+  if (!changed_.wait_for(lock, timeout, [&] { return shut_down_; }))
     return Status::Error("the master did not end the job in time");
-  if (!shut_down_) return error_;
+  const uint32_t reason = shutdown_reason_;
   lock.unlock();
-  // The acknowledgement: this rank sends nothing more.
-  RAYSTACK_RETURN_IF_ERROR(net_->Send(0, wire::Encode(static_cast<uint32_t>(net_->rank()),
-                                                      wire::Shutdown{0, 0})));
-  return shutdown_reason_;
+  RAYSTACK_RETURN_IF_ERROR(Acknowledge());
+  return reason;
+}
+
+Status SlaveNode::Acknowledge() {
+  {
+    std::lock_guard lock(mu_);
+    if (acknowledged_) return OkStatus();
+    acknowledged_ = true;
+  }
+  return net_->Send(0, wire::Encode(static_cast<uint32_t>(net_->rank()), wire::Shutdown{0, 0}));
 }
 
 }  // namespace raystack::slave

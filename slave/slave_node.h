@@ -35,21 +35,20 @@ class SlaveNode {
 
   // Renders this slave's share of frame `frame`, then reports it done (with its figures) to
   // the master. On failure the master is told why (an error message) before this returns it,
-  // unless the failure is the master's own shutdown (then shut_down() is true).
+  // unless the failure is the master's own shutdown.
   Status RunFrame(uint32_t frame, const render::Scene& scene,
                   const render::MaterialTable& materials, const render::Camera& camera,
                   RenderStats* stats);
-  // Waits for the master's shutdown (at most `timeout`), acknowledges it; returns its reason
-  // (0: done).
+  // Waits for the master's shutdown (at most `timeout`; at once if it has come), acknowledges
+  // it (once per node, whoever noticed it first); returns its reason (0: done). Every slave
+  // calls it before it ends, also after a failed frame: the master waits for every ack.
   Expected<uint32_t> WaitForShutdown(std::chrono::milliseconds timeout = std::chrono::hours(24 * 365));
-  bool shut_down() const {
-    std::lock_guard lock(mu_);
-    return shut_down_;
-  }
 
  private:
   void ReceiveLoop();
   void Failed(const Status& status);  // holds mu_
+  // Tells the master, once, that this rank has stopped sending (after its shutdown).
+  Status Acknowledge();
 
   transport::Transport* net_;
   RenderEngine* engine_;
@@ -61,6 +60,7 @@ class SlaveNode {
   RemoteTiles* tiles_ = nullptr;  // the frame being rendered, if any
   bool shut_down_ = false;        // the master's shutdown has arrived
   uint32_t shutdown_reason_ = 0;
+  bool acknowledged_ = false;
   Status error_;                  // a failure on the receiving side
 };
 
