@@ -5,17 +5,42 @@
 
 #include "common/base/check.h"
 #include "common/base/log.h"
+#include "master/tile_ledger.h"
 #include "master/tile_scheduler.h"
 
 namespace raystack::master {
 
+using Clock = std::chrono::steady_clock;
+
 double FrameFigures::imbalance() const {
   double sum = 0, max = 0;
+  size_t counted = 0;
   for (const SlaveFigures& s : slaves) {
+    if (s.dropped) continue;
     sum += s.done.seconds;
     max = std::max(max, s.done.seconds);
+    ++counted;
   }
-  return max > 0 ? 1.0 - sum / static_cast<double>(slaves.size()) / max : 0.0;
+  return max > 0 ? 1.0 - sum / static_cast<double>(counted) / max : 0.0;
+}
+
+struct MasterNode::Frame {
+  uint32_t number;
+  render::Film* film;
+  FrameFigures* figures;
+  TileScheduler scheduler;
+  TileLedger ledger;
+  std::vector<bool> done;  // by rank: reported done, or dropped
+  int remaining = 0;       // slaves still rendering this frame
+  // Requests held back while every tile is out but some are unfinished (rank, thread).
+  std::deque<std::pair<int, uint32_t>> held;
+  std::deque<transport::Envelope> later;  // for frames after this one
+  std::vector<render::SampleResult> samples;
+};
+
+MasterNode::MasterNode(transport::Transport* net, MasterOptions options)
+    : net_(net), options_(options), slaves_(static_cast<size_t>(net->size())) {
+  for (SlaveState& s : slaves_) s.last_heard = Clock::now();
 }
 
 Status MasterNode::Send(int to, const std::vector<uint8_t>& bytes, FrameFigures* figures) {
@@ -28,21 +53,23 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
   int waiting = 0;
   for (int r = 1; r < net_->size(); ++r) {
     const Status s = net_->Send(r, wire::Encode(0, wire::Shutdown{reason, 0}));
-    if (s.ok()) {
+    // A lost slave may be dead: it is told, but nothing waits for its answer.
+    if (s.ok() && !slaves_[static_cast<size_t>(r)].lost) {
       ++waiting;
-    } else {
+    } else if (!s.ok()) {
       LOG_WARNING("master", "%s", s.message().c_str());
     }
   }
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
-  while (waiting > 0 && std::chrono::steady_clock::now() < deadline) {
+  const auto deadline = Clock::now() + timeout;
+  while (waiting > 0 && Clock::now() < deadline) {
     Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(100));
     if (!got.ok()) break;
     if (!got->has_value()) continue;
     const Expected<wire::Message> m = wire::Decode((*got)->bytes, (*got)->from);
     const int from = (*got)->from;
     if (m.ok() && m->type() == wire::MessageType::kShutdown && from > 0 &&
-        from < net_->size() && !acknowledged[static_cast<size_t>(from)]) {
+        from < net_->size() && !acknowledged[static_cast<size_t>(from)] &&
+        !slaves_[static_cast<size_t>(from)].lost) {
       acknowledged[static_cast<size_t>(from)] = true;
       --waiting;
     }
@@ -51,22 +78,184 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
   return waiting == 0;
 }
 
-Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, render::Film* film,
-                            const std::function<void()>& on_progress, FrameFigures* figures) {
-  const auto start = std::chrono::steady_clock::now();
+Status MasterNode::Answer(Frame* f, int rank, uint32_t thread) {
+  wire::TileAssign a{};
+  a.frame = f->number;
+  a.thread = thread;
+  size_t index;
+  if (f->scheduler.Next(rank - 1, &index)) {
+    const render::Tile& t = f->scheduler.tile(index);
+    a.x0 = t.x0, a.y0 = t.y0, a.x1 = t.x1, a.y1 = t.y1;
+    f->ledger.Assign(index, rank);
+  } else if (f->ledger.unfinished() > 0) {
+    f->held.emplace_back(rank, thread);  // a lost slave's tiles may still come back
+    return OkStatus();
+  } else {
+    a.none = 1;
+  }
+  return Send(rank, wire::Encode(0, a), f->figures);
+}
+
+// Held requests get the tiles that came back, or, once every tile is finished, the news that
+// there are no more.
+Status MasterNode::AnswerHeldRequests(Frame* f) {
+  while (!f->held.empty()) {
+    const auto [rank, thread] = f->held.front();
+    if (slaves_[static_cast<size_t>(rank)].dropped) {
+      f->held.pop_front();
+      continue;
+    }
+    size_t waiting = f->held.size();
+    f->held.pop_front();
+    RAYSTACK_RETURN_IF_ERROR(Answer(f, rank, thread));
+    if (f->held.size() == waiting) return OkStatus();  // held again: nothing to give yet
+  }
+  return OkStatus();
+}
+
+Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
+  SlaveState& s = slaves_[static_cast<size_t>(rank)];
+  s.dropped = true;
+  s.lost = lost;
+  s.failure = why;
+  SlaveFigures& figures = f->figures->slaves[static_cast<size_t>(rank - 1)];
+  figures.dropped = true;
+  figures.failure = why;
+  if (!f->done[static_cast<size_t>(rank)]) {
+    f->done[static_cast<size_t>(rank)] = true;
+    --f->remaining;
+  }
+  std::vector<render::SampleResult> merged;
+  const std::vector<size_t> back = f->ledger.Release(rank, &merged);
+  f->film->Unmerge(merged);
+  for (size_t i = back.size(); i-- > 0;) f->scheduler.Return(back[i]);
+  LOG_WARNING("master", "rank %d %s: %s; its %zu unfinished tiles (%zu samples taken back) go "
+              "to the other slaves", rank, lost ? "is lost" : "failed", why.c_str(), back.size(),
+              merged.size());
+  // The others read its blocks from disk from now on (--blocks rem).
+  for (int r = 1; r < net_->size(); ++r)
+    if (!slaves_[static_cast<size_t>(r)].dropped)
+      (void)Send(r, wire::Encode(0, wire::RankLost{static_cast<uint32_t>(rank), 0}), f->figures);
+  if (f->remaining == 0 && f->ledger.unfinished() > 0) {
+    std::string all;
+    for (int r = 1; r < net_->size(); ++r)
+      all += StrFormat("%srank %d: %s", all.empty() ? "" : "; ", r,
+                       slaves_[static_cast<size_t>(r)].failure.c_str());
+    return Status::Error("no slave is left to finish the frame: " + all);
+  }
+  return AnswerHeldRequests(f);
+}
+
+Status MasterNode::CheckHeartbeats(Frame* f) {
+  const auto now = Clock::now();
+  for (int r = 1; r < net_->size(); ++r) {
+    SlaveState& s = slaves_[static_cast<size_t>(r)];
+    const auto allowed = s.heard ? options_.lost_after : options_.lost_after + options_.first_word_grace;
+    if (s.dropped || now - s.last_heard < allowed) continue;
+    const double silent = std::chrono::duration<double>(now - s.last_heard).count();
+    RAYSTACK_RETURN_IF_ERROR(Drop(f, r, true, StrFormat("no word from it for %.1f s", silent)));
+  }
+  return OkStatus();
+}
+
+Status MasterNode::Handle(Frame* f, transport::Envelope e) {
+  const int slaves = net_->size() - 1;
+  if (e.from < 1 || e.from > slaves)
+    return Status::Error(StrFormat("message from rank %d, which is not a slave", e.from));
+  SlaveState& state = slaves_[static_cast<size_t>(e.from)];
+  if (state.dropped) return OkStatus();  // whatever a dropped slave still sends is ignored
+  state.last_heard = Clock::now();
+  state.heard = true;
+  SlaveFigures& from = f->figures->slaves[static_cast<size_t>(e.from - 1)];
+  from.bytes_received += e.bytes.size();
+  const Expected<wire::Message> m = wire::Decode(e.bytes, e.from);
+  if (!m.ok()) return m.status();
+  switch (m->type()) {
+    case wire::MessageType::kTileRequest: {
+      const wire::TileRequest r = m->tile_request();
+      if (r.frame > f->number) {
+        f->later.push_back(std::move(e));
+        return OkStatus();
+      }
+      if (r.frame < f->number)
+        return Status::Error(StrFormat("rank %d asks for a tile of frame %u, which is over",
+                                       e.from, r.frame));
+      return Answer(f, e.from, r.thread);
+    }
+    case wire::MessageType::kPixelBatch: {
+      if (m->batch_header().frame != f->number)
+        return Status::Error(StrFormat("rank %d sent pixels of frame %u during frame %u",
+                                       e.from, m->batch_header().frame, f->number));
+      m->batch_samples(&f->samples);
+      for (const render::SampleResult& s : f->samples)
+        if (s.pixel >= static_cast<uint64_t>(f->film->width()) * static_cast<uint64_t>(f->film->height()))
+          return Status::Error(StrFormat("rank %d sent a sample of pixel %u, outside the %dx%d "
+                                         "image", e.from, s.pixel, f->film->width(),
+                                         f->film->height()));
+      RAYSTACK_RETURN_IF_ERROR(f->ledger.Record(e.from, f->samples));
+      f->film->Merge(f->samples);
+      from.pixel_bytes += e.bytes.size();
+      if (f->ledger.unfinished() == 0) return AnswerHeldRequests(f);
+      return OkStatus();
+    }
+    case wire::MessageType::kFrameDone: {
+      const wire::FrameDone d = m->frame_done();
+      if (d.frame != f->number || f->done[static_cast<size_t>(e.from)])
+        return Status::Error(StrFormat("rank %d reports frame %u done during frame %u",
+                                       e.from, d.frame, f->number));
+      f->done[static_cast<size_t>(e.from)] = true;
+      from.done = d;
+      --f->remaining;
+      return OkStatus();
+    }
+    case wire::MessageType::kError:
+      // The frame goes on with the others; the slave waits for the end of the job.
+      return Drop(f, e.from, false, m->error_text());
+    case wire::MessageType::kHello:
+    case wire::MessageType::kHeartbeat:
+      return OkStatus();
+    case wire::MessageType::kTileAssign:
+    case wire::MessageType::kShutdown:
+    case wire::MessageType::kRankLost:
+      return Status::Error(StrFormat("rank %d sent a %s, which only the master sends", e.from,
+                                     wire::MessageTypeName(m->type())));
+    case wire::MessageType::kBlockRequest:
+    case wire::MessageType::kBlockData:
+      return Status::Error(StrFormat("rank %d sent the master a %s, which slaves exchange "
+                                     "among themselves", e.from, wire::MessageTypeName(m->type())));
+  }
+  return OkStatus();
+}
+
+Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, uint32_t spp,
+                            render::Film* film, const std::function<void()>& on_progress,
+                            FrameFigures* figures) {
+  const auto start = Clock::now();
   const int slaves = net_->size() - 1;
   CHECK(slaves >= 1);
   figures->slaves.assign(static_cast<size_t>(slaves), SlaveFigures{});
-  for (int i = 0; i < slaves; ++i) figures->slaves[static_cast<size_t>(i)].rank = i + 1;
-  TileScheduler scheduler(std::move(tiles), slaves);
-  std::vector<bool> done(static_cast<size_t>(slaves), false);
-  int remaining = slaves;
-  std::vector<render::SampleResult> samples;
-  std::deque<transport::Envelope> later;  // for frames after this one
-  auto last_progress = std::chrono::steady_clock::now();
+  TileLedger ledger(tiles, film->width(), film->height(), spp);
+  Frame f{frame, film, figures, TileScheduler(std::move(tiles), slaves), std::move(ledger),
+          std::vector<bool>(static_cast<size_t>(net_->size()), false), 0, {}, {}, {}};
+  for (int r = 1; r <= slaves; ++r) {
+    SlaveFigures& s = figures->slaves[static_cast<size_t>(r - 1)];
+    s.rank = r;
+    const SlaveState& state = slaves_[static_cast<size_t>(r)];
+    if (state.dropped) {  // dropped in an earlier frame
+      s.dropped = true;
+      s.failure = state.failure;
+      f.done[static_cast<size_t>(r)] = true;
+    } else {
+      ++f.remaining;
+    }
+  }
+  if (f.remaining == 0) return Status::Error("no slave is left to render the frame");
+  // Between frames the master was writing the image, not listening: silence then is no sign.
+  for (SlaveState& s : slaves_) s.last_heard = Clock::now();
+  auto last_progress = Clock::now();
 
-  while (remaining > 0) {
-    transport::Envelope e;
+  while (f.remaining > 0) {
+    std::optional<transport::Envelope> e;
     if (!early_.empty()) {
       e = std::move(early_.front());
       early_.pop_front();
@@ -74,85 +263,21 @@ Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, ren
       Expected<std::optional<transport::Envelope>> got =
           net_->Receive(std::chrono::milliseconds(100));
       if (!got.ok()) return got.status();
-      if (!got->has_value()) {
-        on_progress();
-        continue;
-      }
-      e = std::move(**got);
+      e = std::move(*got);
     }
-    if (e.from < 1 || e.from > slaves)
-      return Status::Error(StrFormat("message from rank %d, which is not a slave", e.from));
-    SlaveFigures& from = figures->slaves[static_cast<size_t>(e.from - 1)];
-    from.bytes_received += e.bytes.size();
-    const Expected<wire::Message> m = wire::Decode(e.bytes, e.from);
-    if (!m.ok()) return m.status();
-    switch (m->type()) {
-      case wire::MessageType::kTileRequest: {
-        const wire::TileRequest r = m->tile_request();
-        if (r.frame > frame) {
-          later.push_back(std::move(e));
-          continue;
-        }
-        if (r.frame < frame)
-          return Status::Error(StrFormat("rank %d asks for a tile of frame %u, which is over",
-                                         e.from, r.frame));
-        wire::TileAssign a{};
-        a.frame = frame;
-        a.thread = r.thread;
-        render::Tile t;
-        if (scheduler.Next(e.from - 1, &t)) {
-          a.x0 = t.x0, a.y0 = t.y0, a.x1 = t.x1, a.y1 = t.y1;
-        } else {
-          a.none = 1;
-        }
-        RAYSTACK_RETURN_IF_ERROR(Send(e.from, wire::Encode(0, a), figures));
-        break;
-      }
-      case wire::MessageType::kPixelBatch: {
-        if (m->batch_header().frame != frame)
-          return Status::Error(StrFormat("rank %d sent pixels of frame %u during frame %u",
-                                         e.from, m->batch_header().frame, frame));
-        m->batch_samples(&samples);
-        for (const render::SampleResult& s : samples)
-          if (s.pixel >= static_cast<uint64_t>(film->width()) * static_cast<uint64_t>(film->height()))
-            return Status::Error(StrFormat("rank %d sent a sample of pixel %u, outside the %dx%d "
-                                           "image", e.from, s.pixel, film->width(), film->height()));
-        film->Merge(samples);
-        from.pixel_bytes += e.bytes.size();
-        break;
-      }
-      case wire::MessageType::kFrameDone: {
-        const wire::FrameDone d = m->frame_done();
-        if (d.frame != frame || done[static_cast<size_t>(e.from - 1)])
-          return Status::Error(StrFormat("rank %d reports frame %u done during frame %u",
-                                         e.from, d.frame, frame));
-        done[static_cast<size_t>(e.from - 1)] = true;
-        from.done = d;
-        --remaining;
-        break;
-      }
-      case wire::MessageType::kError:
-        return Status::Error(StrFormat("rank %d: %s", e.from, m->error_text().c_str()));
-      case wire::MessageType::kHello:
-        break;
-      case wire::MessageType::kTileAssign:
-      case wire::MessageType::kShutdown:
-        return Status::Error(StrFormat("rank %d sent a %s, which only the master sends", e.from,
-                                       wire::MessageTypeName(m->type())));
-      case wire::MessageType::kBlockRequest:
-      case wire::MessageType::kBlockData:
-        return Status::Error(StrFormat("rank %d sent the master a %s, which slaves exchange "
-                                       "among themselves", e.from, wire::MessageTypeName(m->type())));
-    }
-    if (std::chrono::steady_clock::now() - last_progress > std::chrono::milliseconds(100)) {
+    if (e) RAYSTACK_RETURN_IF_ERROR(Handle(&f, std::move(*e)));
+    if (Clock::now() - last_progress > std::chrono::milliseconds(100)) {
+      RAYSTACK_RETURN_IF_ERROR(CheckHeartbeats(&f));
       on_progress();
-      last_progress = std::chrono::steady_clock::now();
+      last_progress = Clock::now();
     }
   }
-  for (auto& e : later) early_.push_back(std::move(e));
+  if (f.ledger.unfinished() > 0)  // every slave left was dropped
+    return Status::Error(StrFormat("frame %u: %zu tiles were left unfinished", frame,
+                                   f.ledger.unfinished()));
+  for (auto& later : f.later) early_.push_back(std::move(later));
   on_progress();
-  figures->seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  figures->seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return OkStatus();
 }
 

@@ -2,11 +2,19 @@
 // The master's side of a distributed frame (rank 0): hands out tiles on request, merges the
 // slaves' pixel batches into the film as they arrive, and gathers each slave's figures. It
 // sees the slaves only through a Transport (MPI, or ranks as threads in one process).
+//
+// A lost slave costs time, never pixels: a slave that reports a failure, or whose heartbeat
+// stops (killed, its node gone), is dropped for the rest of the job; the samples it sent of
+// tiles it had not finished are taken back out of the film and those tiles go to the others
+// (TileLedger), and the others are told (RankLost), so with --blocks rem they read its blocks
+// from disk. Once every tile is handed out, a request is held back, not refused, until every
+// tile is finished: a tile that comes back then still finds a slave to render it.
 
 #include <chrono>
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <string>
 #include <vector>
 
 #include "common/base/status.h"
@@ -23,6 +31,8 @@ struct SlaveFigures {
   uint64_t bytes_received = 0;  // by the master from this slave (pixel batches and the rest)
   uint64_t bytes_sent = 0;      // by the master to this slave
   uint64_t pixel_bytes = 0;     // the pixel stream's share of bytes_received
+  bool dropped = false;         // lost or failed in this frame (or before): `done` is empty
+  std::string failure;          // why it was dropped
 };
 
 struct FrameFigures {
@@ -32,24 +42,53 @@ struct FrameFigures {
   double imbalance() const;  // 1 - mean / max
 };
 
+struct MasterOptions {
+  // A slave not heard from for this long is lost (it sends a heartbeat every
+  // wire::kHeartbeatInterval, whatever it is doing).
+  std::chrono::milliseconds lost_after{5000};
+  // Before its first word, a slave has this much more (it opens the store, perhaps on a slow
+  // network filesystem, before it starts its heartbeat).
+  std::chrono::milliseconds first_word_grace{60000};
+};
+
 class MasterNode {
  public:
-  explicit MasterNode(transport::Transport* net) : net_(net) {}
+  explicit MasterNode(transport::Transport* net, MasterOptions options = {});
 
   // Runs frame `frame` until every slave has reported it done: tiles from `tiles` (in the
   // order they should be rendered), samples merged into `film`. `on_progress` is called from
   // time to time with the samples merged so far. A slave's error, or a malformed message,
   // ends the frame with an error naming the rank.
-  Status RunFrame(uint32_t frame, std::vector<render::Tile> tiles, render::Film* film,
-                  const std::function<void()>& on_progress, FrameFigures* figures);
+  // A slave's failure or loss drops that slave and the frame goes on with the others; the frame
+  // fails only when no slave is left (the error then lists why each was dropped).
+  Status RunFrame(uint32_t frame, std::vector<render::Tile> tiles, uint32_t spp,
+                  render::Film* film, const std::function<void()>& on_progress,
+                  FrameFigures* figures);
   // Tells every slave the job is over (reason 0) or failed (1), then reads (and drops) what
   // they still send until each has acknowledged: a slave blocked sending a pixel batch must be
   // able to finish before every rank ends. False if some slave did not answer within `timeout`.
   bool Shutdown(uint32_t reason, std::chrono::milliseconds timeout = std::chrono::seconds(30));
 
  private:
+  struct SlaveState {
+    bool dropped = false;
+    bool lost = false;  // dropped for silence: it may be dead, so nothing waits for it
+    bool heard = false;  // it has said something since the job began
+    std::string failure;
+    std::chrono::steady_clock::time_point last_heard;
+  };
+  struct Frame;  // one RunFrame's working state
   Status Send(int to, const std::vector<uint8_t>& bytes, FrameFigures* figures);
+  Status Handle(Frame* f, transport::Envelope e);
+  Status Answer(Frame* f, int rank, uint32_t thread);
+  Status AnswerHeldRequests(Frame* f);
+  // Drops `rank` for the rest of the job: its unfinished tiles go back to the others.
+  Status Drop(Frame* f, int rank, bool lost, const std::string& why);
+  Status CheckHeartbeats(Frame* f);
+
   transport::Transport* net_;
+  MasterOptions options_;
+  std::vector<SlaveState> slaves_;  // by rank (0: unused)
   // Messages for a later frame that arrived early (a fast slave's first requests).
   std::deque<transport::Envelope> early_;
 };

@@ -330,7 +330,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
       status = master.RunFrame(static_cast<uint32_t>(f),
                                render::HilbertTiles(camera.width(), camera.height(), args.tile_size),
-                               &film, [&] {
+                               static_cast<uint32_t>(scene.integrator.spp), &film, [&] {
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);
                                  shown = done;

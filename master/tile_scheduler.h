@@ -3,7 +3,8 @@
 // ones, since its block cache is warm there). The frame's tiles in Hilbert order are cut into
 // one contiguous span per slave; a slave takes the next tile of its own span, and once that is
 // used up, the last tile of the span with the most left (the far end of another slave's
-// region, where it will arrive last). Not thread-safe: the master's one loop owns it.
+// region, where it will arrive last). Tiles a lost slave left unfinished come back and go
+// first to whoever asks next. Not thread-safe: the master's one loop owns it.
 
 #include <cstdint>
 #include <vector>
@@ -15,8 +16,12 @@ namespace raystack::master {
 class TileScheduler {
  public:
   TileScheduler(std::vector<render::Tile> tiles, int slaves);
-  // The next tile for `slave` (0-based), false when every tile has been handed out.
-  bool Next(int slave, render::Tile* tile);
+  // The index of the next tile for `slave` (0-based), false when none is left to hand out.
+  bool Next(int slave, size_t* index);
+  // Tile `index`, handed out before, must be rendered again by someone else.
+  void Return(size_t index) { returned_.push_back(index); }
+  const render::Tile& tile(size_t index) const { return tiles_[index]; }
+  const std::vector<render::Tile>& tiles() const { return tiles_; }
   uint64_t handed_out() const { return handed_out_; }
 
  private:
@@ -25,6 +30,7 @@ class TileScheduler {
   };
   std::vector<render::Tile> tiles_;
   std::vector<Span> spans_;
+  std::vector<size_t> returned_;
   uint64_t handed_out_ = 0;
 };
 
@@ -34,10 +40,16 @@ inline TileScheduler::TileScheduler(std::vector<render::Tile> tiles, int slaves)
   for (size_t i = 0; i < s; ++i) spans_.push_back({i * n / s, (i + 1) * n / s});
 }
 
-inline bool TileScheduler::Next(int slave, render::Tile* tile) {
+inline bool TileScheduler::Next(int slave, size_t* index) {
+  if (!returned_.empty()) {
+    *index = returned_.back();
+    returned_.pop_back();
+    ++handed_out_;
+    return true;
+  }
   Span& own = spans_[static_cast<size_t>(slave) % spans_.size()];
   if (own.begin < own.end) {
-    *tile = tiles_[own.begin++];
+    *index = own.begin++;
     ++handed_out_;
     return true;
   }
@@ -46,7 +58,7 @@ inline bool TileScheduler::Next(int slave, render::Tile* tile) {
     if (s.end > s.begin && (!richest || s.end - s.begin > richest->end - richest->begin))
       richest = &s;
   if (!richest) return false;
-  *tile = tiles_[--richest->end];
+  *index = --richest->end;
   ++handed_out_;
   return true;
 }

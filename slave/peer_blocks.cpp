@@ -9,7 +9,8 @@ namespace raystack::slave {
 
 PeerBlocks::PeerBlocks(transport::Transport* net, const store::StoreReader& store,
                        FaultOptions faults)
-    : net_(net), store_(store), disk_(store, faults), slaves_(net->size() - 1) {
+    : net_(net), store_(store), disk_(store, faults), slaves_(net->size() - 1),
+      lost_(static_cast<size_t>(net->size()), false) {
   const uint32_t count = static_cast<uint32_t>(store.blocks().size());
   const int me = net->rank();
   while (own_first_ < count && BlockOwner(own_first_, count, slaves_) < me) ++own_first_;
@@ -34,6 +35,15 @@ void PeerBlocks::Stop() {
   cv_.notify_all();
 }
 
+void PeerBlocks::OwnerLost(int rank) {
+  std::lock_guard lock(mu_);
+  if (rank < 0 || rank >= static_cast<int>(lost_.size())) return;
+  lost_[static_cast<size_t>(rank)] = true;
+  for (auto& [id, p] : pending_)
+    if (p.owner == rank && !p.done) p.owner_lost = p.done = true;
+  cv_.notify_all();
+}
+
 Status PeerBlocks::Own(uint32_t block, std::vector<uint8_t>* append) {
   OwnedBlock& o = owned_[block - own_first_];
   std::call_once(o.loaded, [&] {
@@ -47,9 +57,24 @@ Status PeerBlocks::Own(uint32_t block, std::vector<uint8_t>* append) {
 
 Status PeerBlocks::Fetch(int owner, uint32_t first, uint32_t count, std::vector<uint8_t>* append) {
   uint32_t id;
+  // Once its owner is lost, a block comes from disk, as with --blocks loc.
+  auto from_disk = [&]() -> Status {
+    std::vector<uint32_t> ids(count);
+    for (uint32_t k = 0; k < count; ++k) ids[k] = first + k;
+    std::vector<uint8_t> bytes;
+    RAYSTACK_RETURN_IF_ERROR(disk_.ReadRun(ids, &bytes));
+    append->insert(append->end(), bytes.begin(), bytes.end());
+    return OkStatus();
+  };
+  bool owner_lost;
   {
     std::lock_guard lock(mu_);
     if (stopped_) return Status::Error("the job is ending");
+    owner_lost = lost_[static_cast<size_t>(owner)];
+  }
+  if (owner_lost) return from_disk();
+  {
+    std::lock_guard lock(mu_);
     id = next_request_++;
     Pending p;
     p.owner = owner;
@@ -70,6 +95,7 @@ Status PeerBlocks::Fetch(int owner, uint32_t first, uint32_t count, std::vector<
   if (!answered || !p.done)
     return Status::Error(StrFormat("blocks %u-%u: rank %d did not answer", first,
                                    first + count - 1, owner));
+  if (p.owner_lost) return from_disk();
   if (!p.status.ok()) return p.status;
   from_peers_.fetch_add(p.bytes.size());
   append->insert(append->end(), p.bytes.begin(), p.bytes.end());

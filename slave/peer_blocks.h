@@ -56,12 +56,16 @@ class PeerBlocks final : public BlockSource {
   Status OnData(int from, const wire::Message& data);
   // Fails every wait for an answer (the job is ending).
   void Stop();
+  // `rank` is gone (the master said so): its blocks are read from disk from now on, and the
+  // fetches waiting for its answers read them from disk instead.
+  void OwnerLost(int rank);
 
  private:
   struct Pending {
     int owner;
     uint32_t first, count;
     bool done = false;
+    bool owner_lost = false;  // read them from disk instead
     Status status;
     std::vector<uint8_t> bytes;
   };
@@ -92,6 +96,7 @@ class PeerBlocks final : public BlockSource {
   std::unordered_map<uint32_t, Pending> pending_;
   uint32_t next_request_ = 0;
   bool stopped_ = false;
+  std::vector<bool> lost_;  // by rank
   std::deque<Served> to_serve_;
   std::thread server_;
 

@@ -73,7 +73,13 @@ RayRecord RayThread::PrimaryRay(int x, int y, uint32_t sample, uint32_t slot,
   return rec;
 }
 
-bool RayThread::FeedNextTile() {
+bool RayThread::FeedNextTile(bool may_wait) {
+  if (may_wait) {
+    FlushResults();
+  } else if (!shared_->tiles->Ready(index_)) {
+    shared_->tiles->Ahead(index_);  // asked now, taken once it has come
+    return false;
+  }
   Tile tile;
   if (!shared_->tiles->Next(index_, &tile)) {
     tiles_exhausted_ = true;
@@ -332,12 +338,12 @@ void RayThread::RunStack() {
       TraceQueue(q);
       continue;
     }
-    if (NeedFeed() && FeedNextTile()) continue;
+    if (NeedFeed() && FeedNextTile(/*may_wait=*/queues_.rays() == 0)) continue;
     // Every ray waits for the loader: rather than sleep, start another tile (a few at most,
     // which bounds the stack), so there is work to do while blocks are read, and more block
     // requests in flight to keep a slow disk or a network filesystem busy.
     if (queues_.rays() > 0 && !tiles_exhausted_ && open_tiles_ < kMaxOpenTiles &&
-        FeedNextTile())
+        FeedNextTile(/*may_wait=*/false))
       continue;
     if (queues_.rays() > 0) {  // everything waits for the loader
       FlushResults();
@@ -428,7 +434,7 @@ void RayThread::TraceSync(RayRecord ray) {
 
 void RayThread::RunSync() {
   while (!shared_->abort.load(std::memory_order_relaxed)) {
-    if (pending_.empty() && !FeedNextTile()) break;
+    if (pending_.empty() && !FeedNextTile(/*may_wait=*/true)) break;
     while (!pending_.empty() && !shared_->abort.load(std::memory_order_relaxed)) {
       RayRecord r = pending_.back();  // depth first: children come back on top
       pending_.pop_back();

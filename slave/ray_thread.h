@@ -74,7 +74,10 @@ class RayThread {
     uint32_t total = 0, done = 0;
   };
   bool NeedFeed() const;
-  bool FeedNextTile();
+  // Starts the next tile's primary rays; false when there is none. `may_wait`: this thread holds
+  // no rays, so it may wait for the tile source (its results are sent first, since the master
+  // may be waiting for them); otherwise only a tile that is ready is taken.
+  bool FeedNextTile(bool may_wait);
   RayRecord PrimaryRay(int x, int y, uint32_t sample, uint32_t slot, uint16_t priority) const;
   // Puts a ray where it goes next: its next block's queue, or finished (stack driver).
   // `from_block`: the block the ray has just been traced through (kInvalidId: none yet).

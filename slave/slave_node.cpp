@@ -33,6 +33,12 @@ class RemoteTiles final : public TileSource {
     return true;
   }
 
+  bool Ready(uint32_t thread) const override {
+    const Slot& s = slots_[thread];
+    std::lock_guard lock(mu_);
+    return s.has_tile || s.exhausted || failed_;
+  }
+
   // The next tile, fetched while this one renders (at --tile-ahead of it).
   void Ahead(uint32_t thread) override {
     Slot& s = slots_[thread];
@@ -91,7 +97,7 @@ class RemoteTiles final : public TileSource {
 
   transport::Transport* net_;
   const uint32_t frame_;
-  std::mutex mu_;
+  mutable std::mutex mu_;
   std::condition_variable cv_;
   std::vector<Slot> slots_;
   bool failed_ = false;
@@ -154,10 +160,20 @@ void SlaveNode::Failed(const Status& status) {  // holds mu_
 }
 
 void SlaveNode::ReceiveLoop() {
+  uint32_t beats = 0;
+  auto last_beat = std::chrono::steady_clock::now() - wire::kHeartbeatInterval;
   for (;;) {
     {
       std::lock_guard lock(mu_);
       if (stop_) return;
+    }
+    // Alive, whatever the ray threads are doing (a long block read, a big tile): the master
+    // drops a slave it does not hear from.
+    if (std::chrono::steady_clock::now() - last_beat >= wire::kHeartbeatInterval) {
+      last_beat = std::chrono::steady_clock::now();
+      const Status s = net_->Send(0, wire::Encode(static_cast<uint32_t>(net_->rank()),
+                                                  wire::Heartbeat{beats++, 0}));
+      if (!s.ok()) LOG_WARNING("slave", "heartbeat: %s", s.message().c_str());
     }
     Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(20));
     std::lock_guard lock(mu_);
@@ -186,6 +202,12 @@ void SlaveNode::ReceiveLoop() {
       if (tiles_) tiles_->Fail();  // ray threads waiting for a tile give up
       if (peers_) peers_->Stop();
       changed_.notify_all();
+    } else if (from == 0 && type == wire::MessageType::kRankLost) {
+      const uint32_t lost = m->rank_lost().rank;
+      if (lost == 0 || lost >= static_cast<uint32_t>(net_->size()))
+        Failed(Status::Error(StrFormat("the master reports rank %u lost, which is not a slave", lost)));
+      else if (peers_)
+        peers_->OwnerLost(static_cast<int>(lost));
     } else if (from > 0 && peers_ && type == wire::MessageType::kBlockRequest) {
       const Status s = peers_->OnRequest(from, m->block_request());
       if (!s.ok()) Failed(s);

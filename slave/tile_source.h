@@ -17,6 +17,10 @@ class TileSource {
   virtual ~TileSource() = default;
   // The next tile for ray thread `thread`, false when the frame has no more. Thread-safe.
   virtual bool Next(uint32_t thread, Tile* tile) = 0;
+  // Whether Next(thread) would answer at once. A source whose answers come from afar may make
+  // Next wait (the master holds a request back while a lost slave's tiles may still come back),
+  // so a thread that still holds rays asks with Ahead() and takes the tile once it is Ready.
+  virtual bool Ready(uint32_t /*thread*/) const { return true; }
   // Ray thread `thread` will soon ask for its next tile (it has done the --tile-ahead share of
   // its current one): a source that must fetch tiles from afar starts now.
   virtual void Ahead(uint32_t /*thread*/) {}

@@ -40,6 +40,27 @@ void Film::Merge(std::span<const SampleResult> batch) {
   }
 }
 
+void Film::Unmerge(std::span<const SampleResult> batch) {
+  std::lock_guard lock(mu_);
+  for (const SampleResult& s : batch) {
+    if (s.pixel >= pixels_.size()) continue;
+    Pixel& p = pixels_[s.pixel];
+    if (p.count == 0) continue;  // never merged: nothing to take back
+    const bool finite = std::isfinite(s.rgb[0]) && std::isfinite(s.rgb[1]) && std::isfinite(s.rgb[2]);
+    if (!finite) {
+      --nonfinite_;
+    } else {
+      for (int c = 0; c < 3; ++c) p.rgb[c].Subtract(s.rgb[c]);
+      const double y = Luminance(s.rgb[0], s.rgb[1], s.rgb[2]);
+      p.luminance_squared.Subtract(y * y);
+    }
+    --p.count;
+    if (p.count == 0) --covered_;
+    p.hits -= s.hit ? 1 : 0;
+    --samples_merged_;
+  }
+}
+
 uint64_t Film::samples_merged() const {
   std::lock_guard lock(mu_);
   return samples_merged_;

@@ -25,6 +25,11 @@ class Film {
   // Merges finished samples (thread-safe). Non-finite radiance is dropped and counted, never
   // stored: a NaN must not reach a pixel.
   void Merge(std::span<const SampleResult> batch);
+  // Takes merged samples back out, exactly (the sums are integers): the film is then bit for
+  // bit as if they had never been merged, but for the Z/normal/albedo of a sample 0, which the
+  // sample's re-render writes again with the same values. For the samples of a lost slave's
+  // unfinished tiles, which another slave renders again. Thread-safe.
+  void Unmerge(std::span<const SampleResult> batch);
 
   uint64_t samples_merged() const;
   uint64_t nonfinite_dropped() const;

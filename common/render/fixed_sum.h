@@ -21,6 +21,8 @@ class FixedSum {
   // Adds x (a finite value; callers drop non-finite ones and count them).
   void Add(double x) { value_ += ToFixed(x); }
   void Add(const FixedSum& other) { value_ += other.value_; }
+  // Takes back an Add(x) exactly (integers): the sum is as if x had never been added.
+  void Subtract(double x) { value_ -= ToFixed(x); }
   double Value() const { return std::ldexp(static_cast<double>(value_), -kFractionBits); }
   Int128 raw() const { return value_; }
   void set_raw(Int128 v) { value_ = v; }

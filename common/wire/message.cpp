@@ -43,6 +43,8 @@ uint64_t FixedPayloadBytes(MessageType type) {
     case MessageType::kFrameDone: return sizeof(FrameDone);
     case MessageType::kShutdown: return sizeof(Shutdown);
     case MessageType::kBlockRequest: return sizeof(BlockRequest);
+    case MessageType::kHeartbeat: return sizeof(Heartbeat);
+    case MessageType::kRankLost: return sizeof(RankLost);
     case MessageType::kPixelBatch:
     case MessageType::kBlockData:
     case MessageType::kError: return 0;
@@ -71,6 +73,8 @@ const char* MessageTypeName(MessageType type) {
     case MessageType::kError: return "error";
     case MessageType::kBlockRequest: return "block request";
     case MessageType::kBlockData: return "block data";
+    case MessageType::kHeartbeat: return "heartbeat";
+    case MessageType::kRankLost: return "rank lost";
   }
   return "unknown";
 }
@@ -93,6 +97,13 @@ std::vector<uint8_t> Encode(uint32_t sender, const Shutdown& m) {
 
 std::vector<uint8_t> Encode(uint32_t sender, const BlockRequest& m) {
   return Build(sender, MessageType::kBlockRequest, m);
+}
+
+std::vector<uint8_t> Encode(uint32_t sender, const Heartbeat& m) {
+  return Build(sender, MessageType::kHeartbeat, m);
+}
+std::vector<uint8_t> Encode(uint32_t sender, const RankLost& m) {
+  return Build(sender, MessageType::kRankLost, m);
 }
 
 std::vector<uint8_t> EncodeBlockData(uint32_t sender, const BlockDataHeader& d,
@@ -191,6 +202,8 @@ std::string Message::error_text() const {
 BlockRequest Message::block_request() const {
   return PayloadAs<BlockRequest>(*this, MessageType::kBlockRequest);
 }
+Heartbeat Message::heartbeat() const { return PayloadAs<Heartbeat>(*this, MessageType::kHeartbeat); }
+RankLost Message::rank_lost() const { return PayloadAs<RankLost>(*this, MessageType::kRankLost); }
 
 BlockDataHeader Message::block_data_header() const {
   CHECK(type() == MessageType::kBlockData && payload.size() >= sizeof(BlockDataHeader));

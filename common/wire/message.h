@@ -9,6 +9,7 @@
 // little-endian, as on every machine this runs on (checked at compile time).
 
 #include <bit>
+#include <chrono>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -22,9 +23,12 @@ namespace raystack::wire {
 static_assert(std::endian::native == std::endian::little, "the wire format is little-endian");
 
 inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
-inline constexpr uint16_t kProtocolVersion = 1;
+inline constexpr uint16_t kProtocolVersion = 2;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
+// How often a slave says it is alive (the master drops one it has not heard from for
+// several of these: MasterOptions::lost_after).
+inline constexpr std::chrono::milliseconds kHeartbeatInterval{500};
 
 enum class MessageType : uint16_t {
   kHello = 1,    // a rank announces itself (and its protocol version) to the master
@@ -36,8 +40,10 @@ enum class MessageType : uint16_t {
   kError,        // a rank failed: why (text naming the block, file or peer)
   kBlockRequest, // a slave asks a block's owner for a run of blocks (--blocks rem)
   kBlockData,    // the owner's answer: the run's stored bytes, or that it failed
+  kHeartbeat,    // a slave is alive (every kHeartbeatInterval, whatever else it sends)
+  kRankLost,     // the master tells the slaves a rank is gone (its blocks: read from disk)
 };
-inline constexpr uint16_t kMessageTypeCount = 9;
+inline constexpr uint16_t kMessageTypeCount = 11;
 inline constexpr uint32_t kMaxErrorText = 4096;
 const char* MessageTypeName(MessageType type);
 
@@ -83,6 +89,14 @@ struct Shutdown {
   uint32_t reason;  // 0: the job is done
   uint32_t reserved;
 };
+struct Heartbeat {
+  uint32_t sequence;  // counts up from 0 (for logs)
+  uint32_t reserved;
+};
+struct RankLost {
+  uint32_t rank;
+  uint32_t reserved;
+};
 struct BlockRequest {
   uint32_t request;  // the asker's number for it, echoed in the answer
   uint32_t first;    // blocks [first, first + count), consecutive in blocks.bin
@@ -101,7 +115,8 @@ struct PixelBatchHeader {
 };
 static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 32 &&
               sizeof(FrameDone) == 80 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 8 &&
-              sizeof(BlockRequest) == 16 && sizeof(BlockDataHeader) == 16);
+              sizeof(BlockRequest) == 16 && sizeof(BlockDataHeader) == 16 &&
+              sizeof(Heartbeat) == 8 && sizeof(RankLost) == 8);
 
 // Builders: the whole message (header + payload) as bytes.
 std::vector<uint8_t> Encode(uint32_t sender, const Hello& m);
@@ -110,6 +125,8 @@ std::vector<uint8_t> Encode(uint32_t sender, const TileAssign& m);
 std::vector<uint8_t> Encode(uint32_t sender, const FrameDone& m);
 std::vector<uint8_t> Encode(uint32_t sender, const Shutdown& m);
 std::vector<uint8_t> Encode(uint32_t sender, const BlockRequest& m);
+std::vector<uint8_t> Encode(uint32_t sender, const Heartbeat& m);
+std::vector<uint8_t> Encode(uint32_t sender, const RankLost& m);
 std::vector<uint8_t> EncodeBlockData(uint32_t sender, const BlockDataHeader& h,
                                      std::span<const uint8_t> stored);
 std::vector<uint8_t> EncodeError(uint32_t sender, const std::string& text);  // cut to kMaxErrorText
@@ -130,6 +147,8 @@ struct Message {
   PixelBatchHeader batch_header() const;
   std::string error_text() const;
   BlockRequest block_request() const;
+  Heartbeat heartbeat() const;
+  RankLost rank_lost() const;
   BlockDataHeader block_data_header() const;
   std::span<const uint8_t> block_data() const;  // the stored bytes after the header
   // The batch's samples, copied out (the payload need not be aligned for SampleResult).

@@ -57,8 +57,45 @@ struct JobOutcome {
   std::vector<master::FrameFigures> figures;
 };
 
+// What goes wrong in a job, on purpose.
+struct JobFaults {
+  int damaged_rank = 0;  // this slave's 3rd block read returns a flipped byte: it fails
+  int silent_rank = 0;   // this "slave" takes a tile, sends part of it (wrong values), then
+                         // falls silent, as a killed process does
+  master::MasterOptions master;
+};
+
+// The silent slave: asks for a tile for its thread 0, sends samples of half its pixels with
+// absurd radiance (they must all be taken back out of the film), and says nothing more.
+void SilentSlave(transport::Transport* net, uint32_t spp) {
+  ASSERT_TRUE(net->Send(0, wire::Encode(static_cast<uint32_t>(net->rank()),
+                                        wire::TileRequest{0, 0})).ok());
+  for (;;) {
+    Expected<std::optional<transport::Envelope>> got = net->Receive(std::chrono::seconds(30));
+    ASSERT_TRUE(got.ok() && got->has_value());
+    const Expected<wire::Message> m = wire::Decode((*got)->bytes, 0);
+    ASSERT_TRUE(m.ok());
+    if (m->type() != wire::MessageType::kTileAssign) continue;
+    const wire::TileAssign a = m->tile_assign();
+    ASSERT_EQ(a.none, 0u);
+    std::vector<render::SampleResult> half;
+    for (int y = a.y0; y < a.y1; ++y)
+      for (int x = a.x0; x < (a.x0 + a.x1) / 2; ++x)
+        for (uint32_t k = 0; k < spp; ++k) {
+          render::SampleResult r{};
+          r.pixel = static_cast<uint32_t>(y * 80 + x);
+          r.sample = k;
+          r.rgb[0] = r.rgb[1] = r.rgb[2] = 1000.0f;
+          r.hit = 1;
+          half.push_back(r);
+        }
+    ASSERT_TRUE(net->Send(0, wire::EncodePixelBatch(static_cast<uint32_t>(net->rank()), 0, half)).ok());
+    return;
+  }
+}
+
 JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, int slaves,
-                  bool rem = false, int tile = 8) {
+                  bool rem = false, int tile = 8, const JobFaults& faults = {}) {
   JobOutcome out;
   transport::InProcessHub hub(slaves + 1);
   out.slaves.resize(static_cast<size_t>(slaves));
@@ -68,9 +105,12 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
   for (int r = 1; r <= slaves; ++r) {
     threads.emplace_back([&, r] {
       auto net = hub.Endpoint(r);
+      if (r == faults.silent_rank) return SilentSlave(net.get(), static_cast<uint32_t>(scene.integrator.spp));
       std::unique_ptr<slave::PeerBlocks> peers;
       if (rem) peers = std::make_unique<slave::PeerBlocks>(net.get(), store, slave::FaultOptions{});
-      auto engine = slave::RenderEngine::Create(store, Options(store), peers.get());
+      EngineOptions options = Options(store);
+      if (r == faults.damaged_rank) options.faults.corrupt_read = 2;
+      auto engine = slave::RenderEngine::Create(store, options, peers.get());
       ASSERT_TRUE(engine.ok());
       const render::MaterialTable materials = render::MaterialTable::Build(store.materials(), scene);
       slave::SlaveNode node(net.get(), engine->get(), peers.get());
@@ -80,7 +120,9 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
         status = node.RunFrame(static_cast<uint32_t>(f), scene, materials,
                                render::Camera(scene.cameras[f]), &stats);
       }
-      if (status.ok()) status = node.WaitForShutdown().status();
+      // A failed slave, too, waits for the end of the job (and acknowledges it).
+      const Status end = node.WaitForShutdown().status();
+      if (status.ok()) status = end;
       if (peers) {
         out.disk_reads[static_cast<size_t>(r - 1)] = peers->disk_reads();
         for (uint32_t b = 0; b < store.blocks().size(); ++b)
@@ -90,14 +132,14 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
     });
   }
   auto net = hub.Endpoint(0);
-  master::MasterNode node(net.get());
+  master::MasterNode node(net.get(), faults.master);
   for (size_t f = 0; f < scene.cameras.size(); ++f) {
     const render::Camera camera(scene.cameras[f]);
     render::Film film(camera.width(), camera.height());
     master::FrameFigures figures;
     out.master = node.RunFrame(static_cast<uint32_t>(f),
-                               render::HilbertTiles(camera.width(), camera.height(), tile), &film,
-                               [] {}, &figures);
+                               render::HilbertTiles(camera.width(), camera.height(), tile),
+                               static_cast<uint32_t>(scene.integrator.spp), &film, [] {}, &figures);
     if (!out.master.ok()) break;
     out.frames.push_back(film.Resolve());
     out.figures.push_back(figures);
@@ -105,6 +147,20 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
   EXPECT_TRUE(node.Shutdown(out.master.ok() ? 0 : 1));
   for (std::thread& t : threads) t.join();
   return out;
+}
+
+// The reference: one process, one engine, frame after frame.
+std::vector<image::ImageLayers> ReferenceFrames(const store::StoreReader& store,
+                                                const render::Scene& scene) {
+  std::vector<image::ImageLayers> reference;
+  for (size_t f = 0; f < scene.cameras.size(); ++f) {
+    render::Scene one = scene;
+    one.cameras = {scene.cameras[f]};
+    const RenderOutcome r = Render(store, one, Options(store));
+    EXPECT_TRUE(r.status.ok()) << r.status.message();
+    reference.push_back(r.image);
+  }
+  return reference;
 }
 
 class DistributedImage
@@ -116,15 +172,7 @@ TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
   const auto [integrator, rem] = GetParam();
   render::Scene scene = TestScene(*s.reader, integrator);
   if (integrator == render::IntegratorType::kPath) scene.default_material.type = render::MaterialType::kDiffuse;
-  // The reference: one process, one engine, frame after frame.
-  std::vector<image::ImageLayers> reference;
-  for (size_t f = 0; f < scene.cameras.size(); ++f) {
-    render::Scene one = scene;
-    one.cameras = {scene.cameras[f]};
-    const RenderOutcome r = Render(*s.reader, one, Options(*s.reader));
-    ASSERT_TRUE(r.status.ok()) << r.status.message();
-    reference.push_back(r.image);
-  }
+  const std::vector<image::ImageLayers> reference = ReferenceFrames(*s.reader, scene);
   for (int slaves : {1, 2, 4}) {
     const JobOutcome job = RunJob(*s.reader, scene, slaves, rem);
     ASSERT_TRUE(job.master.ok()) << job.master.message();
@@ -166,22 +214,68 @@ INSTANTIATE_TEST_SUITE_P(IntegratorsAndBlocks, DistributedImage,
                                                               render::IntegratorType::kPath),
                                             ::testing::Bool()));
 
+// A slave that fails (a damaged block) or falls silent (killed) is dropped, its unfinished
+// tiles' samples are taken back out of the film and others render them: the images equal the
+// one-process images bit for bit. With --blocks rem, the silent slave owned blocks: the others
+// read them from disk once the master says it is lost.
+TEST(Distributed, ALostOrFailedSlaveCostsTimeNeverPixels) {
+  TestStore s = BuildGenerated("spheres:30000");
+  render::Scene scene = TestScene(*s.reader, render::IntegratorType::kPath);
+  scene.default_material.type = render::MaterialType::kDiffuse;
+  const std::vector<image::ImageLayers> reference = ReferenceFrames(*s.reader, scene);
+  struct Case {
+    const char* name;
+    bool rem;
+    JobFaults faults;
+    const char* why;  // in the dropped slave's figures
+  };
+  JobFaults damaged, silent;
+  damaged.damaged_rank = 2;
+  silent.silent_rank = 3;
+  silent.master.lost_after = std::chrono::milliseconds(2000);  // 4 heartbeats
+  for (const Case& c : {Case{"damaged, loc", false, damaged, "damaged"},
+                        Case{"silent, loc", false, silent, "no word from it"},
+                        Case{"silent, rem", true, silent, "no word from it"}}) {
+    const JobOutcome job = RunJob(*s.reader, scene, 3, c.rem, 8, c.faults);
+    ASSERT_TRUE(job.master.ok()) << c.name << ": " << job.master.message();
+    ASSERT_EQ(job.frames.size(), scene.cameras.size()) << c.name;
+    const int dropped = c.faults.damaged_rank + c.faults.silent_rank;
+    for (size_t f = 0; f < scene.cameras.size(); ++f) {
+      EXPECT_TRUE(SameBits(job.frames[f].rgba, reference[f].rgba)) << c.name << ", frame " << f;
+      EXPECT_EQ(job.frames[f].samples, reference[f].samples) << c.name << ", frame " << f;
+      const master::SlaveFigures& lost = job.figures[f].slaves[static_cast<size_t>(dropped - 1)];
+      EXPECT_TRUE(lost.dropped) << c.name;
+      EXPECT_NE(lost.failure.find(c.why), std::string::npos) << c.name << ": " << lost.failure;
+    }
+    for (int r = 1; r <= 3; ++r)
+      if (r != dropped) {
+        EXPECT_TRUE(job.slaves[static_cast<size_t>(r - 1)].ok()) << c.name;
+      }
+  }
+}
+
 TEST(TileScheduler, EveryTileOnceEachSlaveStartsInItsOwnRegion) {
   const std::vector<render::Tile> tiles = render::HilbertTiles(200, 120, 16);
   master::TileScheduler scheduler(tiles, 3);
   std::vector<std::vector<size_t>> got(3);
-  render::Tile t;
+  size_t index;
+  bool returned = false;
   for (int round = 0; ; ++round) {
     bool any = false;
     for (int s = 0; s < 3; ++s) {
       if (s == 2 && round % 2) continue;  // slave 2 is slower: the others take over its span
-      if (!scheduler.Next(s, &t)) continue;
+      if (!scheduler.Next(s, &index)) continue;
       any = true;
-      for (size_t i = 0; i < tiles.size(); ++i)
-        if (tiles[i].x0 == t.x0 && tiles[i].y0 == t.y0) got[s].push_back(i);
+      if (s == 2 && round == 8 && !returned) {  // slave 2 is lost with this tile: it comes back
+        scheduler.Return(index);
+        returned = true;
+        continue;
+      }
+      got[s].push_back(index);
     }
     if (!any) break;
   }
+  EXPECT_TRUE(returned);
   std::vector<int> seen(tiles.size(), 0);
   for (const auto& g : got)
     for (size_t i : g) ++seen[i];
@@ -192,7 +286,7 @@ TEST(TileScheduler, EveryTileOnceEachSlaveStartsInItsOwnRegion) {
     EXPECT_EQ(got[s][1], got[s][0] + 1);
     EXPECT_EQ(got[s][2], got[s][1] + 1);
   }
-  EXPECT_EQ(scheduler.handed_out(), tiles.size());
+  EXPECT_EQ(scheduler.handed_out(), tiles.size() + 1);  // the returned tile went out twice
 }
 
 // A fake slave that sends `bytes` to the master where a tile request should be.
@@ -204,7 +298,7 @@ Status MasterFacing(const std::vector<uint8_t>& bytes) {
   master::MasterNode node(master_end.get());
   render::Film film(16, 16);
   master::FrameFigures figures;
-  return node.RunFrame(0, render::HilbertTiles(16, 16, 8), &film, [] {}, &figures);
+  return node.RunFrame(0, render::HilbertTiles(16, 16, 8), 1, &film, [] {}, &figures);
 }
 
 TEST(Distributed, HostileMessagesEndTheFrameNamingTheSender) {
@@ -231,7 +325,7 @@ TEST(Distributed, HostileMessagesEndTheFrameNamingTheSender) {
   EXPECT_NE(s.message().find("outside the 16x16 image"), std::string::npos) << s.message();
 }
 
-TEST(Distributed, ASlaveThatFailsEndsTheJobWithItsError) {
+TEST(Distributed, WhenEverySlaveFailsTheJobEndsWithTheirErrors) {
   TestStore s = BuildGenerated("spheres:20000");
   render::Scene scene = TestScene(*s.reader, render::IntegratorType::kWhitted);
   // Every slave's engine reads block data through a source that corrupts its 3rd read.
@@ -257,12 +351,14 @@ TEST(Distributed, ASlaveThatFailsEndsTheJobWithItsError) {
   render::Film film(camera.width(), camera.height());
   master::FrameFigures figures;
   const Status status = node.RunFrame(0, render::HilbertTiles(camera.width(), camera.height(), 8),
-                                      &film, [] {}, &figures);
+                                      1, &film, [] {}, &figures);
   EXPECT_TRUE(node.Shutdown(1));  // every slave acknowledges, the failed one too
   for (std::thread& t : threads) t.join();
   ASSERT_FALSE(status.ok());
+  EXPECT_NE(status.message().find("no slave is left"), std::string::npos) << status.message();
   EXPECT_NE(status.message().find("damaged"), std::string::npos) << status.message();
-  EXPECT_EQ(status.message().rfind("rank ", 0), 0u) << status.message();
+  EXPECT_NE(status.message().find("rank 1: "), std::string::npos) << status.message();
+  EXPECT_NE(status.message().find("rank 2: "), std::string::npos) << status.message();
 }
 
 }  // namespace

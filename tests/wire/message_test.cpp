@@ -63,6 +63,17 @@ TEST(Message, EveryTypeRoundTrips) {
     EXPECT_EQ(m->hello().ray_threads, 8u);
   }
   ASSERT_TRUE(Decode(Encode(0, Shutdown{0, 0}), 0).ok());
+  {
+    const Expected<Message> m = Decode(Encode(3, Heartbeat{17, 0}), 3);
+    ASSERT_TRUE(m.ok());
+    EXPECT_EQ(m->type(), MessageType::kHeartbeat);
+    EXPECT_EQ(m->heartbeat().sequence, 17u);
+  }
+  {
+    const Expected<Message> m = Decode(Encode(0, RankLost{2, 0}), 0);
+    ASSERT_TRUE(m.ok());
+    EXPECT_EQ(m->rank_lost().rank, 2u);
+  }
 }
 
 TEST(Message, PixelBatchRoundTripsBitForBit) {
@@ -101,8 +112,8 @@ TEST(Message, MalformedMessagesNameTheSender) {
   Poke<uint32_t>(&b, 0, 0xdeadbeef);
   ExpectError(b, 4, "not a raystack message");
   b = good;
-  Poke<uint16_t>(&b, 4, 2);
-  ExpectError(b, 4, "protocol version 2");
+  Poke<uint16_t>(&b, 4, 1);
+  ExpectError(b, 4, "protocol version 1");
   b = good;
   Poke<uint16_t>(&b, 6, 99);
   ExpectError(b, 4, "unknown type 99");

@@ -1,0 +1,69 @@
+// The film's merge is exact and order-independent, and Unmerge takes samples back exactly: a
+// film that merged A and B and then unmerged B is bit for bit the film that merged only A.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "common/render/film.h"
+
+namespace raystack::render {
+namespace {
+
+std::vector<SampleResult> RandomSamples(int width, int height, int count, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> radiance(0.0f, 50.0f);
+  std::vector<SampleResult> out(static_cast<size_t>(count));
+  for (int i = 0; i < count; ++i) {
+    SampleResult& s = out[static_cast<size_t>(i)];
+    s.pixel = static_cast<uint32_t>(rng() % static_cast<uint32_t>(width * height));
+    s.sample = static_cast<uint32_t>(i + 1);  // never sample 0: no primary-hit layers
+    for (float& c : s.rgb) c = radiance(rng);
+    s.hit = rng() & 1;
+  }
+  return out;
+}
+
+void ExpectSameImage(const image::ImageLayers& a, const image::ImageLayers& b) {
+  ASSERT_EQ(a.rgba.size(), b.rgba.size());
+  for (size_t i = 0; i < a.rgba.size(); ++i)
+    ASSERT_EQ(std::memcmp(&a.rgba[i], &b.rgba[i], sizeof(float)), 0) << "rgba " << i;
+  ASSERT_EQ(a.samples, b.samples);
+  for (size_t i = 0; i < a.variance.size(); ++i)
+    ASSERT_EQ(std::memcmp(&a.variance[i], &b.variance[i], sizeof(float)), 0) << "variance " << i;
+}
+
+TEST(Film, UnmergeTakesSamplesBackExactly) {
+  const std::vector<SampleResult> kept = RandomSamples(9, 7, 400, 1);
+  std::vector<SampleResult> lost = RandomSamples(9, 7, 300, 2);
+  lost[5].rgb[1] = std::numeric_limits<float>::quiet_NaN();  // dropped, and its count too
+  Film only_kept(9, 7), both(9, 7);
+  only_kept.Merge(kept);
+  // Interleaved, in pieces, as batches arrive from several ranks.
+  both.Merge(std::span(lost).first(100));
+  both.Merge(kept);
+  both.Merge(std::span(lost).subspan(100));
+  EXPECT_NE(both.samples_merged(), only_kept.samples_merged());
+  both.Unmerge(lost);
+  EXPECT_EQ(both.samples_merged(), only_kept.samples_merged());
+  EXPECT_EQ(both.pixels_covered(), only_kept.pixels_covered());
+  EXPECT_EQ(both.nonfinite_dropped(), 0u);
+  ExpectSameImage(both.Resolve(), only_kept.Resolve());
+}
+
+TEST(Film, UnmergingEverythingLeavesAnEmptyFilm) {
+  const std::vector<SampleResult> all = RandomSamples(5, 5, 200, 3);
+  Film film(5, 5), empty(5, 5);
+  film.Merge(all);
+  film.Unmerge(all);
+  EXPECT_EQ(film.samples_merged(), 0u);
+  EXPECT_EQ(film.pixels_covered(), 0u);
+  ExpectSameImage(film.Resolve(), empty.Resolve());
+}
+
+}  // namespace
+}  // namespace raystack::render
