@@ -60,8 +60,19 @@ options:
   --no-png                  do not write the PNG quick-look
   --exposure EV             exposure of the PNG quick-look (default 0)
   --stats FILE              also write the run's statistics as JSON
+  --lost-after S            under mpirun, the master drops a slave it has not heard from for
+                            S seconds (default 5; slaves send a heartbeat every 0.5 s); its
+                            unfinished tiles go to the others, and the image stays exact.
+                            Start the job with `mpirun --enable-recovery` so that a dead
+                            slave does not end every rank
   -q, --quiet               no progress output
   -h, --help                this text
+
+fault injection (for tests and drills):
+  --fault-rank R            apply the faults below on rank R only (default: every slave)
+  --fault-kill-after-tiles N  the slave kills itself (SIGKILL, as kill -9) when given its
+                            N-th tile
+  --fault-fail-read K       the slave's K-th block read (0-based) fails, as a disk error
 )";
 
 struct Args {
@@ -75,6 +86,10 @@ struct Args {
   bool quiet = false;
   double checkpoint_s = 0;
   std::string blocks = "auto";
+  double lost_after_s = 5;
+  int fault_rank = 0;  // 0: every slave
+  int64_t kill_after_tiles = -1;
+  int64_t fail_read = -1;
 };
 
 template <typename T>
@@ -141,6 +156,14 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->exposure, -64, 64));
     } else if (arg == "--stats") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->stats));
+    } else if (arg == "--lost-after") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->lost_after_s, 0.5, 1e6));
+    } else if (arg == "--fault-rank") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->fault_rank, 1, 1 << 20));
+    } else if (arg == "--fault-kill-after-tiles") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->kill_after_tiles, 1, 1e12));
+    } else if (arg == "--fault-fail-read") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->fail_read, 0, 1e12));
     } else if (arg == "-q" || arg == "--quiet") {
       a->quiet = true;
     } else if (!arg.empty() && arg[0] == '-') {
@@ -314,7 +337,9 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
 Status RunMaster(const Args& args, const render::Scene& scene, transport::Transport* net) {
   const std::string output = OutputOf(args, scene);
   const size_t frames = scene.cameras.size();
-  MasterNode master(net);
+  MasterOptions options;
+  options.lost_after = std::chrono::milliseconds(static_cast<int64_t>(args.lost_after_s * 1000));
+  MasterNode master(net, options);
   std::string json = "[\n";
   for (size_t f = 0; f < frames; ++f) {
     const render::Camera camera(scene.cameras[f]);
@@ -347,7 +372,11 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
     if (!args.quiet) {
       std::printf("frame %zu: %d slaves, %.3f s, imbalance %.3f\n", f, net->size() - 1,
                   figures.seconds, figures.imbalance());
-      for (const SlaveFigures& s : figures.slaves)
+      for (const SlaveFigures& s : figures.slaves) {
+        if (s.dropped) {
+          std::printf("  rank %d: dropped (%s)\n", s.rank, s.failure.c_str());
+          continue;
+        }
         std::printf("  rank %d: %.3f s, %llu rays, %llu tiles, %llu blocks loaded (%llu distinct), "
                     "%.1f MB of blocks (%.1f MB from peers, %.1f MB to peers), %.1f MB sent to "
                     "the master\n",
@@ -359,6 +388,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                     static_cast<double>(s.done.bytes_from_peers) / 1e6,
                     static_cast<double>(s.done.bytes_to_peers) / 1e6,
                     static_cast<double>(s.bytes_received) / 1e6);
+      }
       std::printf("  wrote %s\n", exr->c_str());
     }
     json += FiguresJson(f, figures) + (f + 1 < frames ? ",\n" : "\n");
@@ -388,9 +418,11 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
   Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene.store);
   std::unique_ptr<slave::PeerBlocks> peers;
   slave::EngineOptions options = args.engine;
+  const bool faulty = args.fault_rank == 0 || args.fault_rank == net->rank();
+  if (faulty) options.faults.fail_read = args.fail_read;
   std::string why;
   if (store.ok() && UseRemoteBlocks(args, **store, net->size() - 1, &why)) {
-    peers = std::make_unique<slave::PeerBlocks>(net, **store, args.engine.faults);
+    peers = std::make_unique<slave::PeerBlocks>(net, **store, options.faults);
     // The share this slave keeps for its peers counts against its budget.
     if (peers->owned_bytes() >= options.cache_bytes)
       store = Status::Error(StrFormat("--blocks rem: this slave's share of the store (%.1f MB) "
@@ -406,19 +438,20 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
   if (!engine.ok()) {  // tell the master, which reports it and ends the job on every rank
     const Status s = engine.status();
     (void)net->Send(0, wire::EncodeError(static_cast<uint32_t>(net->rank()), s.message()));
-    slave::SlaveNode waiting(net, nullptr);  // only to hear (and acknowledge) the shutdown
-    return waiting.WaitForShutdown(std::chrono::seconds(30)).ok() ? OkStatus() : s;
+    // The others go on without it: wait for the end of the job (and acknowledge it).
+    slave::SlaveNode waiting(net, nullptr);
+    return waiting.WaitForShutdown().ok() ? OkStatus() : s;
   }
   const render::MaterialTable materials = render::MaterialTable::Build((*store)->materials(), scene);
-  slave::SlaveNode node(net, engine->get(), peers.get());
+  slave::SlaveNode node(net, engine->get(), peers.get(), faulty ? args.kill_after_tiles : -1);
   for (size_t f = 0; f < scene.cameras.size(); ++f) {
     const render::Camera camera(scene.cameras[f]);
     slave::RenderStats stats;
     const Status s = node.RunFrame(static_cast<uint32_t>(f), scene, materials, camera, &stats);
     if (!s.ok()) {
-      // The master has been told (or told us): wait for its word, and acknowledge it, so
-      // every rank ends cleanly.
-      return node.WaitForShutdown(std::chrono::seconds(30)).ok() ? OkStatus() : s;
+      // The master has been told (or told us), and the others go on without this slave: wait
+      // for the end of the job, and acknowledge it, so every rank ends cleanly.
+      return node.WaitForShutdown().ok() ? OkStatus() : s;
     }
   }
   Expected<uint32_t> reason = node.WaitForShutdown();

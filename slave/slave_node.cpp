@@ -1,6 +1,7 @@
 #include "slave/slave_node.h"
 
 #include <atomic>
+#include <csignal>
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
@@ -18,8 +19,10 @@ namespace raystack::slave {
 // that there are no more). The receiving thread fills slots; ray threads take from them.
 class RemoteTiles final : public TileSource {
  public:
-  RemoteTiles(transport::Transport* net, uint32_t frame, int threads)
-      : net_(net), frame_(frame), slots_(static_cast<size_t>(threads)) {}
+  RemoteTiles(transport::Transport* net, uint32_t frame, int threads,
+              std::atomic<int64_t>* given, int64_t kill_after)
+      : net_(net), frame_(frame), slots_(static_cast<size_t>(threads)), given_(given),
+        kill_after_(kill_after) {}
 
   bool Next(uint32_t thread, Tile* tile) override {
     Slot& s = slots_[thread];
@@ -30,6 +33,11 @@ class RemoteTiles final : public TileSource {
     *tile = s.tile;
     s.has_tile = false;
     ++tiles_;
+    if (given_->fetch_add(1) + 1 == kill_after_) {  // fault injection: die as kill -9 does
+      LOG_WARNING("slave", "rank %d: killing itself at its tile %lld (--fault-kill-after-tiles)",
+                  net_->rank(), static_cast<long long>(kill_after_));
+      std::raise(SIGKILL);
+    }
     return true;
   }
 
@@ -102,6 +110,8 @@ class RemoteTiles final : public TileSource {
   std::vector<Slot> slots_;
   bool failed_ = false;
   std::atomic<uint64_t> tiles_{0};
+  std::atomic<int64_t>* given_;  // tiles given to this node in the job
+  const int64_t kill_after_;
 };
 
 namespace {
@@ -136,8 +146,9 @@ class RemoteSink final : public render::SampleSink {
 
 }  // namespace
 
-SlaveNode::SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers)
-    : net_(net), engine_(engine), peers_(peers) {
+SlaveNode::SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers,
+                     int64_t kill_after_tiles)
+    : net_(net), engine_(engine), peers_(peers), kill_after_tiles_(kill_after_tiles) {
   receiver_ = std::thread([this] {
     SetThreadName("rs-receive");
     ReceiveLoop();
@@ -225,7 +236,7 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
                            const render::MaterialTable& materials, const render::Camera& camera,
                            RenderStats* stats) {
   const uint32_t me = static_cast<uint32_t>(net_->rank());
-  RemoteTiles tiles(net_, frame, engine_->options().threads);
+  RemoteTiles tiles(net_, frame, engine_->options().threads, &tiles_given_, kill_after_tiles_);
   RemoteSink sink(net_, frame);
   {
     std::unique_lock lock(mu_);

@@ -6,6 +6,7 @@
 // in batches from the ray threads as they finish (the engine's result batch, ~1000 samples),
 // in the order their pixels' priorities gave them.
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -30,7 +31,10 @@ class PeerBlocks;
 // answers, which must be served between frames and after this slave's last frame too.
 class SlaveNode {
  public:
-  SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers = nullptr);
+  // `kill_after_tiles` (fault injection, > 0): the process kills itself with SIGKILL, as
+  // `kill -9` would, when it is given that many tiles in the job.
+  SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers = nullptr,
+            int64_t kill_after_tiles = -1);
   ~SlaveNode();
 
   // Renders this slave's share of frame `frame`, then reports it done (with its figures) to
@@ -62,6 +66,8 @@ class SlaveNode {
   uint32_t shutdown_reason_ = 0;
   bool acknowledged_ = false;
   Status error_;                  // a failure on the receiving side
+  const int64_t kill_after_tiles_;
+  std::atomic<int64_t> tiles_given_{0};
 };
 
 }  // namespace raystack::slave
