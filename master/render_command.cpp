@@ -19,6 +19,7 @@
 #include "common/store/store_reader.h"
 #include "common/mpi/mpi_transport.h"
 #include "master/master_node.h"
+#include "master/resume.h"
 #include "slave/peer_blocks.h"
 #include "slave/render_engine.h"
 #include "slave/slave_node.h"
@@ -47,7 +48,11 @@ options:
                             fraction of its current one is done (default 0: at once)
   --batch N                 samples per pixel batch a slave sends (default 1024)
   --checkpoint-s S          write the EXR every S seconds while rendering (atomically: a
-                            temporary file, then a rename; default 0: only at the end)
+                            temporary file, then a rename; default 0: only at the end); a
+                            failed checkpoint is logged and tried again, never fatal
+  --resume                  continue from the output EXR a killed run left (its last
+                            checkpoint): tiles it holds finished are kept, the others are
+                            rendered again; the image equals an uninterrupted run's
   --io-threads N            block reads kept in flight by the loader (default 16)
   --blocks loc|rem|auto     under mpirun, where a slave gets a missing block: loc, the store
                             itself (local disk or shared filesystem); rem, the memory of the
@@ -87,6 +92,7 @@ struct Args {
   double checkpoint_s = 0;
   std::string blocks = "auto";
   double lost_after_s = 5;
+  bool resume = false;
   int fault_rank = 0;  // 0: every slave
   int64_t kill_after_tiles = -1;
   int64_t fail_read = -1;
@@ -156,6 +162,8 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->exposure, -64, 64));
     } else if (arg == "--stats") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->stats));
+    } else if (arg == "--resume") {
+      a->resume = true;
     } else if (arg == "--lost-after") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->lost_after_s, 0.5, 1e6));
     } else if (arg == "--fault-rank") {
@@ -207,9 +215,19 @@ std::string OutputOf(const Args& args, const render::Scene& scene) {
 // Fails before any rendering when a frame's EXR could not be written.
 Status CheckOutputs(const Args& args, const render::Scene& scene) {
   const size_t frames = scene.cameras.size();
-  for (size_t f = 0; f < frames; ++f)
+  // Room for every frame's image at its largest (13 uncompressed 32-bit channels in the EXR,
+  // 4 bytes a pixel in the PNG), and for a second copy of the largest EXR while a checkpoint's
+  // temporary sits beside the previous one.
+  uint64_t needed = 0, largest = 0;
+  for (size_t f = 0; f < frames; ++f) {
     RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(OutputOf(args, scene), f, frames, ".exr")));
-  return OkStatus();
+    const uint64_t pixels = static_cast<uint64_t>(scene.cameras[f].width) *
+                            static_cast<uint64_t>(scene.cameras[f].height);
+    largest = std::max(largest, pixels * 13 * 4);
+    needed += pixels * 13 * 4 + (args.png ? pixels * 4 : 0);
+  }
+  if (args.checkpoint_s > 0) needed += largest;
+  return image::CheckRoom(FramePath(OutputOf(args, scene), 0, frames, ".exr"), needed);
 }
 
 // Writes frame `f`'s EXR (and the PNG quick look) from the film; returns the EXR's path.
@@ -226,6 +244,33 @@ Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, s
     LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
                 static_cast<unsigned long long>(film.nonfinite_dropped()));
   return exr;
+}
+
+// The tiles frame `f` renders: all of them, or with --resume those its checkpoint does not
+// hold finished (the finished ones go into `film`).
+Expected<std::vector<render::Tile>> FrameTiles(const Args& args, const render::Scene& scene,
+                                               size_t f, const render::Camera& camera,
+                                               render::Film* film) {
+  std::vector<render::Tile> tiles =
+      render::HilbertTiles(camera.width(), camera.height(), args.tile_size);
+  if (!args.resume) return tiles;
+  const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
+  const size_t all = tiles.size();
+  Expected<ResumePlan> plan = PlanResume(exr, camera.width(), camera.height(),
+                                         static_cast<uint32_t>(scene.integrator.spp),
+                                         std::move(tiles));
+  if (!plan.ok()) return plan.status();
+  ApplyResume(*plan, film);
+  if (!args.quiet)
+    std::printf("resume frame %zu: %zu of %zu tiles finished in %s, %zu to render\n", f,
+                plan->kept_tiles, all, exr.c_str(), plan->to_render.size());
+  return std::move(plan->to_render);
+}
+
+uint64_t SamplesOf(const std::vector<render::Tile>& tiles, int spp) {
+  uint64_t n = 0;
+  for (const render::Tile& t : tiles) n += static_cast<uint64_t>(t.pixels());
+  return n * static_cast<uint64_t>(spp);
 }
 
 // Writes the film to the frame's EXR every `every_s` seconds while it renders (atomically, so
@@ -268,11 +313,12 @@ Status Run(const Args& args) {
     const render::Camera camera(scene->cameras[f]);
     render::Film film(camera.width(), camera.height());
     render::FilmSink sink(&film);
-    slave::GridTileSource tiles(camera.width(), camera.height(), args.tile_size);
+    Expected<std::vector<render::Tile>> frame_tiles = FrameTiles(args, *scene, f, camera, &film);
+    if (!frame_tiles.ok()) return frame_tiles.status();
+    const uint64_t total = SamplesOf(*frame_tiles, scene->integrator.spp);
+    slave::GridTileSource tiles(std::move(*frame_tiles));
     slave::RenderStats stats;
     Status status;
-    const uint64_t total = static_cast<uint64_t>(camera.width()) * camera.height() *
-                           static_cast<uint64_t>(scene->integrator.spp);
     {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
@@ -344,8 +390,12 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
   for (size_t f = 0; f < frames; ++f) {
     const render::Camera camera(scene.cameras[f]);
     render::Film film(camera.width(), camera.height());
-    const uint64_t total = static_cast<uint64_t>(camera.width()) * camera.height() *
-                           static_cast<uint64_t>(scene.integrator.spp);
+    Expected<std::vector<render::Tile>> frame_tiles = FrameTiles(args, scene, f, camera, &film);
+    if (!frame_tiles.ok()) {
+      master.Shutdown(1);
+      return frame_tiles.status();
+    }
+    const uint64_t total = SamplesOf(*frame_tiles, scene.integrator.spp);
     FrameFigures figures;
     Status status;
     {
@@ -353,8 +403,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                                 args.quiet);
       uint64_t shown = 0;
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
-      status = master.RunFrame(static_cast<uint32_t>(f),
-                               render::HilbertTiles(camera.width(), camera.height(), args.tile_size),
+      status = master.RunFrame(static_cast<uint32_t>(f), std::move(*frame_tiles),
                                static_cast<uint32_t>(scene.integrator.spp), &film, [&] {
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);

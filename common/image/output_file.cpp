@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -10,6 +11,8 @@
 #include <cstring>
 #include <filesystem>
 #include <utility>
+
+#include "common/base/log.h"
 
 namespace raystack::image {
 namespace {
@@ -83,6 +86,22 @@ Status AtomicOutput::Commit() {
     return Status::Error(path_ + ": cannot write: rename from " + temp_path_ +
                          " failed: " + std::strerror(errno));
   temp_path_.clear();
+  return OkStatus();
+}
+
+Status CheckRoom(const std::string& path, uint64_t bytes) {
+  const size_t slash = path.rfind('/');
+  const std::string folder = slash == std::string::npos ? "." : path.substr(0, slash + 1);
+  struct statvfs vfs;
+  if (statvfs(folder.c_str(), &vfs) != 0)
+    return Status::Error(path + ": cannot check the free space of its folder: " +
+                         std::strerror(errno));
+  const uint64_t free = static_cast<uint64_t>(vfs.f_bavail) * static_cast<uint64_t>(vfs.f_frsize);
+  if (free < bytes)
+    return Status::Error(StrFormat("%s: the disk holding it has %.1f MB free, the images need "
+                                   "up to %.1f MB: free some space or choose another --output",
+                                   path.c_str(), static_cast<double>(free) / 1e6,
+                                   static_cast<double>(bytes) / 1e6));
   return OkStatus();
 }
 

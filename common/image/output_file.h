@@ -4,6 +4,7 @@
 // or a later pipeline step never reads half an image, and a failed write leaves the previous
 // file in place.
 
+#include <cstdint>
 #include <string>
 #include <utility>
 
@@ -15,6 +16,11 @@ namespace raystack::image {
 // error naming the path otherwise. (It creates and removes a temporary file there: the only
 // test that sees read-only mounts and ACLs as they are.)
 Status CheckWritable(const std::string& path);
+
+// Checks before a render starts that the file system holding `path` has `bytes` free (for the
+// images a render will write): a full disk is reported then, naming the path, the room there
+// is and the room needed, not after hours of rendering.
+Status CheckRoom(const std::string& path, uint64_t bytes);
 
 // A temporary file beside `path`; Commit() makes it `path`. Destroyed without a successful
 // Commit(), it removes the temporary. Move-only; not thread-safe.

@@ -61,6 +61,17 @@ void Film::Unmerge(std::span<const SampleResult> batch) {
   }
 }
 
+void Film::Restore(const image::ImageLayers& from, std::span<const uint32_t> pixels) {
+  std::lock_guard lock(mu_);
+  if (restored_.width == 0) restored_ = from;
+  restored_pixels_.insert(restored_pixels_.end(), pixels.begin(), pixels.end());
+}
+
+uint64_t Film::pixels_restored() const {
+  std::lock_guard lock(mu_);
+  return restored_pixels_.size();
+}
+
 uint64_t Film::samples_merged() const {
   std::lock_guard lock(mu_);
   return samples_merged_;
@@ -102,6 +113,16 @@ image::ImageLayers Film::Resolve() const {
       const double var = (p.luminance_squared.Value() / n - y * y) * n / (n - 1);
       out.variance[i] = static_cast<float>(std::max(0.0, var) / n);
     }
+  }
+  const image::ImageLayers& r = restored_;
+  for (const uint32_t i : restored_pixels_) {
+    if (i >= pixels_.size()) continue;
+    for (int c = 0; c < 4; ++c) out.rgba[4 * i + c] = r.rgba[4 * i + c];
+    if (!r.z.empty()) out.z[i] = r.z[i];
+    for (int c = 0; c < 3 && !r.normal.empty(); ++c) out.normal[3 * i + c] = r.normal[3 * i + c];
+    for (int c = 0; c < 3 && !r.albedo.empty(); ++c) out.albedo[3 * i + c] = r.albedo[3 * i + c];
+    if (!r.samples.empty()) out.samples[i] = r.samples[i];
+    if (!r.variance.empty()) out.variance[i] = r.variance[i];
   }
   return out;
 }

@@ -31,6 +31,12 @@ class Film {
   // unfinished tiles, which another slave renders again. Thread-safe.
   void Unmerge(std::span<const SampleResult> batch);
 
+  // --resume: pixels a checkpoint already holds finished (every sample rendered) are taken as
+  // the checkpoint has them, layer by layer, and Resolve gives them back verbatim: so the image
+  // of a resumed run equals an uninterrupted run's bit for bit. `from` must be this film's size.
+  void Restore(const image::ImageLayers& from, std::span<const uint32_t> pixels);
+  uint64_t pixels_restored() const;
+
   uint64_t samples_merged() const;
   uint64_t nonfinite_dropped() const;
   // Pixels with at least one sample.
@@ -51,6 +57,8 @@ class Film {
   mutable std::mutex mu_;
   std::vector<Pixel> pixels_;
   std::vector<float> z_, normal_, albedo_;
+  image::ImageLayers restored_;  // empty unless Restore was called
+  std::vector<uint32_t> restored_pixels_;
   uint64_t samples_merged_ = 0;
   uint64_t nonfinite_ = 0;
   uint64_t covered_ = 0;

@@ -1,0 +1,89 @@
+// --resume continues from the checkpoint a killed run left: the image equals an uninterrupted
+// run's byte for byte, in one process and under mpirun. The "killed run" is made exactly: the
+// finished image with some tiles' pixels taken back to partly or not rendered (fewer samples,
+// wrong values), as a checkpoint written mid-render holds them.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "common/image/exr_io.h"
+#include "tests/prep/run_process.h"
+#include "tests/support/store_dir_fixture.h"
+
+namespace raystack::testing {
+namespace {
+
+using prep::testing::ProcessResult;
+using prep::testing::RunProcess;
+using prep::testing::Slurp;
+
+class Resume : public StoreDirFixture {
+ protected:
+  void SetUp() override {
+    MakeStore("spheres:20000");
+    std::ofstream(dir_->File("scene.json")) << R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 96, "height": 64 },
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "materials": { "default": { "type": "diffuse", "albedo": [0.7, 0.6, 0.5] } },
+      "integrator": { "type": "path", "max_depth": 3, "spp": 3, "seed": 4 } })";
+  }
+  ProcessResult Render(const std::string& out, int np, std::vector<std::string> extra = {}) {
+    std::vector<std::string> argv;
+    if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
+    for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("scene.json"),
+                                 std::string("--threads"), std::string("2"), std::string("--cache-mb"),
+                                 std::string("1"), std::string("--tile-size"), std::string("16"),
+                                 std::string("--output"), out, std::string("--no-png")})
+      argv.push_back(a);
+    for (const std::string& a : extra) argv.push_back(a);
+    return RunProcess(argv, dir_->path());
+  }
+};
+
+TEST_F(Resume, TheResumedImageEqualsAnUninterruptedRun) {
+  const ProcessResult full = Render(dir_->File("full.exr"), 0);
+  ASSERT_EQ(full.exit_code, 0) << full.err;
+  Expected<image::ImageLayers> image = image::ReadExr(dir_->File("full.exr"));
+  ASSERT_TRUE(image.ok()) << image.status().message();
+  // The checkpoint: the left half of the image finished, in the right half some pixels with 1
+  // of 3 samples and absurd values, the rest never reached.
+  image::ImageLayers partial = *image;
+  for (int y = 0; y < partial.height; ++y)
+    for (int x = partial.width / 2; x < partial.width; ++x) {
+      const size_t i = partial.PixelIndex(x, y);
+      const bool reached = (x + y) % 3 == 0;
+      partial.samples[i] = reached ? 1 : 0;
+      for (int c = 0; c < 4; ++c) partial.rgba[4 * i + c] = reached ? 1e4f : 0.0f;
+      partial.variance[i] = 0;
+    }
+  const std::string expected = Slurp(dir_->File("full.exr"));
+  for (int np : {0, 3}) {
+    const std::string out = dir_->File("resumed" + std::to_string(np) + ".exr");
+    ASSERT_TRUE(image::WriteExr(out, partial).ok());
+    const ProcessResult r = Render(out, np, {"--resume"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    // 96x64 in 16-pixel tiles: 24 tiles, the 12 of the left half kept.
+    EXPECT_NE(r.out.find("12 of 24 tiles finished"), std::string::npos) << r.out;
+    EXPECT_TRUE(Slurp(out) == expected) << "np " << np;
+  }
+}
+
+TEST_F(Resume, ACheckpointOfAnotherFrameIsRefusedNamingIt) {
+  image::ImageLayers other;
+  other.Resize(10, 10);
+  ASSERT_TRUE(image::WriteExr(dir_->File("other.exr"), other).ok());
+  const ProcessResult r = Render(dir_->File("other.exr"), 0, {"--resume"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("other.exr: the checkpoint is 10x10, this frame 96x64"), std::string::npos)
+      << r.err;
+}
+
+TEST_F(Resume, WithoutACheckpointEverythingIsRendered) {
+  const ProcessResult r = Render(dir_->File("fresh.exr"), 0, {"--resume"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("0 of 24 tiles finished"), std::string::npos) << r.out;
+}
+
+}  // namespace
+}  // namespace raystack::testing
