@@ -51,8 +51,11 @@ Status MasterNode::Send(int to, const std::vector<uint8_t>& bytes, FrameFigures*
 bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
   std::vector<bool> acknowledged(static_cast<size_t>(net_->size()), false);
   int waiting = 0;
+  bool died = false;
+  for (const SlaveState& s : slaves_) died = died || s.lost;
   for (int r = 1; r < net_->size(); ++r) {
-    const Status s = net_->Send(r, wire::Encode(0, wire::Shutdown{reason, 0}));
+    const Status s = net_->Send(
+        r, wire::Encode(0, wire::Shutdown{reason, died ? wire::kShutdownRankDied : 0u}));
     // A lost slave may be dead: it is told, but nothing waits for its answer.
     if (s.ok() && !slaves_[static_cast<size_t>(r)].lost) {
       ++waiting;
@@ -117,6 +120,7 @@ Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
   SlaveState& s = slaves_[static_cast<size_t>(rank)];
   s.dropped = true;
   s.lost = lost;
+  if (lost) net_->NoteRankDied(rank);
   s.failure = why;
   SlaveFigures& figures = f->figures->slaves[static_cast<size_t>(rank - 1)];
   figures.dropped = true;
@@ -135,7 +139,8 @@ Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
   // The others read its blocks from disk from now on (--blocks rem).
   for (int r = 1; r < net_->size(); ++r)
     if (!slaves_[static_cast<size_t>(r)].dropped)
-      (void)Send(r, wire::Encode(0, wire::RankLost{static_cast<uint32_t>(rank), 0}), f->figures);
+      (void)Send(r, wire::Encode(0, wire::RankLost{static_cast<uint32_t>(rank), lost ? 1u : 0u}),
+                 f->figures);
   if (f->remaining == 0 && f->ledger.unfinished() > 0) {
     std::string all;
     for (int r = 1; r < net_->size(); ++r)

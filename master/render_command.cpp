@@ -559,9 +559,9 @@ int RenderCommand(int argc, char** argv) {
         // The master has ended the job on every rank; a slave whose master did not answer
         // ends it the hard way rather than leave the others waiting.
         if (rank > 0) (*net)->Abort(1);
-        return 1;
       }
-      return 0;
+      if ((*net)->rank_died()) mpi::MpiTransport::ExitWithoutFinalize(s.ok() ? 0 : 1);
+      return s.ok() ? 0 : 1;
     }
     // mpirun -np 1: one process plays both roles, as without mpirun.
   }

@@ -66,15 +66,15 @@ Status PeerBlocks::Fetch(int owner, uint32_t first, uint32_t count, std::vector<
     append->insert(append->end(), bytes.begin(), bytes.end());
     return OkStatus();
   };
-  bool owner_lost;
   {
-    std::lock_guard lock(mu_);
+    // One critical section: an OwnerLost between a check and the request would leave the
+    // request waiting for an answer that never comes.
+    std::unique_lock lock(mu_);
     if (stopped_) return Status::Error("the job is ending");
-    owner_lost = lost_[static_cast<size_t>(owner)];
-  }
-  if (owner_lost) return from_disk();
-  {
-    std::lock_guard lock(mu_);
+    if (lost_[static_cast<size_t>(owner)]) {
+      lock.unlock();
+      return from_disk();
+    }
     id = next_request_++;
     Pending p;
     p.owner = owner;

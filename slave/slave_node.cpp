@@ -210,14 +210,18 @@ void SlaveNode::ReceiveLoop() {
     } else if (from == 0 && type == wire::MessageType::kShutdown) {
       shut_down_ = true;
       shutdown_reason_ = m->shutdown().reason;
+      if (m->shutdown().flags & wire::kShutdownRankDied) net_->NoteRankDied(-1);
       if (tiles_) tiles_->Fail();  // ray threads waiting for a tile give up
       if (peers_) peers_->Stop();
       changed_.notify_all();
     } else if (from == 0 && type == wire::MessageType::kRankLost) {
       const uint32_t lost = m->rank_lost().rank;
       if (lost == 0 || lost >= static_cast<uint32_t>(net_->size()))
-        Failed(Status::Error(StrFormat("the master reports rank %u lost, which is not a slave", lost)));
-      else if (peers_)
+        Failed(Status::Error(
+            StrFormat("the master reports rank %u lost, which is not a slave", lost)));
+      else if (m->rank_lost().died)
+        net_->NoteRankDied(static_cast<int>(lost));
+      if (peers_ && lost > 0 && lost < static_cast<uint32_t>(net_->size()))
         peers_->OwnerLost(static_cast<int>(lost));
     } else if (from > 0 && peers_ && type == wire::MessageType::kBlockRequest) {
       const Status s = peers_->OnRequest(from, m->block_request());

@@ -2,6 +2,7 @@
 
 #include <mpi.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <thread>
 
@@ -50,12 +51,32 @@ Status MpiTransport::Send(int to, std::span<const uint8_t> bytes) {
   if (bytes.size() > transport::kMaxMessageBytes)
     return Status::Error(StrFormat("rank %d: message of %zu bytes is too large", rank_,
                                    bytes.size()));
-  const int rc = MPI_Send(bytes.data(), static_cast<int>(bytes.size()), MPI_BYTE, to, kTag,
-                          MPI_COMM_WORLD);
+  // Not MPI_Send: a large message waits for its receiver (rendezvous), and a receiver that
+  // died never comes. So the send is watched, and given up once `to` is known dead.
+  MPI_Request request;
+  int rc = MPI_Isend(bytes.data(), static_cast<int>(bytes.size()), MPI_BYTE, to, kTag,
+                     MPI_COMM_WORLD, &request);
+  auto pause = std::chrono::microseconds(5);
+  for (int done = 0; rc == MPI_SUCCESS;) {
+    rc = MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+    if (done) break;
+    if (dead_[static_cast<size_t>(to)].load()) {
+      MPI_Request_free(&request);  // never completes; the process ends without MPI_Finalize
+      return Status::Error(StrFormat("rank %d: rank %d is gone, the message to it is dropped",
+                                     rank_, to));
+    }
+    std::this_thread::sleep_for(pause);
+    pause = std::min(pause * 2, std::chrono::microseconds(100));
+  }
   if (rc != MPI_SUCCESS)
     return Status::Error(StrFormat("rank %d: sending to rank %d failed: %s", rank_, to,
                                    MpiError(rc).c_str()));
   return OkStatus();
+}
+
+void MpiTransport::NoteRankDied(int rank) {
+  rank_died_ = true;
+  if (rank >= 0 && rank < size_) dead_[static_cast<size_t>(rank)] = true;
 }
 
 Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
@@ -93,6 +114,11 @@ Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
     std::this_thread::sleep_for(pause);
     pause = std::min(pause * 2, std::chrono::microseconds(100));
   }
+}
+
+void MpiTransport::ExitWithoutFinalize(int code) {
+  std::fflush(nullptr);
+  std::_Exit(code);
 }
 
 void MpiTransport::Abort(int code) {

@@ -9,6 +9,7 @@
 // most 100 us: an idle rank costs ~1% of a core, and a peer's block request waits little. A message larger than kMaxMessageBytes is an error
 // naming its sender (it is still drained, so the next one can be read).
 
+#include <atomic>
 #include <memory>
 
 #include "common/transport/transport.h"
@@ -31,10 +32,18 @@ class MpiTransport final : public transport::Transport {
   Expected<std::optional<transport::Envelope>> Receive(std::chrono::milliseconds timeout) override;
   // Ends every rank of the job (MPI_Abort), for errors that one rank cannot recover from.
   [[noreturn]] void Abort(int code);
+  void NoteRankDied(int rank) override;
+  // Then the process must end without MPI_Finalize (ExitWithoutFinalize), which would wait
+  // for the dead rank; mpirun --enable-recovery accepts that.
+  bool rank_died() const { return rank_died_.load(); }
+  [[noreturn]] static void ExitWithoutFinalize(int code);
 
  private:
-  MpiTransport(int rank, int size) : rank_(rank), size_(size) {}
+  MpiTransport(int rank, int size)
+      : rank_(rank), size_(size), dead_(std::make_unique<std::atomic<bool>[]>(static_cast<size_t>(size))) {}
   int rank_, size_;
+  std::atomic<bool> rank_died_{false};
+  std::unique_ptr<std::atomic<bool>[]> dead_;  // by rank
 };
 
 }  // namespace raystack::mpi

@@ -38,6 +38,10 @@ class Transport {
   virtual Status Send(int to, std::span<const uint8_t> bytes) = 0;
   // The next message for this rank, waiting up to `timeout`; nullopt if none came.
   virtual Expected<std::optional<Envelope>> Receive(std::chrono::milliseconds timeout) = 0;
+  // Rank `rank` died (killed, its node gone; -1: some rank, which one this rank was not told):
+  // a send to it gives up rather than wait for it forever, and the job cannot end in step
+  // with it (MPI_Finalize would wait for it too).
+  virtual void NoteRankDied(int /*rank*/) {}
 };
 
 // Every rank as a thread of this process: Endpoint(r) is rank r's transport. The hub must

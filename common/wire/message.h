@@ -87,15 +87,16 @@ struct FrameDone {
 };
 struct Shutdown {
   uint32_t reason;  // 0: the job is done
-  uint32_t reserved;
+  uint32_t flags;   // kShutdownRankDied: a rank died, so no rank may wait for it at the end
 };
+inline constexpr uint32_t kShutdownRankDied = 1;
 struct Heartbeat {
   uint32_t sequence;  // counts up from 0 (for logs)
   uint32_t reserved;
 };
 struct RankLost {
   uint32_t rank;
-  uint32_t reserved;
+  uint32_t died;  // 1: it went silent (dead: send it nothing more); 0: it failed, alive
 };
 struct BlockRequest {
   uint32_t request;  // the asker's number for it, echoed in the answer

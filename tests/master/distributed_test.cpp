@@ -197,13 +197,15 @@ TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
       EXPECT_TRUE(SameBits(job.frames[f].rgba, reference[f].rgba)) << slaves << " slaves, frame " << f;
       EXPECT_TRUE(SameBits(job.frames[f].z, reference[f].z)) << slaves << " slaves, frame " << f;
       EXPECT_EQ(job.frames[f].samples, reference[f].samples) << slaves << " slaves";
-      // Every slave took part, and the tiles add up to the frame's.
-      uint64_t tiles = 0;
+      // The tiles add up to the frame's. (Not every slave need take part: on a loaded
+      // machine one may find every tile taken before it asks.)
+      uint64_t tiles = 0, slaves_with_tiles = 0;
       for (const master::SlaveFigures& x : job.figures[f].slaves) {
-        EXPECT_GT(x.done.samples, 0u) << "rank " << x.rank;
-        EXPECT_GT(x.pixel_bytes, 0u);
+        EXPECT_EQ(x.done.samples > 0, x.pixel_bytes > 0) << "rank " << x.rank;
+        slaves_with_tiles += x.done.tiles > 0;
         tiles += x.done.tiles;
       }
+      EXPECT_GE(slaves_with_tiles, 1u);
       EXPECT_EQ(tiles, render::HilbertTiles(80, 60, 8).size());
     }
   }
