@@ -28,6 +28,11 @@ bool LaunchedByMpirun() {
 }
 
 Expected<std::unique_ptr<MpiTransport>> MpiTransport::Init(int* argc, char*** argv) {
+  // Open MPI's shared-memory transport may copy a large message straight out of the
+  // sender's memory (CMA); a sender killed in the middle leaves the receiver's transport
+  // wedged, so a lost slave would hang the master. Copy through shared buffers instead
+  // (unless the user chose otherwise).
+  setenv("OMPI_MCA_btl_vader_single_copy_mechanism", "none", /*overwrite=*/0);
   int provided = 0;
   if (const int rc = MPI_Init_thread(argc, argv, MPI_THREAD_MULTIPLE, &provided);
       rc != MPI_SUCCESS)
