@@ -46,7 +46,8 @@ inline constexpr float kSurface = 0x1p-21f;
 inline float NextAway(float x, bool up) {
   if (!std::isfinite(x)) return x;
   if (x == 0.0f) {
-    return up ? std::numeric_limits<float>::denorm_min() : -std::numeric_limits<float>::denorm_min();
+    const float tiny = std::numeric_limits<float>::denorm_min();
+    return up ? tiny : -tiny;
   }
   uint32_t bits;
   std::memcpy(&bits, &x, sizeof(bits));

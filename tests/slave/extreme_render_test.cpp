@@ -71,7 +71,8 @@ double WorstRelativeError(const image::ImageLayers& image, const render::CameraD
         const double d2 = Dot(d, d);
         const double cos_theta = static_cast<double>(d.y) / std::sqrt(d2);
         if (cos_theta > 0) {
-          expected += albedo / std::numbers::pi * static_cast<double>(l.intensity.x) * cos_theta / d2;
+          expected += albedo / std::numbers::pi * static_cast<double>(l.intensity.x) *
+                      cos_theta / d2;
         }
       }
       const double got = image.rgba[4 * i];

@@ -83,7 +83,9 @@ OcclusionCount LightTheObject(const ClosedMesh& mesh, double camera_radii, int p
   };
   auto at = [&](const std::vector<double>& dir, double radii) {
     Vec3f p;
-    for (int a = 0; a < 3; ++a) p[a] = static_cast<float>(double{mesh.center[a]} + dir[a] * radii * mesh.scale);
+    for (int a = 0; a < 3; ++a) {
+      p[a] = static_cast<float>(double{mesh.center[a]} + dir[a] * radii * mesh.scale);
+    }
     return p;
   };
   OcclusionCount count;
