@@ -71,8 +71,8 @@ void Shader::Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f di
   out->children.push_back(r);
 }
 
-void Shader::DirectLight(const RayRecord& ray, Vec3f p, Vec3f n, Vec3f albedo, uint32_t pixel,
-                         uint32_t sample, ShadeOutput* out) const {
+void Shader::DirectLight(const RayRecord& ray, Vec3f p, Vec3f p_error, Vec3f n, Vec3f albedo,
+                         uint32_t pixel, uint32_t sample, ShadeOutput* out) const {
   const auto& lights = scene_.lights;
   if (lights.empty() || !NonZero(albedo)) return;
   size_t first = 0, last = lights.size();
@@ -84,7 +84,7 @@ void Shader::DirectLight(const RayRecord& ray, Vec3f p, Vec3f n, Vec3f albedo, u
     last = first + 1;
     scale = static_cast<float>(lights.size());
   }
-  const Vec3f origin = OffsetRayOrigin(p, n);
+  const Vec3f origin = OffsetRayOrigin(p, n, p_error);
   for (size_t i = first; i < last; ++i) {
     const Vec3f to_light = lights[i].position - origin;
     const float d2 = Dot(to_light, to_light);
@@ -117,6 +117,9 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
                                                                           : ray.material);
   const Vec3f n = DecodeNormal(ray.normal);  // faces the side the ray came from
   const Vec3f p = ray.origin + ray.direction * ray.tmax;
+  // Rebuilt from the ray, p carries the rounding of the ray's origin: a far camera's hit
+  // points need a larger offset than their own magnitude suggests (offset_ray.h).
+  const Vec3f p_error = HitPointError(ray.origin, ray.direction, ray.tmax);
   if (out->primary) {
     out->z = ray.tmax;
     out->normal = n;
@@ -127,7 +130,7 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
   const SampleRandom rng(seed_, pixel, sample);
   switch (m.type) {
     case MaterialType::kDiffuse: {
-      DirectLight(ray, p, n, m.albedo, pixel, sample, out);
+      DirectLight(ray, p, p_error, n, m.albedo, pixel, sample, out);
       if (!path_ || !can_bounce || !NonZero(m.albedo)) break;
       Vec3f weight = ray.weight * m.albedo;  // cosine sampling: cos/pdf cancels the 1/pi
       if (ray.depth >= 3) {                  // Russian roulette keeps the estimate unbiased
@@ -142,13 +145,13 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
       Basis(n, &t, &b);
       const Vec3f dir = Normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) +
                                   n * std::sqrt(std::max(0.0f, 1.0f - u1)));
-      Spawn(ray, RayType::kDiffuse, OffsetRayOrigin(p, n), dir, weight, out);
+      Spawn(ray, RayType::kDiffuse, OffsetRayOrigin(p, n, p_error), dir, weight, out);
       break;
     }
     case MaterialType::kMirror: {
       if (!can_bounce || !NonZero(m.albedo)) break;
-      Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, n), Normalize(Reflect(ray.direction, n)),
-            ray.weight * m.albedo, out);
+      Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, n, p_error),
+            Normalize(Reflect(ray.direction, n)), ray.weight * m.albedo, out);
       break;
     }
     case MaterialType::kGlass: {
@@ -163,13 +166,17 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
       const Vec3f tint = ray.weight * m.albedo;
       if (path_) {  // one lobe, chosen with its Fresnel probability (the weight is unchanged)
         if (rng.Uniform(ray.depth, RandomUse::kLobe) < f)
-          Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, n), reflected, tint, out);
+          Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, n, p_error), reflected, tint, out);
         else
-          Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, -n), refracted, tint, out);
+          Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, -n, p_error), refracted, tint, out);
       } else {  // Whitted: both lobes
-        if (f > 0) Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, n), reflected, tint * f, out);
-        if (f < 1)
-          Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, -n), refracted, tint * (1 - f), out);
+        if (f > 0) {
+          Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, n, p_error), reflected, tint * f, out);
+        }
+        if (f < 1) {
+          Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, -n, p_error), refracted,
+                tint * (1 - f), out);
+        }
       }
       break;
     }

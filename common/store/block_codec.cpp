@@ -20,7 +20,8 @@ void ShuffleBytes(const uint8_t* in, uint64_t size, uint8_t* out) {
     out[2 * words + i] = in[4 * i + 2];
     out[3 * words + i] = in[4 * i + 3];
   }
-  std::memcpy(out + 4 * words, in + 4 * words, size - 4 * words);  // tail, if any
+  // The tail, if any (memcpy with a null pointer is undefined even for 0 bytes).
+  if (size % 4 != 0) std::memcpy(out + 4 * words, in + 4 * words, size - 4 * words);
 }
 
 void UnshuffleBytes(const uint8_t* in, uint64_t size, uint8_t* out) {
@@ -31,7 +32,7 @@ void UnshuffleBytes(const uint8_t* in, uint64_t size, uint8_t* out) {
     out[4 * i + 2] = in[2 * words + i];
     out[4 * i + 3] = in[3 * words + i];
   }
-  std::memcpy(out + 4 * words, in + 4 * words, size - 4 * words);
+  if (size % 4 != 0) std::memcpy(out + 4 * words, in + 4 * words, size - 4 * words);
 }
 
 void EncodeBlock(std::span<const uint8_t> raw, std::vector<uint8_t>* stored, bool shuffle) {
@@ -67,6 +68,9 @@ Status DecodeBlock(std::span<const uint8_t> stored, uint32_t raw_bytes, bool shu
   if (raw_bytes > static_cast<uint32_t>(LZ4_MAX_INPUT_SIZE) ||
       stored.size() > static_cast<size_t>(LZ4_MAX_INPUT_SIZE))
     return Status::Error("sizes out of range");
+  // Every block has a header, so an index entry claiming 0 bytes is damage; decoding it would
+  // also hand an unallocated buffer to the unshuffle (found by the block fuzzer).
+  if (raw_bytes == 0) return Status::Error("raw size is 0");
   AlignedBuffer* target = shuffled ? scratch : raw_out;
   target->Reserve(raw_bytes);
   const int n = LZ4_decompress_safe(reinterpret_cast<const char*>(stored.data()),

@@ -2,6 +2,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdint>
 
 namespace raystack::geometry_test {
 namespace {
@@ -11,9 +12,17 @@ Vec3f LatticePoint(MeshShape shape, int cells, double scale, double translate,
                    std::array<int, 3> ijk) {
   double q[3];
   for (int a = 0; a < 3; ++a) q[a] = 2.0 * ijk[a] / cells - 1.0;
-  if (shape == MeshShape::kSphere) {
+  if (shape != MeshShape::kCube) {
     const double length = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
-    for (double& c : q) c /= length;
+    double radius = 1;
+    if (shape == MeshShape::kScan) {
+      // A function of the lattice point only, so shared vertices stay shared.
+      uint32_t h = static_cast<uint32_t>(ijk[0] * 73856093 ^ ijk[1] * 19349663 ^ ijk[2] * 83492791);
+      h = (h ^ (h >> 13)) * 0x5bd1e995u;
+      const double jitter = static_cast<double>(h >> 8) / double{1 << 24} - 0.5;  // [-0.5, 0.5)
+      radius = 1 + 0.2 * std::sin(3 * q[0] / length) * std::cos(4 * q[1] / length) + 0.1 * jitter;
+    }
+    for (double& c : q) c = c / length * radius;
   }
   Vec3f p;
   for (int a = 0; a < 3; ++a) p[a] = static_cast<float>(translate + scale * q[a]);

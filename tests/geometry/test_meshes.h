@@ -11,9 +11,11 @@ struct Triangle {
   Vec3f p[3];
 };
 
-enum class MeshShape { kCube, kSphere };
+// kScan: the sphere with its radius displaced by bumps and a per-vertex jitter (0.7 to 1.3):
+// an irregular, partly concave closed surface, as a scanned model is.
+enum class MeshShape { kCube, kSphere, kScan };
 
-// A closed mesh: the surface of [-1, 1]^3 (or the unit sphere projected from it) cut into
+// A closed mesh: the surface of [-1, 1]^3 (or the unit sphere projected from it, or the scan) cut into
 // `cells` x `cells` squares per face, then scaled and translated (in double, rounded once to
 // float). A shared vertex is computed by one function of its lattice point, so its float
 // coordinates are the same in every triangle that uses it: the mesh has no cracks in float.

@@ -80,6 +80,7 @@ struct RenderOutcome {
   Status status;
   image::ImageLayers image;
   slave::RenderStats stats;
+  uint64_t nonfinite_dropped = 0;  // samples the film refused (NaN or Inf radiance)
 };
 
 inline RenderOutcome Render(const store::StoreReader& store, const render::Scene& scene,
@@ -97,6 +98,7 @@ inline RenderOutcome Render(const store::StoreReader& store, const render::Scene
   slave::GridTileSource tiles(camera.width(), camera.height(), tile);
   out.status = (*engine)->RenderFrame(scene, materials, camera, tiles, sink, &out.stats);
   out.image = film.Resolve();
+  out.nonfinite_dropped = film.nonfinite_dropped();
   return out;
 }
 

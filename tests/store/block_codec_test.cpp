@@ -4,6 +4,8 @@
 
 #include <cstring>
 #include <random>
+#include <string>
+#include <vector>
 
 namespace raystack::store {
 namespace {
@@ -63,6 +65,19 @@ TEST(BlockCodec, CorruptOrTruncatedDataIsAnErrorNotACrash) {
     bad[i] ^= 0x5a;
     Status s = DecodeBlock(bad, size, true, &scratch, &out);
     (void)s;
+  }
+}
+
+// Fuzzer finding (tests/fuzz/corpus/block/regression-raw-size-0): a stored block of one
+// zero byte claiming a raw size of 0 decodes "successfully" to nothing, and unshuffling
+// nothing passed a null buffer to memcpy. A block is never empty: it is an error.
+TEST(BlockCodec, ZeroRawSizeIsAnError) {
+  AlignedBuffer scratch, out;
+  const std::vector<uint8_t> one_zero{0};
+  for (bool shuffle : {true, false}) {
+    const Status s = DecodeBlock(one_zero, 0, shuffle, &scratch, &out);
+    EXPECT_FALSE(s.ok());
+    EXPECT_NE(s.message().find("raw size is 0"), std::string::npos) << s.message();
   }
 }
 

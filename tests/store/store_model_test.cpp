@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <map>
 #include <random>
 #include <set>
@@ -103,14 +105,18 @@ std::vector<Ray> MakeRays(const std::vector<Tri>& tris, const Bounds3f& box, int
   return rays;
 }
 
-void CheckRays(const store::StoreReader& s, const std::vector<Tri>& tris, int n) {
+// `extra` rays are traced after the n generated ones.
+void CheckRays(const store::StoreReader& s, const std::vector<Tri>& tris, int n,
+               const std::vector<Ray>& extra = {}) {
   BruteForce reference(tris);
   store::StoreTracer tracer(s);
   Bounds3f box;
   for (const Tri& t : tris)
     for (const Vec3f& p : t.p) box.Extend(p);
   int hits = 0, mismatches = 0;
-  for (const Ray& ray : MakeRays(tris, box, n, 42)) {
+  std::vector<Ray> rays = MakeRays(tris, box, n, 42);
+  rays.insert(rays.end(), extra.begin(), extra.end());
+  for (const Ray& ray : rays) {
     const Hit want = reference.Intersect(ray);
     Expected<Hit> got = s.blocks().empty() ? Expected<Hit>(Hit{}) : tracer.Intersect(ray);
     ASSERT_TRUE(got.ok()) << got.status().message();
@@ -166,6 +172,74 @@ TEST(StoreModel, PartitionedOnDiskMatchesInMemory) {
   const std::vector<Tri> tris = testing::GenerateTriangles(o.generate);
   CheckPlacement(*b.store, tris);
   CheckRays(*b.store, tris, 20000);
+}
+
+// Hostile geometry through the whole pipeline (issue 6): needles (10 long, 1e-6 wide), slivers
+// with nearly collinear vertices, exactly zero-area triangles (dropped by the reader), a
+// triangle spanning the whole scene, and a lattice of axis-aligned squares traced by rays
+// lying exactly in their planes (grazing) or along their edges (axis-parallel). The store's
+// hits equal brute force's, and the converter keeps every triangle in a bounded store.
+TEST(StoreModel, NeedlesSliversZeroAreaAndAHugeTriangleMatchBruteForce) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  const std::string obj = dir->File("hostile.obj");
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> coord(-50, 50), unit(0, 1);
+  {
+    std::FILE* f = std::fopen(obj.c_str(), "w");
+    int v = 0;
+    auto tri = [&](Vec3f a, Vec3f b, Vec3f c) {
+      for (const Vec3f& p : {a, b, c}) {
+        std::fprintf(f, "v %.9g %.9g %.9g\n", double{p.x}, double{p.y}, double{p.z});
+      }
+      std::fprintf(f, "f %d %d %d\n", v + 1, v + 2, v + 3);
+      v += 3;
+    };
+    tri({-1000, -1000, -60}, {3000, -1000, 60}, {-1000, 3000, 0});  // spans the whole scene
+    for (int i = 0; i < 3000; ++i) {
+      const Vec3f a{coord(rng), coord(rng), coord(rng)};
+      const Vec3f d = Normalize(Vec3f{unit(rng) - 0.5f, unit(rng) - 0.5f, unit(rng) - 0.5f});
+      switch (i % 3) {
+        case 0: tri(a, a + d * 10, a + d * 10 + Vec3f{1e-6f, 0, 1e-6f}); break;  // needle
+        case 1: tri(a, a + d * 5, a + d * 10.0f + Vec3f{0, 1e-4f, 0}); break;   // sliver
+        default: tri(a, a + d * 5, a + d * 10); break;  // collinear (zero area in double)
+      }
+    }
+    for (int x = -20; x < 20; x += 2) {  // axis-aligned unit squares on integer planes
+      for (int y = -20; y < 20; y += 2) {
+        const Vec3f p{float(x), float(y), 7};
+        tri(p, p + Vec3f{1, 0, 0}, p + Vec3f{1, 1, 0});
+        tri(p, p + Vec3f{1, 1, 0}, p + Vec3f{0, 1, 0});
+      }
+    }
+    std::fclose(f);
+  }
+  prep::ConvertOptions o;
+  o.inputs = {obj};
+  o.target_block_bytes = 4096;
+  o.max_block_bytes = 16384;
+  Built b = ConvertToStore(o);
+  ASSERT_TRUE(b.store);
+  const std::vector<Tri> tris = testing::LoadTriangles(obj);
+  ASSERT_GT(tris.size(), 2000u);
+  CheckPlacement(*b.store, tris);
+  for (const store::BlockEntry& e : b.store->blocks()) EXPECT_LE(e.raw_bytes, 16384u);
+
+  std::vector<Ray> grazing;
+  for (int i = 0; i < 20000; ++i) {
+    Ray r;
+    const float x = std::floor(coord(rng) * 0.4f), y = std::floor(coord(rng) * 0.4f);
+    if (i % 2 == 0) {  // in the plane z = 7, any direction within it
+      r.origin = {coord(rng), coord(rng), 7};
+      r.direction = {unit(rng) - 0.5f, unit(rng) - 0.5f, 0};
+    } else {  // along an edge or a diagonal of the lattice, or straight down through a corner
+      r.origin = {x, y, i % 4 == 1 ? 7.0f : 30.0f};
+      r.direction = i % 4 == 1 ? Vec3f{1, (i % 8 == 1) ? 0.0f : 1.0f, 0} : Vec3f{0, 0, -1};
+    }
+    if (r.direction == Vec3f{0, 0, 0}) r.direction = {1, 0, 0};
+    grazing.push_back(r);
+  }
+  CheckRays(*b.store, tris, 100000, grazing);
 }
 
 class SharedModelTest : public ::testing::TestWithParam<const char*> {};
