@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
 
 #include "common/base/check.h"
 #include "common/base/log.h"
@@ -53,12 +54,37 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
 
 Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, render::Film* film,
                             const std::function<void()>& on_progress, FrameFigures* figures) {
+  render::FramePlan plan;
+  plan.width = film->width();
+  plan.height = film->height();
+  plan.sweeps.push_back({std::move(tiles), 0, true});
+  return RunFrame(frame, plan, film, [&] { on_progress(); return true; }, figures);
+}
+
+Status MasterNode::RunFrame(uint32_t frame, const render::FramePlan& plan, render::Film* film,
+                            const std::function<bool()>& keep_going, FrameFigures* figures) {
   const auto start = std::chrono::steady_clock::now();
   const int slaves = net_->size() - 1;
   CHECK(slaves >= 1);
   figures->slaves.assign(static_cast<size_t>(slaves), SlaveFigures{});
   for (int i = 0; i < slaves; ++i) figures->slaves[static_cast<size_t>(i)].rank = i + 1;
-  TileScheduler scheduler(std::move(tiles), slaves);
+  // The current sweep's scheduler; the next sweep starts once every tile of this one is out.
+  size_t sweep = 0;
+  bool stopped = false;
+  std::unique_ptr<TileScheduler> scheduler;
+  if (!plan.sweeps.empty()) scheduler = std::make_unique<TileScheduler>(plan.sweeps[0].tiles, slaves);
+  auto next_tile = [&](int slave, render::Tile* t) {
+    while (!stopped && scheduler) {
+      if (scheduler->Next(slave, t)) return true;
+      scheduler = ++sweep < plan.sweeps.size()
+                      ? std::make_unique<TileScheduler>(plan.sweeps[sweep].tiles, slaves)
+                      : nullptr;
+    }
+    return false;
+  };
+  auto on_progress = [&] {
+    if (!keep_going()) stopped = true;
+  };
   std::vector<bool> done(static_cast<size_t>(slaves), false);
   int remaining = slaves;
   std::vector<render::SampleResult> samples;
@@ -100,8 +126,10 @@ Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, ren
         a.frame = frame;
         a.thread = r.thread;
         render::Tile t;
-        if (scheduler.Next(e.from - 1, &t)) {
+        if (next_tile(e.from - 1, &t)) {
           a.x0 = t.x0, a.y0 = t.y0, a.x1 = t.x1, a.y1 = t.y1;
+          a.sample_begin = t.sample_begin, a.sample_end = t.sample_end;
+          a.rank_begin = t.rank_begin, a.rank_end = t.rank_end;
         } else {
           a.none = 1;
         }
@@ -117,7 +145,7 @@ Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, ren
           if (s.pixel >= static_cast<uint64_t>(film->width()) * static_cast<uint64_t>(film->height()))
             return Status::Error(StrFormat("rank %d sent a sample of pixel %u, outside the %dx%d "
                                            "image", e.from, s.pixel, film->width(), film->height()));
-        film->Merge(samples);
+        film->Merge(samples, m->batch_header().rays);
         from.pixel_bytes += e.bytes.size();
         break;
       }

@@ -11,6 +11,7 @@
 
 #include "common/base/status.h"
 #include "common/render/film.h"
+#include "common/render/frame_plan.h"
 #include "common/render/tiles.h"
 #include "common/transport/transport.h"
 #include "common/wire/message.h"
@@ -36,10 +37,15 @@ class MasterNode {
  public:
   explicit MasterNode(transport::Transport* net) : net_(net) {}
 
-  // Runs frame `frame` until every slave has reported it done: tiles from `tiles` (in the
-  // order they should be rendered), samples merged into `film`. `on_progress` is called from
-  // time to time with the samples merged so far. A slave's error, or a malformed message,
-  // ends the frame with an error naming the rank.
+  // Runs frame `frame` until every slave has reported it done: the plan's sweeps one after the
+  // other (each sweep's tiles scheduled as TileScheduler does), samples merged into `film`.
+  // `keep_going` is called from time to time (a few times a second at least); once it returns
+  // false, no more tiles are handed out (a stop rule) and the frame ends when the slaves have
+  // finished the tiles they hold. A slave's error, or a malformed message, ends the frame with
+  // an error naming the rank.
+  Status RunFrame(uint32_t frame, const render::FramePlan& plan, render::Film* film,
+                  const std::function<bool()>& keep_going, FrameFigures* figures);
+  // All samples of `tiles` in one sweep (the pre-progressive way; tests).
   Status RunFrame(uint32_t frame, std::vector<render::Tile> tiles, render::Film* film,
                   const std::function<void()>& on_progress, FrameFigures* figures);
   // Tells every slave the job is over (reason 0) or failed (1), then reads (and drops) what
