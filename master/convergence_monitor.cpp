@@ -42,7 +42,10 @@ ConvergenceMonitor::ConvergenceMonitor(const render::Film& film, const render::F
       frame_(frame),
       log_(log),
       reference_(reference),
-      log_interval_s_(log_interval_s) {}
+      log_interval_s_(log_interval_s) {
+  // Where every curve starts: nothing rendered yet (against a reference, a black image).
+  if (log_) log_->Write(frame_, "start", 0, Measure());
+}
 
 render::ConvergencePoint ConvergenceMonitor::Measure() const {
   render::ConvergencePoint p;

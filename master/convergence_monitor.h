@@ -6,7 +6,8 @@
 // The log is CSV, one header line, then one row per event:
 //   frame,event,pass,seconds,rays,samples,pixels_covered,min_samples,error_estimate,
 //   rel_error_estimate,rmse,relmse
-// event: "tick" (every --log-interval seconds), "pass" (a pass has ended: every pixel has
+// event: "start" (the frame's clock starts, nothing merged), "tick" (every --log-interval
+// seconds), "pass" (a pass has ended: every pixel has
 // its samples up to the pass's end; `pass` counts the passes ended), "stop" (a stop rule
 // fired), "end" (the frame's last sample is merged). Figures as in common/render/convergence.h;
 // an empty field is a figure not known (no pixel has 2 samples yet; no --reference).

@@ -98,7 +98,7 @@ Status MasterNode::RunFrame(uint32_t frame, const render::FramePlan& plan, rende
       early_.pop_front();
     } else {
       Expected<std::optional<transport::Envelope>> got =
-          net_->Receive(std::chrono::milliseconds(100));
+          net_->Receive(std::chrono::milliseconds(25));
       if (!got.ok()) return got.status();
       if (!got->has_value()) {
         on_progress();
@@ -172,7 +172,7 @@ Status MasterNode::RunFrame(uint32_t frame, const render::FramePlan& plan, rende
         return Status::Error(StrFormat("rank %d sent the master a %s, which slaves exchange "
                                        "among themselves", e.from, wire::MessageTypeName(m->type())));
     }
-    if (std::chrono::steady_clock::now() - last_progress > std::chrono::milliseconds(100)) {
+    if (std::chrono::steady_clock::now() - last_progress > std::chrono::milliseconds(25)) {
       on_progress();
       last_progress = std::chrono::steady_clock::now();
     }

@@ -350,8 +350,11 @@ Status Run(const Args& args) {
       });
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
       uint64_t shown = 0;
+      // Polled at least as often as the convergence log asks for rows.
+      const auto poll = std::chrono::microseconds(
+          static_cast<int64_t>(std::min(0.1, args.log_interval_s) * 1e6));
       while (!finished.load()) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        std::this_thread::sleep_for(poll);
         const uint64_t done = film.samples_merged();
         progress.Update(done - shown);
         shown = done;
