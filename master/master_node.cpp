@@ -85,6 +85,7 @@ Status MasterNode::RunFrame(uint32_t frame, const render::FramePlan& plan, rende
   auto on_progress = [&] {
     if (!keep_going()) stopped = true;
   };
+  on_progress();  // a rule may hold from the start
   std::vector<bool> done(static_cast<size_t>(slaves), false);
   int remaining = slaves;
   std::vector<render::SampleResult> samples;
