@@ -4,15 +4,19 @@
 #
 #   tools/bench/error_time_bench.sh [WORK_DIR]      (run it under flock /tmp/raystack-bench.lock)
 #
-# (a) priority vs scanline: a small in-core path-traced scene, priority order (passes 1, 1, 2,
-#     4, ... spp, first pass in priority-matrix rounds) against scanline order with the same
-#     passes and against scanline with every sample of a tile at once (--pass-spp = spp, the
-#     classic tile renderer); areas under RMSE(t) up to the end of the shortest run.
+# (a) priority vs scanline, in core: a Whitted scene at 1 spp (the order alone: the error is
+#     mostly pixels not yet computed), and a path-traced scene at 32 spp (passes 1, 1, 2, 4,
+#     ...), priority order (first pass in priority-matrix rounds) against scanline order with
+#     the same passes and against scanline with every sample of a tile at once (--pass-spp =
+#     spp, the classic tile renderer); areas under RMSE(t) up to the end of the shortest run.
 # (b) the variance-based estimate against the RMSE to a 512-spp reference (another seed, so
 #     its noise is independent) over time, from the priority run.
 # (c) stack vs sync on an out-of-core scene: the default scene's 2 M triangles (59 MB of
 #     decoded blocks) with a 16 MB block cache, Whitted with 8 jittered samples per pixel,
-#     against a 64-spp reference rendered in core.
+#     against a 64-spp reference rendered in core; block reads as they come (page cache) and
+#     with 1 ms added to each (--io-latency-us 1000, a network filesystem); and stack in
+#     scanline order, with passes and with every sample of a tile at once, for the block loads
+#     the priority rounds and the passes cost.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 root=$PWD
@@ -47,6 +51,18 @@ render() {  # scene log extra...
       --convergence-log "$work/$log.csv" --log-interval 0.05 "$@"
 }
 
+# (a) Whitted, 1 spp: the order alone.
+scene whitted-ref small-store 480 270 whitted 64 99
+scene whitted small-store 480 270 whitted 1 1
+[ -f "$work/whitted-ref.exr" ] || "$raystack" render "$work/whitted-ref.json" --threads $threads \
+    --no-png -q --output "$work/whitted-ref.exr"
+render whitted a1-priority --reference "$work/whitted-ref.exr" --pixel-order priority
+render whitted a1-scanline --reference "$work/whitted-ref.exr" --pixel-order scanline
+echo "## (a) Whitted 1 spp: area under RMSE(t)"
+"$plot" "priority=$work/a1-priority.csv" "scanline=$work/a1-scanline.csv" --area --metric rmse \
+    --title "RMSE against time: priority vs scanline (480x270, Whitted, 1 spp, 2 threads)" \
+    -o tools/bench/plots/error_priority_vs_scanline_whitted.png
+
 # (a), (b): small in-core path-traced scene.
 scene path-ref small-store 240 135 path 512 99
 scene path small-store 240 135 path 32 1
@@ -79,15 +95,27 @@ scene ooc-ref default-store 480 270 whitted 64 99
 scene ooc default-store 480 270 whitted 8 1
 [ -f "$work/ooc-ref.exr" ] || "$raystack" render "$work/ooc-ref.json" --threads $threads --no-png -q \
     --mode incore --output "$work/ooc-ref.exr"
-for mode in stack sync; do
-  render ooc "c-$mode" --reference "$work/ooc-ref.exr" --mode $mode --cache-mb 16 \
-      --stats "$work/c-$mode-stats.json"
-  python3 -c "import json,sys; s=json.load(open(sys.argv[1]))[0]; print(sys.argv[2], 'seconds', round(s['seconds'],2), 'blocks_loaded', s['blocks_loaded'], 'of', s['block_count'], 'cache_peak_MB', round(s['cache_peak_bytes']/2**20,1))" "$work/c-$mode-stats.json" $mode
+figures() {  # name
+  python3 -c "import json,sys; s=json.load(open(sys.argv[1]))[0]; print(sys.argv[2], 'seconds', round(s['seconds'],2), 'rays/s', round(s['rays_per_second']), 'blocks_loaded', s['blocks_loaded'], 'of', s['block_count'], 'cache_peak_MB', round(s['cache_peak_bytes']/2**20,1))" "$work/$1-stats.json" "$1"
+}
+for latency in 0 1000; do
+  for mode in stack sync; do
+    render ooc "c-$mode-$latency" --reference "$work/ooc-ref.exr" --mode $mode --cache-mb 16 \
+        --io-latency-us $latency --stats "$work/c-$mode-$latency-stats.json"
+    figures "c-$mode-$latency"
+  done
+  echo "## (c) area under RMSE(t), --io-latency-us $latency"
+  "$plot" "stack=$work/c-stack-$latency.csv" "sync=$work/c-sync-$latency.csv" --area --metric rmse \
+      --title "RMSE against time, out of core (2 M triangles, 16 MB cache, +$latency us/read)" \
+      -o "tools/bench/plots/error_stack_vs_sync_io$latency.png"
 done
-echo "## (c) area under RMSE(t)"
-"$plot" "stack=$work/c-stack.csv" "sync=$work/c-sync.csv" --area --metric rmse \
-    --title "RMSE against time, out of core (2 M triangles, 16 MB cache): stack vs sync" \
-    -o tools/bench/plots/error_stack_vs_sync.png
-for f in a-priority a-scanline a-scanline-tiles c-stack c-sync; do
+render ooc c-stack-scanline --reference "$work/ooc-ref.exr" --cache-mb 16 --pixel-order scanline \
+    --stats "$work/c-stack-scanline-stats.json"
+figures c-stack-scanline
+render ooc c-stack-scanline-whole --reference "$work/ooc-ref.exr" --cache-mb 16 \
+    --pixel-order scanline --pass-spp 8 --stats "$work/c-stack-scanline-whole-stats.json"
+figures c-stack-scanline-whole
+for f in a1-priority a1-scanline a-priority a-scanline a-scanline-tiles c-stack-0 c-sync-0 \
+         c-stack-1000 c-sync-1000 c-stack-scanline c-stack-scanline-whole; do
   echo "$f: $(tail -1 "$work/$f.csv")"
 done
