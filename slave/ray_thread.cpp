@@ -148,10 +148,13 @@ void RayThread::RayDone(uint32_t slot) {
   render::SampleResult result;
   if (!slots_.RayDone(slot, &result)) return;
   ++counters_.samples;
-  if (++tiles_[tile].done == tiles_[tile].total) --open_tiles_;
+  const bool tile_done = ++tiles_[tile].done == tiles_[tile].total;
+  if (tile_done) --open_tiles_;
   if (tile == newest_tile_) AskAhead();
   results_.push_back(result);
-  if (results_.size() >= shared_->result_batch) FlushResults();
+  // A finished tile's samples go out at once rather than when a batch fills, so a progressive
+  // frame's sparse first rounds reach the film (and the preview, and the log) as they are done.
+  if (tile_done || results_.size() >= shared_->result_batch) FlushResults();
 }
 
 void RayThread::AskAhead() {
