@@ -35,12 +35,18 @@ FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint
   plan.width = width;
   plan.height = height;
   plan.passes = PassRanges(spp, pass_spp);
-  const std::vector<Tile> grid = order == PixelOrder::kPriority
-                                     ? HilbertTiles(width, height, tile_size)
-                                     : ScanlineTiles(width, height, tile_size);
+  auto grid_of = [&](int size) {
+    return order == PixelOrder::kPriority ? HilbertTiles(width, height, size)
+                                          : ScanlineTiles(width, height, size);
+  };
+  const std::vector<Tile> grid = grid_of(tile_size);
   // Rounds of the first pass in priority order: ranks [0,1), [1,4), [4,16), [16,64),
   // [64,256): each round halves the spacing of the pixels done so far.
   constexpr uint16_t kRounds[] = {0, 1, 4, 16, 64, 256};
+  // A round's tiles are larger by kRoundScale on a side, so each still holds about as many
+  // pixels as a full tile: the sparse rounds are a few dozen tiles, not thousands of nearly
+  // empty ones (each a request to the master and a feed).
+  constexpr int kRoundScale[] = {16, 8, 4, 2, 1};
   // A tile holds at most kMaxTileSamples samples: a late pass of many samples per pixel is
   // handed out as several sweeps of a few samples each, so a stop rule never waits long for
   // the tiles in flight, and a ray thread's open samples stay bounded.
@@ -55,7 +61,8 @@ FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint
         Sweep sweep;
         sweep.pass = p;
         sweep.pass_end = r + 1 == rounds && end == plan.passes[p].end;
-        for (Tile t : grid) {
+        const std::vector<Tile> round_grid = split ? grid_of(tile_size * kRoundScale[r]) : grid;
+        for (Tile t : round_grid) {
           t.sample_begin = begin;
           t.sample_end = end;
           if (split) {

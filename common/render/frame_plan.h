@@ -4,7 +4,8 @@
 // samples before any has many more, and the image can be stopped after any pass (--spp,
 // --time-limit, --target-error). A pass is handed out as one or more *sweeps* of tiles; in
 // priority order the first pass is split into sweeps by the priority matrix (1/256 of the
-// pixels, spread evenly, then 3/256, 12/256, ...), so a coarse full frame exists early.
+// pixels, spread evenly, then 3/256, 12/256, ...), so a coarse full frame exists early; a
+// round's tiles are larger in proportion, so each holds about a full tile's pixels.
 // Random numbers depend only on (seed, pixel, sample), so the plan never changes the image.
 
 #include <cstdint>

@@ -48,7 +48,7 @@ render() {  # scene log extra...
   local s=$1 log=$2
   shift 2
   "$raystack" render "$work/$s.json" --threads $threads --no-png -q --output "$work/$log.exr" \
-      --convergence-log "$work/$log.csv" --log-interval 0.05 "$@"
+      --convergence-log "$work/$log.csv" --log-interval 0.01 "$@"
 }
 
 # (a) Whitted, 1 spp: the order alone.
