@@ -6,9 +6,11 @@
 #                        libopenexr-dev (image output) libpng-dev (quick-look PNG)
 #                        nlohmann-json3-dev (scene files)
 #   tests:               libgtest-dev
+#   plots:               python3-matplotlib (tools/plot/raystack-plot, error against time)
 set -euo pipefail
 packages=(build-essential cmake ninja-build pkg-config liblz4-dev libxxhash-dev libopenmpi-dev
-          openmpi-bin libboost-dev libopenexr-dev libpng-dev nlohmann-json3-dev libgtest-dev)
+          openmpi-bin libboost-dev libopenexr-dev libpng-dev nlohmann-json3-dev libgtest-dev
+          python3-matplotlib)
 sudo=""
 if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
 missing=()

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
 
 #include "common/base/check.h"
 #include "common/base/log.h"
@@ -28,7 +29,11 @@ struct MasterNode::Frame {
   uint32_t number;
   render::Film* film;
   FrameFigures* figures;
-  TileScheduler scheduler;
+  const render::FramePlan* plan;
+  size_t sweep = 0;  // the current sweep; the next starts once every tile of this one is out
+  std::unique_ptr<TileScheduler> scheduler;
+  std::deque<render::Tile> returned;  // a dropped slave's unfinished tiles, handed out first
+  bool stopped = false;               // a stop rule holds: no more tiles
   TileLedger ledger;
   std::vector<bool> done;  // by rank: reported done, or dropped
   int remaining = 0;       // slaves still rendering this frame
@@ -81,16 +86,50 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
   return waiting == 0;
 }
 
+// The next tile for `rank`: a returned one first, then the current sweep's, then the next
+// sweep's; false once a stop rule holds or every sweep is out.
+bool MasterNode::NextTile(Frame* f, int rank, render::Tile* t) {
+  if (f->stopped) return false;
+  if (!f->returned.empty()) {
+    *t = f->returned.front();
+    f->returned.pop_front();
+    return true;
+  }
+  while (f->scheduler) {
+    size_t index;
+    if (f->scheduler->Next(rank - 1, &index)) {
+      *t = f->scheduler->tile(index);
+      return true;
+    }
+    f->scheduler = ++f->sweep < f->plan->sweeps.size()
+                       ? std::make_unique<TileScheduler>(f->plan->sweeps[f->sweep].tiles,
+                                                         net_->size() - 1)
+                       : nullptr;
+  }
+  return false;
+}
+
+// Whether the frame still has samples to render (and may: no stop rule holds).
+bool MasterNode::WorkLeft(const Frame& f) const {
+  if (f.stopped) return false;
+  if (!f.returned.empty() || f.ledger.unfinished() > 0) return true;
+  if (f.scheduler && !f.scheduler->exhausted()) return true;
+  for (size_t i = f.sweep + 1; i < f.plan->sweeps.size(); ++i)
+    if (!f.plan->sweeps[i].tiles.empty()) return true;
+  return false;
+}
+
 Status MasterNode::Answer(Frame* f, int rank, uint32_t thread) {
   wire::TileAssign a{};
   a.frame = f->number;
   a.thread = thread;
-  size_t index;
-  if (f->scheduler.Next(rank - 1, &index)) {
-    const render::Tile& t = f->scheduler.tile(index);
+  render::Tile t;
+  if (NextTile(f, rank, &t)) {
     a.x0 = t.x0, a.y0 = t.y0, a.x1 = t.x1, a.y1 = t.y1;
-    f->ledger.Assign(index, rank);
-  } else if (f->ledger.unfinished() > 0) {
+    a.sample_begin = t.sample_begin, a.sample_end = t.sample_end;
+    a.rank_begin = t.rank_begin, a.rank_end = t.rank_end;
+    f->ledger.Assign(t, rank);
+  } else if (!f->stopped && f->ledger.unfinished() > 0) {
     f->held.emplace_back(rank, thread);  // a lost slave's tiles may still come back
     return OkStatus();
   } else {
@@ -130,9 +169,9 @@ Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
     --f->remaining;
   }
   std::vector<render::SampleResult> merged;
-  const std::vector<size_t> back = f->ledger.Release(rank, &merged);
+  const std::vector<render::Tile> back = f->ledger.Release(rank, &merged);
   f->film->Unmerge(merged);
-  for (size_t i = back.size(); i-- > 0;) f->scheduler.Return(back[i]);
+  f->returned.insert(f->returned.end(), back.begin(), back.end());
   LOG_WARNING("master", "rank %d %s: %s; its %zu unfinished tiles (%zu samples taken back) go "
               "to the other slaves", rank, lost ? "is lost" : "failed", why.c_str(), back.size(),
               merged.size());
@@ -141,7 +180,7 @@ Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
     if (!slaves_[static_cast<size_t>(r)].dropped)
       (void)Send(r, wire::Encode(0, wire::RankLost{static_cast<uint32_t>(rank), lost ? 1u : 0u}),
                  f->figures);
-  if (f->remaining == 0 && f->ledger.unfinished() > 0) {
+  if (f->remaining == 0 && WorkLeft(*f)) {
     std::string all;
     for (int r = 1; r < net_->size(); ++r)
       all += StrFormat("%srank %d: %s", all.empty() ? "" : "; ", r,
@@ -198,7 +237,7 @@ Status MasterNode::Handle(Frame* f, transport::Envelope e) {
                                          "image", e.from, s.pixel, f->film->width(),
                                          f->film->height()));
       RAYSTACK_RETURN_IF_ERROR(f->ledger.Record(e.from, f->samples));
-      f->film->Merge(f->samples);
+      f->film->Merge(f->samples, m->batch_header().rays);
       from.pixel_bytes += e.bytes.size();
       if (f->ledger.unfinished() == 0) return AnswerHeldRequests(f);
       return OkStatus();
@@ -235,13 +274,23 @@ Status MasterNode::Handle(Frame* f, transport::Envelope e) {
 Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, uint32_t spp,
                             render::Film* film, const std::function<void()>& on_progress,
                             FrameFigures* figures) {
+  render::FramePlan plan;
+  plan.width = film->width();
+  plan.height = film->height();
+  plan.passes.push_back({0, spp});
+  plan.sweeps.push_back({std::move(tiles), 0, true});
+  return RunFrame(frame, plan, film, [&] { on_progress(); return true; }, figures);
+}
+
+Status MasterNode::RunFrame(uint32_t frame, const render::FramePlan& plan, render::Film* film,
+                            const std::function<bool()>& keep_going, FrameFigures* figures) {
   const auto start = Clock::now();
   const int slaves = net_->size() - 1;
   CHECK(slaves >= 1);
   figures->slaves.assign(static_cast<size_t>(slaves), SlaveFigures{});
-  TileLedger ledger(tiles, film->width(), film->height(), spp);
-  Frame f{frame, film, figures, TileScheduler(std::move(tiles), slaves), std::move(ledger),
+  Frame f{frame, film, figures, &plan, 0, nullptr, {}, false, TileLedger(film->width(), plan.spp()),
           std::vector<bool>(static_cast<size_t>(net_->size()), false), 0, {}, {}, {}};
+  if (!plan.sweeps.empty()) f.scheduler = std::make_unique<TileScheduler>(plan.sweeps[0].tiles, slaves);
   for (int r = 1; r <= slaves; ++r) {
     SlaveFigures& s = figures->slaves[static_cast<size_t>(r - 1)];
     s.rank = r;
@@ -257,6 +306,13 @@ Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, uin
   if (f.remaining == 0) return Status::Error("no slave is left to render the frame");
   // Between frames the master was writing the image, not listening: silence then is no sign.
   for (SlaveState& s : slaves_) s.last_heard = Clock::now();
+  // A stop rule may hold from the start; once one holds, requests held back get their answer.
+  auto check_stop = [&]() -> Status {
+    if (f.stopped || keep_going()) return OkStatus();
+    f.stopped = true;
+    return AnswerHeldRequests(&f);
+  };
+  RAYSTACK_RETURN_IF_ERROR(check_stop());
   auto last_progress = Clock::now();
 
   while (f.remaining > 0) {
@@ -266,22 +322,20 @@ Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, uin
       early_.pop_front();
     } else {
       Expected<std::optional<transport::Envelope>> got =
-          net_->Receive(std::chrono::milliseconds(100));
+          net_->Receive(std::chrono::milliseconds(25));
       if (!got.ok()) return got.status();
       e = std::move(*got);
     }
     if (e) RAYSTACK_RETURN_IF_ERROR(Handle(&f, std::move(*e)));
-    if (Clock::now() - last_progress > std::chrono::milliseconds(100)) {
+    if (!e || Clock::now() - last_progress > std::chrono::milliseconds(25)) {
       RAYSTACK_RETURN_IF_ERROR(CheckHeartbeats(&f));
-      on_progress();
+      RAYSTACK_RETURN_IF_ERROR(check_stop());
       last_progress = Clock::now();
     }
   }
-  if (f.ledger.unfinished() > 0)  // every slave left was dropped
-    return Status::Error(StrFormat("frame %u: %zu tiles were left unfinished", frame,
-                                   f.ledger.unfinished()));
+  if (WorkLeft(f)) return Status::Error(StrFormat("frame %u: tiles were left unfinished", frame));
   for (auto& later : f.later) early_.push_back(std::move(later));
-  on_progress();
+  keep_going();
   figures->seconds = std::chrono::duration<double>(Clock::now() - start).count();
   return OkStatus();
 }

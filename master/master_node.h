@@ -19,6 +19,7 @@
 
 #include "common/base/status.h"
 #include "common/render/film.h"
+#include "common/render/frame_plan.h"
 #include "common/render/tiles.h"
 #include "common/transport/transport.h"
 #include "common/wire/message.h"
@@ -55,12 +56,16 @@ class MasterNode {
  public:
   explicit MasterNode(transport::Transport* net, MasterOptions options = {});
 
-  // Runs frame `frame` until every slave has reported it done: tiles from `tiles` (in the
-  // order they should be rendered), samples merged into `film`. `on_progress` is called from
-  // time to time with the samples merged so far. A slave's error, or a malformed message,
-  // ends the frame with an error naming the rank.
-  // A slave's failure or loss drops that slave and the frame goes on with the others; the frame
-  // fails only when no slave is left (the error then lists why each was dropped).
+  // Runs frame `frame` until every slave has reported it done: the plan's sweeps one after the
+  // other (each sweep's tiles scheduled as TileScheduler does), samples merged into `film`.
+  // `keep_going` is called from time to time (a few times a second at least); once it returns
+  // false, no more tiles are handed out (a stop rule) and the frame ends when the slaves have
+  // finished the tiles they hold. A malformed message ends the frame with an error naming the
+  // rank. A slave's failure or loss drops that slave and the frame goes on with the others; the
+  // frame fails only when no slave is left (the error then lists why each was dropped).
+  Status RunFrame(uint32_t frame, const render::FramePlan& plan, render::Film* film,
+                  const std::function<bool()>& keep_going, FrameFigures* figures);
+  // All `spp` samples of `tiles` in one sweep (the pre-progressive way; tests, --resume).
   Status RunFrame(uint32_t frame, std::vector<render::Tile> tiles, uint32_t spp,
                   render::Film* film, const std::function<void()>& on_progress,
                   FrameFigures* figures);
@@ -80,6 +85,8 @@ class MasterNode {
   struct Frame;  // one RunFrame's working state
   Status Send(int to, const std::vector<uint8_t>& bytes, FrameFigures* figures);
   Status Handle(Frame* f, transport::Envelope e);
+  bool NextTile(Frame* f, int rank, render::Tile* t);
+  bool WorkLeft(const Frame& f) const;
   Status Answer(Frame* f, int rank, uint32_t thread);
   Status AnswerHeldRequests(Frame* f);
   // Drops `rank` for the rest of the job: its unfinished tiles go back to the others.

@@ -18,6 +18,7 @@
 #include "common/render/scene.h"
 #include "common/store/store_reader.h"
 #include "common/mpi/mpi_transport.h"
+#include "master/convergence_monitor.h"
 #include "master/master_node.h"
 #include "master/resume.h"
 #include "slave/peer_blocks.h"
@@ -61,6 +62,28 @@ options:
                             (default): rem when a slave's share fits half its budget, else loc
   --io-latency-us N         add N microseconds to every block read (emulates a network
                             filesystem; for measurements)
+  --spp N                   samples per pixel (overrides the scene's integrator.spp)
+  --pass-spp N              samples per pixel per progressive pass (default 0: passes of
+                            1, 1, 2, 4, ... samples, every pixel having 2^k before any has
+                            more); the image is the same whatever the passes
+  --pixel-order priority|scanline
+                            priority (default): tiles along a Hilbert curve, the first pass
+                            in rounds of the priority matrix (1/256 of the pixels spread
+                            over the frame, then 3/256, ...), pixels by priority; scanline:
+                            tiles and pixels left to right, top to bottom (for comparison)
+  --time-limit S            stop handing out work after S seconds (per frame); the image
+                            keeps every sample merged, with its per-pixel counts (the EXR's
+                            samples layer)
+  --target-error E          stop after the first pass whose estimated error (RMSE of
+                            luminance from the per-pixel variance, see --convergence-log)
+                            is <= E, once every pixel has 2 samples
+  --convergence-log FILE    write a CSV row every --log-interval seconds and at every pass
+                            end: time, rays, samples, pixels covered, the fewest samples
+                            of a pixel, the error estimates, and RMSE and relMSE against
+                            --reference (format: README, "Error against run time")
+  --log-interval S          seconds between convergence-log rows (default 0.5)
+  --reference REF.exr       an image to measure RMSE and relMSE against (same size; with
+                            several cameras REF-0.exr, REF-1.exr, ...)
   --output FILE             override the scene's output path
   --no-png                  do not write the PNG quick-look
   --exposure EV             exposure of the PNG quick-look (default 0)
@@ -91,6 +114,12 @@ struct Args {
   bool quiet = false;
   double checkpoint_s = 0;
   std::string blocks = "auto";
+  uint32_t spp = 0;       // 0: the scene's
+  uint32_t pass_spp = 0;  // 0: doubling passes
+  StopRules stop;
+  std::string convergence_log;
+  double log_interval_s = 0.5;
+  std::string reference;
   double lost_after_s = 5;
   bool resume = false;
   int fault_rank = 0;  // 0: every slave
@@ -154,6 +183,26 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.loader.io_threads, 1, 256));
     } else if (arg == "--io-latency-us") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.faults.io_latency_us, 0, 10'000'000));
+    } else if (arg == "--spp") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->spp, 1, 65535));  // as the scene file allows
+    } else if (arg == "--pass-spp") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->pass_spp, 1, 65535));
+    } else if (arg == "--pixel-order") {
+      std::string v;
+      RAYSTACK_RETURN_IF_ERROR(value(&v));
+      Expected<render::PixelOrder> order = render::ParsePixelOrder(v);
+      if (!order.ok()) return order.status();
+      a->engine.pixel_order = *order;
+    } else if (arg == "--time-limit") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->stop.time_limit_s, 1e-3, 1e9));
+    } else if (arg == "--target-error") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->stop.target_error, 1e-12, 1e30));
+    } else if (arg == "--convergence-log") {
+      RAYSTACK_RETURN_IF_ERROR(value(&a->convergence_log));
+    } else if (arg == "--log-interval") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->log_interval_s, 0.01, 1e6));
+    } else if (arg == "--reference") {
+      RAYSTACK_RETURN_IF_ERROR(value(&a->reference));
     } else if (arg == "--output") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->output));
     } else if (arg == "--no-png") {
@@ -246,31 +295,61 @@ Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, s
   return exr;
 }
 
-// The tiles frame `f` renders: all of them, or with --resume those its checkpoint does not
-// hold finished (the finished ones go into `film`).
-Expected<std::vector<render::Tile>> FrameTiles(const Args& args, const render::Scene& scene,
-                                               size_t f, const render::Camera& camera,
-                                               render::Film* film) {
-  std::vector<render::Tile> tiles =
-      render::HilbertTiles(camera.width(), camera.height(), args.tile_size);
-  if (!args.resume) return tiles;
-  const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
-  const size_t all = tiles.size();
-  Expected<ResumePlan> plan = PlanResume(exr, camera.width(), camera.height(),
-                                         static_cast<uint32_t>(scene.integrator.spp),
-                                         std::move(tiles));
-  if (!plan.ok()) return plan.status();
-  ApplyResume(*plan, film);
-  if (!args.quiet)
-    std::printf("resume frame %zu: %zu of %zu tiles finished in %s, %zu to render\n", f,
-                plan->kept_tiles, all, exr.c_str(), plan->to_render.size());
-  return std::move(plan->to_render);
+// The scene file, with the command line's overrides.
+Expected<render::Scene> LoadSceneFor(const Args& args) {
+  Expected<render::Scene> scene = render::LoadScene(args.scene);
+  if (scene.ok() && args.spp > 0) scene->integrator.spp = static_cast<int>(args.spp);
+  return scene;
 }
 
-uint64_t SamplesOf(const std::vector<render::Tile>& tiles, int spp) {
-  uint64_t n = 0;
-  for (const render::Tile& t : tiles) n += static_cast<uint64_t>(t.pixels());
-  return n * static_cast<uint64_t>(spp);
+render::FramePlan PlanOf(const Args& args, const render::Scene& scene, const render::Camera& camera) {
+  return render::MakeFramePlan(camera.width(), camera.height(), args.tile_size,
+                               static_cast<uint32_t>(scene.integrator.spp), args.pass_spp,
+                               args.engine.pixel_order);
+}
+
+// What a frame is measured against, if anything: --reference (REF-f.exr with several cameras).
+Status LoadReference(const Args& args, size_t f, size_t frames, const render::Camera& camera,
+                     std::unique_ptr<image::ImageLayers>* out) {
+  out->reset();
+  if (args.reference.empty()) return OkStatus();
+  const std::string path = frames > 1 ? FramePath(args.reference, f, frames, ".exr") : args.reference;
+  Expected<image::ImageLayers> ref = image::ReadExr(path);
+  if (!ref.ok()) return ref.status();
+  RAYSTACK_RETURN_IF_ERROR(render::CheckReference(*ref, camera.width(), camera.height(), path));
+  *out = std::make_unique<image::ImageLayers>(std::move(*ref));
+  return OkStatus();
+}
+
+Expected<std::unique_ptr<ConvergenceLog>> OpenLog(const Args& args) {
+  if (args.convergence_log.empty()) return std::unique_ptr<ConvergenceLog>();
+  return ConvergenceLog::Open(args.convergence_log);
+}
+
+void ReportStop(const Args& args, const ConvergenceMonitor& monitor) {
+  if (monitor.stopped() && !args.quiet) std::printf("stopped: %s\n", monitor.stop_reason().c_str());
+}
+
+// --resume: the pixels frame `f`'s checkpoint holds finished go into `film`, and the plan keeps
+// only the tiles that still have a pixel to render.
+Status ResumeInto(const Args& args, const render::Scene& scene, size_t f,
+                  render::FramePlan* plan, render::Film* film) {
+  if (!args.resume) return OkStatus();
+  const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
+  Expected<ResumePlan> resume = PlanResume(exr, plan->width, plan->height, plan->spp());
+  if (!resume.ok()) return resume.status();
+  size_t tiles = 0;
+  for (render::Sweep& sweep : plan->sweeps) {
+    std::erase_if(sweep.tiles, [&](const render::Tile& t) { return !resume->Needs(t); });
+    tiles += sweep.tiles.size();
+  }
+  ApplyResume(*resume, film);
+  if (!args.quiet)
+    std::printf("resume frame %zu: %zu of %llu pixels finished in %s, %zu tiles to render\n", f,
+                resume->kept_pixels.size(),
+                static_cast<unsigned long long>(plan->width) * static_cast<unsigned long long>(plan->height),
+                exr.c_str(), tiles);
+  return OkStatus();
 }
 
 // Writes the film to the frame's EXR every `every_s` seconds while it renders (atomically, so
@@ -294,11 +373,13 @@ class Checkpoints {
 };
 
 Status Run(const Args& args) {
-  Expected<render::Scene> scene = render::LoadScene(args.scene);
+  Expected<render::Scene> scene = LoadSceneFor(args);
   if (!scene.ok()) return scene.status();
   const std::string output = OutputOf(args, *scene);
   const size_t frames = scene->cameras.size();
   RAYSTACK_RETURN_IF_ERROR(CheckOutputs(args, *scene));
+  Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
+  if (!log.ok()) return log.status();
 
   Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
   if (!store.ok()) return store.status();
@@ -313,12 +394,16 @@ Status Run(const Args& args) {
     const render::Camera camera(scene->cameras[f]);
     render::Film film(camera.width(), camera.height());
     render::FilmSink sink(&film);
-    Expected<std::vector<render::Tile>> frame_tiles = FrameTiles(args, *scene, f, camera, &film);
-    if (!frame_tiles.ok()) return frame_tiles.status();
-    const uint64_t total = SamplesOf(*frame_tiles, scene->integrator.spp);
-    slave::GridTileSource tiles(std::move(*frame_tiles));
+    render::FramePlan plan = PlanOf(args, *scene, camera);
+    RAYSTACK_RETURN_IF_ERROR(ResumeInto(args, *scene, f, &plan, &film));
+    slave::PlanTileSource tiles(plan);
+    std::unique_ptr<image::ImageLayers> reference;
+    RAYSTACK_RETURN_IF_ERROR(LoadReference(args, f, frames, camera, &reference));
     slave::RenderStats stats;
     Status status;
+    const uint64_t total = plan.total_samples();
+    ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log->get(),
+                               reference.get(), args.log_interval_s);
     {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
@@ -329,17 +414,23 @@ Status Run(const Args& args) {
       });
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
       uint64_t shown = 0;
+      // Polled at least as often as the convergence log asks for rows.
+      const auto poll = std::chrono::microseconds(
+          static_cast<int64_t>(std::min(0.1, args.log_interval_s) * 1e6));
       while (!finished.load()) {
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        std::this_thread::sleep_for(poll);
         const uint64_t done = film.samples_merged();
         progress.Update(done - shown);
         shown = done;
         checkpoints.Maybe(film);
+        if (!monitor.Poll()) tiles.Stop();
       }
       render.join();
       progress.Update(film.samples_merged() - shown);
     }
     RAYSTACK_RETURN_IF_ERROR(status);
+    monitor.Finish();
+    ReportStop(args, monitor);
     Expected<std::string> exr = WriteFrame(args, *scene, f, film);
     if (!exr.ok()) return exr.status();
     if (!args.quiet) std::printf("frame %zu: %s\n  wrote %s\n", f, stats.ToText().c_str(), exr->c_str());
@@ -380,7 +471,8 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
   return s + "\n  ]\n}";
 }
 
-Status RunMaster(const Args& args, const render::Scene& scene, transport::Transport* net) {
+Status RunMaster(const Args& args, const render::Scene& scene, transport::Transport* net,
+                 ConvergenceLog* log) {
   const std::string output = OutputOf(args, scene);
   const size_t frames = scene.cameras.size();
   MasterOptions options;
@@ -390,27 +482,35 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
   for (size_t f = 0; f < frames; ++f) {
     const render::Camera camera(scene.cameras[f]);
     render::Film film(camera.width(), camera.height());
-    Expected<std::vector<render::Tile>> frame_tiles = FrameTiles(args, scene, f, camera, &film);
-    if (!frame_tiles.ok()) {
+    render::FramePlan plan = PlanOf(args, scene, camera);
+    Status status = ResumeInto(args, scene, f, &plan, &film);
+    const uint64_t total = plan.total_samples();
+    std::unique_ptr<image::ImageLayers> reference;
+    if (status.ok()) status = LoadReference(args, f, frames, camera, &reference);
+    if (!status.ok()) {
       master.Shutdown(1);
-      return frame_tiles.status();
+      return status;
     }
-    const uint64_t total = SamplesOf(*frame_tiles, scene.integrator.spp);
+    ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log,
+                               reference.get(), args.log_interval_s);
     FrameFigures figures;
-    Status status;
     {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
       uint64_t shown = 0;
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
-      status = master.RunFrame(static_cast<uint32_t>(f), std::move(*frame_tiles),
-                               static_cast<uint32_t>(scene.integrator.spp), &film, [&] {
+      status = master.RunFrame(static_cast<uint32_t>(f), plan, &film, [&] {
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);
                                  shown = done;
                                  checkpoints.Maybe(film);
+                                 return monitor.Poll();
                                },
                                &figures);
+    }
+    if (status.ok()) {
+      monitor.Finish();
+      ReportStop(args, monitor);
     }
     Expected<std::string> exr = status.ok() ? WriteFrame(args, scene, f, film)
                                             : Expected<std::string>(status);
@@ -509,10 +609,12 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
 }
 
 Status RunDistributed(const Args& args, transport::Transport* net) {
-  Expected<render::Scene> scene = render::LoadScene(args.scene);
+  Expected<render::Scene> scene = LoadSceneFor(args);
   if (!scene.ok()) return scene.status();
   if (net->rank() == 0) {
-    if (Status s = CheckOutputs(args, *scene); !s.ok()) {  // before the slaves start a frame
+    Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
+    Status s = log.ok() ? CheckOutputs(args, *scene) : log.status();
+    if (!s.ok()) {  // before the slaves start a frame
       MasterNode(net).Shutdown(1);
       return s;
     }
@@ -525,7 +627,7 @@ Status RunDistributed(const Args& args, transport::Transport* net) {
                     why.c_str());
       }
     }
-    return RunMaster(args, *scene, net);
+    return RunMaster(args, *scene, net, log->get());
   }
   return RunSlave(args, *scene, net);
 }

@@ -4,17 +4,27 @@
 
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
+#include "common/render/pixel_priority.h"
 
 namespace raystack::master {
 
-Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, uint32_t spp,
-                                std::vector<render::Tile> tiles) {
+bool ResumePlan::Needs(const render::Tile& t) const {
+  if (finished.empty()) return true;
+  for (int y = t.y0; y < t.y1; ++y)
+    for (int x = t.x0; x < t.x1; ++x) {
+      const uint16_t rank = render::PixelRank(x, y);
+      if (rank >= t.rank_begin && rank < t.rank_end &&
+          !finished[static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x)])
+        return true;
+    }
+  return false;
+}
+
+Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, uint32_t spp) {
   ResumePlan plan;
+  plan.width = width;
   struct stat st;
-  if (stat(exr.c_str(), &st) != 0) {
-    plan.to_render = std::move(tiles);
-    return plan;
-  }
+  if (stat(exr.c_str(), &st) != 0) return plan;
   Expected<image::ImageLayers> read = image::ReadExr(exr);
   if (!read.ok()) return read.status();
   if (read->width != width || read->height != height)
@@ -24,20 +34,12 @@ Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, u
   if (read->samples.empty())
     return Status::Error(exr + ": no per-pixel sample counts (samples layer): not a raystack "
                          "checkpoint, cannot resume from it");
-  for (const render::Tile& t : tiles) {
-    bool finished = true;
-    for (int y = t.y0; y < t.y1 && finished; ++y)
-      for (int x = t.x0; x < t.x1 && finished; ++x)
-        finished = read->samples[read->PixelIndex(x, y)] >= spp;
-    if (!finished) {
-      plan.to_render.push_back(t);
-      continue;
+  plan.finished.assign(read->samples.size(), 0);
+  for (size_t i = 0; i < read->samples.size(); ++i)
+    if (read->samples[i] >= spp) {
+      plan.finished[i] = 1;
+      plan.kept_pixels.push_back(static_cast<uint32_t>(i));
     }
-    ++plan.kept_tiles;
-    for (int y = t.y0; y < t.y1; ++y)
-      for (int x = t.x0; x < t.x1; ++x)
-        plan.kept_pixels.push_back(static_cast<uint32_t>(read->PixelIndex(x, y)));
-  }
   plan.checkpoint = std::move(*read);
   return plan;
 }

@@ -1,9 +1,10 @@
 #pragma once
 // --resume: continue a frame from its last EXR checkpoint (written with --checkpoint-s, with
-// per-pixel sample counts). A tile whose every pixel has all `spp` samples in the checkpoint is
-// kept as the checkpoint has it; every other tile is rendered again from its first sample
-// (random numbers are a hash of pixel and sample, so it renders exactly as it would have).
-// The resumed image therefore equals an uninterrupted run's bit for bit.
+// per-pixel sample counts). A pixel the checkpoint holds with all `spp` samples is kept as the
+// checkpoint has it (Film::Restore); every tile that holds a pixel with fewer is rendered
+// again from its first sample (random numbers are a hash of pixel and sample, so it renders
+// exactly as it would have; the kept pixels it also covers stay as restored). The resumed
+// image therefore equals an uninterrupted run's bit for bit.
 
 #include <cstdint>
 #include <string>
@@ -17,16 +18,17 @@
 namespace raystack::master {
 
 struct ResumePlan {
-  std::vector<render::Tile> to_render;  // in the order given
-  std::vector<uint32_t> kept_pixels;    // pixels of finished tiles, taken from the checkpoint
-  image::ImageLayers checkpoint;        // empty when there is none
-  size_t kept_tiles = 0;
+  int width = 0;
+  std::vector<uint8_t> finished;      // by pixel; empty when there is no checkpoint
+  std::vector<uint32_t> kept_pixels;  // the finished ones
+  image::ImageLayers checkpoint;
+  // Whether `tile` holds a pixel still to render.
+  bool Needs(const render::Tile& tile) const;
 };
 
 // Reads `exr` (a missing file: nothing to resume, every tile is rendered). An EXR of another
 // size, or without per-pixel sample counts, is an error naming it.
-Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, uint32_t spp,
-                                std::vector<render::Tile> tiles);
+Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, uint32_t spp);
 
 // Puts the kept pixels into `film`.
 inline void ApplyResume(const ResumePlan& plan, render::Film* film) {

@@ -1,44 +1,37 @@
 #include "master/tile_ledger.h"
 
-#include "common/base/check.h"
 #include "common/base/log.h"
+#include "common/render/frame_plan.h"
+#include "common/render/pixel_priority.h"
 
 namespace raystack::master {
 
-TileLedger::TileLedger(const std::vector<render::Tile>& tiles, int width, int height,
-                       uint32_t spp)
-    : entries_(tiles.size()),
-      tile_of_pixel_(static_cast<size_t>(width) * static_cast<size_t>(height), 0),
-      spp_(spp),
-      unfinished_(tiles.size()) {
-  for (size_t i = 0; i < tiles.size(); ++i) {
-    const render::Tile& t = tiles[i];
-    entries_[i].expected = static_cast<uint64_t>(t.pixels()) * spp;
-    for (int y = t.y0; y < t.y1; ++y)
-      for (int x = t.x0; x < t.x1; ++x)
-        tile_of_pixel_[static_cast<size_t>(y) * static_cast<size_t>(width) +
-                       static_cast<size_t>(x)] = static_cast<uint32_t>(i);
-  }
+void TileLedger::Assign(const render::Tile& tile, int rank) {
+  in_flight_.push_back({tile, rank, 0, render::TileSamples(tile, spp_), {}});
+  ++unfinished_;
 }
 
-void TileLedger::Assign(size_t index, int rank) {
-  Entry& e = entries_[index];
-  CHECK(e.rank == kNobody && e.received < e.expected);
-  e.rank = rank;
+bool TileLedger::Holds(const render::Tile& t, const render::SampleResult& s) const {
+  const int x = static_cast<int>(s.pixel % static_cast<uint32_t>(width_));
+  const int y = static_cast<int>(s.pixel / static_cast<uint32_t>(width_));
+  const uint32_t end = t.sample_end == 0 ? spp_ : t.sample_end;
+  const uint16_t rank = render::PixelRank(x, y);
+  return x >= t.x0 && x < t.x1 && y >= t.y0 && y < t.y1 && s.sample >= t.sample_begin &&
+         s.sample < end && rank >= t.rank_begin && rank < t.rank_end;
 }
 
 Status TileLedger::Record(int rank, std::span<const render::SampleResult> samples) {
   for (const render::SampleResult& s : samples) {
-    if (s.pixel >= tile_of_pixel_.size() || s.sample >= spp_)
-      return Status::Error(StrFormat("rank %d sent sample %u of pixel %u, which the image does "
-                                     "not have", rank, s.sample, s.pixel));
-    Entry& e = entries_[tile_of_pixel_[s.pixel]];
-    if (e.rank != rank || e.received == e.expected)
-      return Status::Error(StrFormat("rank %d sent a sample of pixel %u, in a tile it is not "
-                                     "rendering", rank, s.pixel));
-    if (++e.received == e.expected) {
-      e.kept = {};  // finished: nothing to take back any more
-      e.rank = kNobody;
+    size_t i = 0;
+    while (i < in_flight_.size() && !(in_flight_[i].rank == rank && Holds(in_flight_[i].tile, s)))
+      ++i;
+    if (i == in_flight_.size())
+      return Status::Error(StrFormat("rank %d sent sample %u of pixel %u, which no tile it is "
+                                     "rendering holds", rank, s.sample, s.pixel));
+    Entry& e = in_flight_[i];
+    if (++e.received == e.expected) {  // finished: nothing to take back any more
+      in_flight_[i] = std::move(in_flight_.back());
+      in_flight_.pop_back();
       --unfinished_;
     } else {
       e.kept.push_back(s);
@@ -47,22 +40,26 @@ Status TileLedger::Record(int rank, std::span<const render::SampleResult> sample
   return OkStatus();
 }
 
-std::vector<size_t> TileLedger::Release(int rank, std::vector<render::SampleResult>* merged) {
-  std::vector<size_t> released;
-  for (size_t i = 0; i < entries_.size(); ++i) {
-    Entry& e = entries_[i];
-    if (e.rank != rank) continue;
-    merged->insert(merged->end(), e.kept.begin(), e.kept.end());
-    e = Entry{kNobody, 0, e.expected, {}};
-    released.push_back(i);
+std::vector<render::Tile> TileLedger::Release(int rank, std::vector<render::SampleResult>* merged) {
+  std::vector<render::Tile> released;
+  for (size_t i = 0; i < in_flight_.size();) {
+    if (in_flight_[i].rank != rank) {
+      ++i;
+      continue;
+    }
+    merged->insert(merged->end(), in_flight_[i].kept.begin(), in_flight_[i].kept.end());
+    released.push_back(in_flight_[i].tile);
+    in_flight_[i] = std::move(in_flight_.back());
+    in_flight_.pop_back();
+    --unfinished_;
   }
   return released;
 }
 
-std::vector<size_t> TileLedger::InFlight(int rank) const {
-  std::vector<size_t> out;
-  for (size_t i = 0; i < entries_.size(); ++i)
-    if (entries_[i].rank == rank) out.push_back(i);
+std::vector<render::Tile> TileLedger::InFlight(int rank) const {
+  std::vector<render::Tile> out;
+  for (const Entry& e : in_flight_)
+    if (e.rank == rank) out.push_back(e.tile);
   return out;
 }
 

@@ -23,6 +23,12 @@ class TileScheduler {
   const render::Tile& tile(size_t index) const { return tiles_[index]; }
   const std::vector<render::Tile>& tiles() const { return tiles_; }
   uint64_t handed_out() const { return handed_out_; }
+  bool exhausted() const {
+    if (!returned_.empty()) return false;
+    for (const Span& s : spans_)
+      if (s.begin < s.end) return false;
+    return true;
+  }
 
  private:
   struct Span {

@@ -85,29 +85,36 @@ bool RayThread::FeedNextTile(bool may_wait) {
     tiles_exhausted_ = true;
     return false;
   }
+  const uint32_t sample_begin = tile.sample_begin;
+  const uint32_t sample_end = tile.sample_end == 0 ? static_cast<uint32_t>(shared_->spp) : tile.sample_end;
+  // The tile's pixels (those in its rank range) in the order they should finish: by priority,
+  // or in scanline order, all of equal priority.
+  const bool by_priority = shared_->pixel_order == render::PixelOrder::kPriority;
+  feed_pixels_.clear();
+  for (int y = tile.y0; y < tile.y1; ++y)
+    for (int x = tile.x0; x < tile.x1; ++x) {
+      const uint16_t rank = render::PixelRank(x, y);
+      if (rank < tile.rank_begin || rank >= tile.rank_end) continue;
+      feed_pixels_.push_back({by_priority ? render::PixelPriority(x, y) : uint16_t{0}, x, y});
+    }
+  if (by_priority)
+    std::stable_sort(feed_pixels_.begin(), feed_pixels_.end(),
+                     [](const FeedPixel& a, const FeedPixel& b) { return a.priority > b.priority; });
   const uint32_t local = static_cast<uint32_t>(tiles_.size());
-  tiles_.push_back({tile, static_cast<uint32_t>(tile.pixels()) * static_cast<uint32_t>(shared_->spp), 0});
+  const uint32_t samples = sample_end > sample_begin ? sample_end - sample_begin : 0;
+  tiles_.push_back({tile, static_cast<uint32_t>(feed_pixels_.size()) * samples, 0});
   newest_tile_ = local;
+  if (tiles_.back().total == 0) return true;  // nothing in it (an empty rank range)
   ++open_tiles_;
   ahead_asked_ = false;
   AskAhead();
-  // Highest priority first; pending_ is a LIFO, so push in reverse.
-  struct Px {
-    uint16_t priority;
-    int x, y;
-  };
-  std::vector<Px> pixels;
-  pixels.reserve(static_cast<size_t>(tile.pixels()));
-  for (int y = tile.y0; y < tile.y1; ++y)
-    for (int x = tile.x0; x < tile.x1; ++x) pixels.push_back({render::PixelPriority(x, y), x, y});
-  std::stable_sort(pixels.begin(), pixels.end(),
-                   [](const Px& a, const Px& b) { return a.priority > b.priority; });
+  // Sample by sample, each over all the pixels; pending_ is a LIFO, so push in reverse.
   const int width = shared_->camera->width();
-  for (int s = shared_->spp - 1; s >= 0; --s) {
-    for (auto it = pixels.rbegin(); it != pixels.rend(); ++it) {
+  for (uint32_t s = sample_end; s-- > sample_begin;) {
+    for (auto it = feed_pixels_.rbegin(); it != feed_pixels_.rend(); ++it) {
       const uint32_t pixel = static_cast<uint32_t>(it->y * width + it->x);
-      const uint32_t slot = slots_.Open(pixel, static_cast<uint32_t>(s), local);
-      pending_.push_back(PrimaryRay(it->x, it->y, static_cast<uint32_t>(s), slot, it->priority));
+      const uint32_t slot = slots_.Open(pixel, s, local);
+      pending_.push_back(PrimaryRay(it->x, it->y, s, slot, it->priority));
       ++counters_.rays[static_cast<int>(RayType::kPrimary)];
     }
   }
@@ -147,10 +154,13 @@ void RayThread::RayDone(uint32_t slot) {
   render::SampleResult result;
   if (!slots_.RayDone(slot, &result)) return;
   ++counters_.samples;
-  if (++tiles_[tile].done == tiles_[tile].total) --open_tiles_;
+  const bool tile_done = ++tiles_[tile].done == tiles_[tile].total;
+  if (tile_done) --open_tiles_;
   if (tile == newest_tile_) AskAhead();
   results_.push_back(result);
-  if (results_.size() >= shared_->result_batch) FlushResults();
+  // A finished tile's samples go out at once rather than when a batch fills, so a progressive
+  // frame's sparse first rounds reach the film (and the preview, and the log) as they are done.
+  if (tile_done || results_.size() >= shared_->result_batch) FlushResults();
 }
 
 void RayThread::AskAhead() {
@@ -163,7 +173,10 @@ void RayThread::AskAhead() {
 
 void RayThread::FlushResults() {
   if (results_.empty()) return;
-  shared_->sink->Consume(results_);
+  uint64_t rays = 0;
+  for (uint64_t r : counters_.rays) rays += r;
+  shared_->sink->Consume(results_, rays - rays_reported_);
+  rays_reported_ = rays;
   results_.clear();
 }
 

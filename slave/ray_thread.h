@@ -15,6 +15,7 @@
 
 #include "common/base/status.h"
 #include "common/render/camera.h"
+#include "common/render/frame_plan.h"
 #include "common/render/sample_result.h"
 #include "common/store/store_reader.h"
 #include "slave/block_cache.h"
@@ -41,8 +42,9 @@ struct FrameShared {
   const render::Camera* camera = nullptr;
   TileSource* tiles = nullptr;
   render::SampleSink* sink = nullptr;
-  int spp = 1;
+  int spp = 1;  // samples of a tile whose sample_end is 0
   uint64_t seed = 1;
+  render::PixelOrder pixel_order = render::PixelOrder::kPriority;
   double feed_fraction = 0.1;
   double tile_ahead = 0.0;
   size_t result_batch = 1024;
@@ -109,6 +111,12 @@ class RayThread {
   static constexpr uint32_t kMaxOpenTiles = 4;
   bool tiles_exhausted_ = false;
   std::vector<render::SampleResult> results_;
+  uint64_t rays_reported_ = 0;  // rays counted in the batches handed to the sink
+  struct FeedPixel {
+    uint16_t priority;
+    int x, y;
+  };
+  std::vector<FeedPixel> feed_pixels_;
   ShadeOutput shade_;
   std::vector<RayRecord> pending_;  // rays to route (children, primaries): no recursion
   std::vector<uint32_t> taken_chunks_;

@@ -116,6 +116,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   shared.sink = &sink;
   shared.spp = scene.integrator.spp;
   shared.seed = scene.integrator.seed;
+  shared.pixel_order = options_.pixel_order;
   shared.feed_fraction = options_.feed_fraction;
   shared.tile_ahead = options_.tile_ahead;
   shared.result_batch = options_.result_batch;

@@ -9,6 +9,7 @@
 
 #include "common/base/status.h"
 #include "common/render/camera.h"
+#include "common/render/frame_plan.h"
 #include "common/render/material_table.h"
 #include "common/render/sample_result.h"
 #include "common/render/scene.h"
@@ -35,6 +36,7 @@ struct EngineOptions {
   LoaderOptions loader;
   FaultOptions faults;
   size_t result_batch = 1024;               // samples per hand-over to the sink
+  render::PixelOrder pixel_order = render::PixelOrder::kPriority;  // within a tile
 };
 
 class RenderEngine {

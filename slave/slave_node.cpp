@@ -72,7 +72,16 @@ class RemoteTiles final : public TileSource {
       if (a.x0 < 0 || a.y0 < 0 || a.x1 <= a.x0 || a.y1 <= a.y0)
         return Status::Error(StrFormat("the master assigned an empty tile [%d,%d)x[%d,%d)",
                                        a.x0, a.x1, a.y0, a.y1));
-      s.tile = {a.x0, a.y0, a.x1, a.y1};
+      if (a.sample_end != 0 &&
+          (a.sample_end <= a.sample_begin || a.sample_end - a.sample_begin > kMaxTileSamples))
+        return Status::Error(StrFormat("the master assigned the samples [%u, %u) of a tile (at "
+                                       "most %u at once)", a.sample_begin, a.sample_end,
+                                       kMaxTileSamples));
+      const uint16_t rank_end = a.rank_end == 0 ? 256 : a.rank_end;
+      if (a.rank_begin >= rank_end || rank_end > 256)
+        return Status::Error(StrFormat("the master assigned the pixel ranks [%u, %u) of a tile",
+                                       a.rank_begin, a.rank_end));
+      s.tile = {a.x0, a.y0, a.x1, a.y1, a.sample_begin, a.sample_end, a.rank_begin, rank_end};
       s.has_tile = true;
     }
     cv_.notify_all();
@@ -88,6 +97,7 @@ class RemoteTiles final : public TileSource {
   uint64_t tiles() const { return tiles_.load(); }
 
  private:
+  static constexpr uint32_t kMaxTileSamples = 1 << 20;
   struct Slot {
     Tile tile;
     bool has_tile = false, requested = false, exhausted = false;
@@ -121,11 +131,12 @@ namespace {
 class RemoteSink final : public render::SampleSink {
  public:
   RemoteSink(transport::Transport* net, uint32_t frame) : net_(net), frame_(frame) {}
-  void Consume(std::span<const render::SampleResult> batch) override {
+  void Consume(std::span<const render::SampleResult> batch, uint64_t rays) override {
     for (size_t i = 0; i < batch.size(); i += wire::kMaxBatchSamples) {
       const size_t n = std::min<size_t>(wire::kMaxBatchSamples, batch.size() - i);
       const Status s = net_->Send(0, wire::EncodePixelBatch(static_cast<uint32_t>(net_->rank()),
-                                                            frame_, batch.subspan(i, n)));
+                                                            frame_, batch.subspan(i, n),
+                                                            i == 0 ? rays : 0));
       if (!s.ok()) {
         std::lock_guard lock(mu_);
         if (error_.ok()) error_ = s;

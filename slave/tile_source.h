@@ -4,8 +4,10 @@
 
 #include <atomic>
 #include <cstdint>
+#include <mutex>
 #include <vector>
 
+#include "common/render/frame_plan.h"
 #include "common/render/tiles.h"
 
 namespace raystack::slave {
@@ -43,6 +45,38 @@ class GridTileSource final : public TileSource {
  private:
   std::vector<Tile> tiles_;
   std::atomic<size_t> next_{0};
+};
+
+// A progressive frame in one process: the plan's sweeps one after the other, each tile to
+// whichever thread asks next, until the plan is done or Stop is called (a stop rule: the
+// tiles already handed out still finish).
+class PlanTileSource final : public TileSource {
+ public:
+  explicit PlanTileSource(const render::FramePlan& plan) : plan_(plan) {}
+  bool Next(uint32_t, Tile* tile) override {
+    std::lock_guard lock(mu_);
+    while (!stopped_ && sweep_ < plan_.sweeps.size()) {
+      const std::vector<Tile>& tiles = plan_.sweeps[sweep_].tiles;
+      if (next_ < tiles.size()) {
+        *tile = tiles[next_++];
+        return true;
+      }
+      ++sweep_;
+      next_ = 0;
+    }
+    return false;
+  }
+  // No more tiles from now on (thread-safe).
+  void Stop() {
+    std::lock_guard lock(mu_);
+    stopped_ = true;
+  }
+
+ private:
+  const render::FramePlan& plan_;
+  std::mutex mu_;
+  size_t sweep_ = 0, next_ = 0;
+  bool stopped_ = false;
 };
 
 }  // namespace raystack::slave

@@ -13,8 +13,9 @@ Film::Film(int width, int height)
       normal_(pixels_.size() * 3, 0.0f),
       albedo_(pixels_.size() * 3, 0.0f) {}
 
-void Film::Merge(std::span<const SampleResult> batch) {
+void Film::Merge(std::span<const SampleResult> batch, uint64_t rays) {
   std::lock_guard lock(mu_);
+  rays_ += rays;
   for (const SampleResult& s : batch) {
     if (s.pixel >= pixels_.size()) continue;  // callers validate; never write out of bounds
     Pixel& p = pixels_[s.pixel];
@@ -30,6 +31,10 @@ void Film::Merge(std::span<const SampleResult> batch) {
     ++p.count;
     p.hits += s.hit ? 1 : 0;
     ++samples_merged_;
+    if (s.sample < kTrackedSamples) {
+      if (s.sample >= by_sample_.size()) by_sample_.resize(s.sample + 1, 0);
+      ++by_sample_[s.sample];
+    }
     if (s.sample == 0) {
       z_[s.pixel] = s.z;
       for (int c = 0; c < 3; ++c) {
@@ -58,6 +63,7 @@ void Film::Unmerge(std::span<const SampleResult> batch) {
     if (p.count == 0) --covered_;
     p.hits -= s.hit ? 1 : 0;
     --samples_merged_;
+    if (s.sample < by_sample_.size() && by_sample_[s.sample] > 0) --by_sample_[s.sample];
   }
 }
 
@@ -75,6 +81,18 @@ uint64_t Film::pixels_restored() const {
 uint64_t Film::samples_merged() const {
   std::lock_guard lock(mu_);
   return samples_merged_;
+}
+
+uint64_t Film::rays_traced() const {
+  std::lock_guard lock(mu_);
+  return rays_;
+}
+
+uint64_t Film::samples_below(uint32_t end) const {
+  std::lock_guard lock(mu_);
+  uint64_t sum = 0;
+  for (size_t i = 0; i < by_sample_.size() && i < end; ++i) sum += by_sample_[i];
+  return sum;
 }
 
 uint64_t Film::nonfinite_dropped() const {

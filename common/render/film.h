@@ -23,8 +23,8 @@ class Film {
   int height() const { return height_; }
 
   // Merges finished samples (thread-safe). Non-finite radiance is dropped and counted, never
-  // stored: a NaN must not reach a pixel.
-  void Merge(std::span<const SampleResult> batch);
+  // stored: a NaN must not reach a pixel. `rays`: the rays traced for them (for the figures).
+  void Merge(std::span<const SampleResult> batch, uint64_t rays = 0);
   // Takes merged samples back out, exactly (the sums are integers): the film is then bit for
   // bit as if they had never been merged, but for the Z/normal/albedo of a sample 0, which the
   // sample's re-render writes again with the same values. For the samples of a lost slave's
@@ -38,6 +38,10 @@ class Film {
   uint64_t pixels_restored() const;
 
   uint64_t samples_merged() const;
+  uint64_t rays_traced() const;
+  // Samples merged whose index is below `end`: equal to width * height * end exactly when
+  // every pixel has its samples [0, end), i.e. a progressive pass has ended.
+  uint64_t samples_below(uint32_t end) const;
   uint64_t nonfinite_dropped() const;
   // Pixels with at least one sample.
   uint64_t pixels_covered() const;
@@ -60,6 +64,9 @@ class Film {
   image::ImageLayers restored_;  // empty unless Restore was called
   std::vector<uint32_t> restored_pixels_;
   uint64_t samples_merged_ = 0;
+  uint64_t rays_ = 0;
+  std::vector<uint64_t> by_sample_;  // samples merged per sample index (up to kTrackedSamples)
+  static constexpr uint32_t kTrackedSamples = 1 << 20;
   uint64_t nonfinite_ = 0;
   uint64_t covered_ = 0;
 };
@@ -73,7 +80,9 @@ inline double Luminance(double r, double g, double b) {
 class FilmSink final : public SampleSink {
  public:
   explicit FilmSink(Film* film) : film_(film) {}
-  void Consume(std::span<const SampleResult> batch) override { film_->Merge(batch); }
+  void Consume(std::span<const SampleResult> batch, uint64_t rays) override {
+    film_->Merge(batch, rays);
+  }
 
  private:
   Film* film_;

@@ -23,9 +23,13 @@ constexpr uint16_t BayerIndex16(int x, int y) {
   return static_cast<uint16_t>(v);
 }
 
+// The pixel's rank in its 16x16 square: 0 is done first.
+constexpr uint16_t PixelRank(int x, int y) {
+  return BayerIndex16(x % kPriorityPeriod, y % kPriorityPeriod);
+}
+
 constexpr uint16_t PixelPriority(int x, int y) {
-  return static_cast<uint16_t>(kMaxPixelPriority -
-                               BayerIndex16(x % kPriorityPeriod, y % kPriorityPeriod));
+  return static_cast<uint16_t>(kMaxPixelPriority - PixelRank(x, y));
 }
 
 }  // namespace raystack::render

@@ -25,7 +25,8 @@ static_assert(sizeof(SampleResult) == 52);
 class SampleSink {
  public:
   virtual ~SampleSink() = default;
-  virtual void Consume(std::span<const SampleResult> batch) = 0;
+  // `rays`: how many rays the thread traced since its last batch (progress figures).
+  virtual void Consume(std::span<const SampleResult> batch, uint64_t rays) = 0;
 };
 
 }  // namespace raystack::render

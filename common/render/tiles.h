@@ -10,9 +10,15 @@
 
 namespace raystack::render {
 
+// A piece of work: a rectangle of pixels, the samples [sample_begin, sample_end) of each, and
+// only the pixels whose rank in the priority matrix (pixel_priority.h) is in [rank_begin,
+// rank_end), so a first pass can visit the whole frame sparsely before filling it in.
 struct Tile {
   int x0 = 0, y0 = 0, x1 = 0, y1 = 0;  // [x0, x1) x [y0, y1)
+  uint32_t sample_begin = 0, sample_end = 0;  // sample_end 0: every sample of the frame's spp
+  uint16_t rank_begin = 0, rank_end = 256;     // every pixel by default
   int pixels() const { return (x1 - x0) * (y1 - y0); }
+  bool operator==(const Tile&) const = default;
 };
 
 // Position `d` along a Hilbert curve filling a side x side grid (side a power of two).
@@ -49,6 +55,16 @@ inline std::vector<Tile> HilbertTiles(int width, int height, int size) {
     const int x = static_cast<int>(tx) * size, y = static_cast<int>(ty) * size;
     tiles.push_back({x, y, x + size < width ? x + size : width, y + size < height ? y + size : height});
   }
+  return tiles;
+}
+
+// The frame cut into size x size tiles in scanline order (left to right, top to bottom), for
+// comparing with the Hilbert order and the priority matrix.
+inline std::vector<Tile> ScanlineTiles(int width, int height, int size) {
+  std::vector<Tile> tiles;
+  for (int y = 0; y < height; y += size)
+    for (int x = 0; x < width; x += size)
+      tiles.push_back({x, y, x + size < width ? x + size : width, y + size < height ? y + size : height});
   return tiles;
 }
 

@@ -118,9 +118,10 @@ std::vector<uint8_t> EncodeError(uint32_t sender, const std::string& text) {
 }
 
 std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
-                                      std::span<const render::SampleResult> samples) {
+                                      std::span<const render::SampleResult> samples,
+                                      uint64_t rays) {
   CHECK(samples.size() <= kMaxBatchSamples);
-  const PixelBatchHeader b{frame, static_cast<uint32_t>(samples.size())};
+  const PixelBatchHeader b{frame, static_cast<uint32_t>(samples.size()), rays};
   return Assemble(sender, MessageType::kPixelBatch, BytesOf(b),
                   {reinterpret_cast<const uint8_t*>(samples.data()), samples.size_bytes()});
 }

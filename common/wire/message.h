@@ -23,7 +23,10 @@ namespace raystack::wire {
 static_assert(std::endian::native == std::endian::little, "the wire format is little-endian");
 
 inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
-inline constexpr uint16_t kProtocolVersion = 2;
+// 2: tile assignments carry a sample range and a pixel-rank range (progressive passes);
+// pixel batches carry the rays traced for them. 3: heartbeats, rank-lost notices, shutdown
+// flags (a lost slave costs time, never pixels).
+inline constexpr uint16_t kProtocolVersion = 3;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
 // How often a slave says it is alive (the master drops one it has not heard from for
@@ -69,7 +72,10 @@ struct TileAssign {
   uint32_t thread;
   int32_t x0, y0, x1, y1;  // [x0, x1) x [y0, y1); empty when `none`
   uint32_t none;           // 1: no more tiles in this frame
-  uint32_t reserved;
+  uint32_t sample_begin;   // the samples [sample_begin, sample_end) of each pixel; sample_end
+  uint32_t sample_end;     // 0: all of the scene's spp
+  uint16_t rank_begin;     // only the pixels whose priority-matrix rank is in
+  uint16_t rank_end;       // [rank_begin, rank_end) (rank_end 0: 256, all)
 };
 // A slave's figures for one frame (what the master gathers per slave).
 struct FrameDone {
@@ -113,9 +119,10 @@ struct BlockDataHeader {  // followed by the run's stored bytes (none when faile
 struct PixelBatchHeader {
   uint32_t frame;
   uint32_t count;  // SampleResult records that follow
+  uint64_t rays;   // rays the slave traced for these samples (progress figures)
 };
-static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 32 &&
-              sizeof(FrameDone) == 80 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 8 &&
+static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
+              sizeof(FrameDone) == 80 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
               sizeof(BlockRequest) == 16 && sizeof(BlockDataHeader) == 16 &&
               sizeof(Heartbeat) == 8 && sizeof(RankLost) == 8);
 
@@ -132,7 +139,8 @@ std::vector<uint8_t> EncodeBlockData(uint32_t sender, const BlockDataHeader& h,
                                      std::span<const uint8_t> stored);
 std::vector<uint8_t> EncodeError(uint32_t sender, const std::string& text);  // cut to kMaxErrorText
 std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
-                                      std::span<const render::SampleResult> samples);
+                                      std::span<const render::SampleResult> samples,
+                                      uint64_t rays = 0);
 
 // A checked message: the header, and the payload as it arrived (valid while `bytes` is).
 struct Message {

@@ -26,6 +26,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     case MessageType::kShutdown: (void)m->shutdown(); break;
     case MessageType::kError: (void)m->error_text(); break;
     case MessageType::kBlockRequest: (void)m->block_request(); break;
+    case MessageType::kHeartbeat: (void)m->heartbeat(); break;
+    case MessageType::kRankLost: (void)m->rank_lost(); break;
     case MessageType::kBlockData: {
       (void)m->block_data_header();
       (void)m->block_data();

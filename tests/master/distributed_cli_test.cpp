@@ -8,6 +8,7 @@
 
 #include "common/base/temp_dir.h"
 #include "tests/prep/run_process.h"
+#include "tests/support/convergence_csv.h"
 #include "tests/support/store_dir_fixture.h"
 
 namespace raystack::testing {
@@ -109,6 +110,48 @@ TEST_F(DistributedCli, ALostSlaveCostsTimeNeverPixels) {
       EXPECT_TRUE(a == b) << c.name << " " << c.blocks << ", frame '" << frame << "'";
     }
   }
+}
+
+// Progressive passes in another order and size, a convergence log and a reference under
+// mpirun: the same bytes as the one-process image, and the log's last row of each frame has
+// every sample, the slaves' rays, and RMSE 0 against that image.
+TEST_F(DistributedCli, ConvergenceLogAndStopRulesUnderMpirun) {
+  const std::string scene = Scene(R"({ "type": "path", "max_depth": 3, "spp": 4, "seed": 2 })");
+  ASSERT_EQ(Render(scene, 0, dir_->File("one.exr")).exit_code, 0);
+  const ProcessResult r =
+      Render(scene, 3, dir_->File("np3.exr"), "loc",
+             {"--pixel-order", "scanline", "--pass-spp", "3", "--convergence-log",
+              dir_->File("log.csv"), "--reference", dir_->File("one.exr")});
+  ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+  for (const char* frame : {"-0", "-1"})
+    EXPECT_TRUE(Slurp(dir_->File(std::string("one") + frame + ".exr")) ==
+                Slurp(dir_->File(std::string("np3") + frame + ".exr"))) << frame;
+  const std::vector<LogRow> rows = ReadConvergenceLog(dir_->File("log.csv"));
+  int ends = 0;
+  for (const LogRow& row : rows) {
+    if (row.event != "end") continue;
+    EXPECT_EQ(row.frame, static_cast<uint32_t>(ends));
+    EXPECT_EQ(row.samples, 72u * 48u * 4u);
+    EXPECT_GT(row.rays, row.samples);
+    EXPECT_EQ(row.rmse, 0.0);
+    ++ends;
+  }
+  EXPECT_EQ(ends, 2);
+
+  // A time limit far below what 4096 samples per pixel take: the master stops handing out
+  // tiles, the slaves finish theirs, and the job ends cleanly with a partial image.
+  const ProcessResult t = Render(scene, 3, dir_->File("limited.exr"), "loc",
+                                 {"--spp", "4096", "--time-limit", "0.5", "--convergence-log",
+                                  dir_->File("limited.csv")});
+  ASSERT_EQ(t.exit_code, 0) << t.err << t.out;
+  int stops = 0;
+  for (const LogRow& row : ReadConvergenceLog(dir_->File("limited.csv"))) {
+    stops += row.event == "stop";
+    if (row.event == "end") {
+      EXPECT_LT(row.samples, 72u * 48u * 4096u);
+    }
+  }
+  EXPECT_EQ(stops, 2);  // both frames
 }
 
 TEST_F(DistributedCli, ADamagedBlockEndsTheJobNamingIt) {

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <thread>
 #include <vector>
 
@@ -94,8 +96,12 @@ void SilentSlave(transport::Transport* net, uint32_t spp) {
   }
 }
 
+// With `plan`, every frame is rendered as that progressive plan, and `keep_going` is the
+// master's stop rule.
 JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, int slaves,
-                  bool rem = false, int tile = 8, const JobFaults& faults = {}) {
+                  bool rem = false, int tile = 8, const JobFaults& faults = {},
+                  const render::FramePlan* plan = nullptr,
+                  const std::function<bool()>& keep_going = [] { return true; }) {
   JobOutcome out;
   transport::InProcessHub hub(slaves + 1);
   out.slaves.resize(static_cast<size_t>(slaves));
@@ -137,9 +143,11 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
     const render::Camera camera(scene.cameras[f]);
     render::Film film(camera.width(), camera.height());
     master::FrameFigures figures;
-    out.master = node.RunFrame(static_cast<uint32_t>(f),
-                               render::HilbertTiles(camera.width(), camera.height(), tile),
-                               static_cast<uint32_t>(scene.integrator.spp), &film, [] {}, &figures);
+    out.master = plan ? node.RunFrame(static_cast<uint32_t>(f), *plan, &film, keep_going, &figures)
+                      : node.RunFrame(static_cast<uint32_t>(f),
+                                      render::HilbertTiles(camera.width(), camera.height(), tile),
+                                      static_cast<uint32_t>(scene.integrator.spp), &film, [] {},
+                                      &figures);
     if (!out.master.ok()) break;
     out.frames.push_back(film.Resolve());
     out.figures.push_back(figures);
@@ -256,6 +264,38 @@ TEST(Distributed, ALostOrFailedSlaveCostsTimeNeverPixels) {
   }
 }
 
+// Progressive passes through the master: the same bits as every sample at once in one
+// process; and a stop rule that fires at once ends the job cleanly with what was merged.
+TEST(DistributedProgressive, PassesGiveTheOneProcessImageAndAStopEndsCleanly) {
+  TestStore s = BuildGenerated("spheres:30000");
+  render::Scene scene = TestScene(*s.reader, render::IntegratorType::kPath);
+  scene.default_material.type = render::MaterialType::kDiffuse;
+  scene.integrator.spp = 5;
+  scene.cameras.resize(1);
+  const RenderOutcome one = Render(*s.reader, scene, Options(*s.reader));
+  ASSERT_TRUE(one.status.ok()) << one.status.message();
+  const render::Camera camera(scene.cameras[0]);
+  for (render::PixelOrder order : {render::PixelOrder::kPriority, render::PixelOrder::kScanline}) {
+    const render::FramePlan plan =
+        render::MakeFramePlan(camera.width(), camera.height(), 8, 5, 0, order);
+    const JobOutcome job = RunJob(*s.reader, scene, 2, false, 8, {}, &plan);
+    ASSERT_TRUE(job.master.ok()) << job.master.message();
+    ASSERT_EQ(job.frames.size(), 1u);
+    EXPECT_TRUE(SameBits(job.frames[0].rgba, one.image.rgba)) << render::PixelOrderName(order);
+    EXPECT_TRUE(SameBits(job.frames[0].variance, one.image.variance));
+    EXPECT_EQ(job.frames[0].samples, one.image.samples);
+  }
+  const render::FramePlan plan =
+      render::MakeFramePlan(camera.width(), camera.height(), 8, 5, 0, render::PixelOrder::kPriority);
+  const JobOutcome stopped = RunJob(*s.reader, scene, 2, false, 8, {}, &plan, [] { return false; });
+  ASSERT_TRUE(stopped.master.ok()) << stopped.master.message();
+  for (const Status& st : stopped.slaves) EXPECT_TRUE(st.ok()) << st.message();
+  ASSERT_EQ(stopped.frames.size(), 1u);
+  uint64_t samples = 0;
+  for (uint32_t n : stopped.frames[0].samples) samples += n;
+  EXPECT_EQ(samples, 0u);  // asked before the first tile went out
+}
+
 TEST(TileScheduler, EveryTileOnceEachSlaveStartsInItsOwnRegion) {
   const std::vector<render::Tile> tiles = render::HilbertTiles(200, 120, 16);
   master::TileScheduler scheduler(tiles, 3);
@@ -305,10 +345,10 @@ Status MasterFacing(const std::vector<uint8_t>& bytes) {
 
 TEST(Distributed, HostileMessagesEndTheFrameNamingTheSender) {
   std::vector<uint8_t> other_version = wire::Encode(1, wire::TileRequest{0, 0});
-  other_version[4] = 3;
+  other_version[4] = 9;
   for (const auto& [bytes, expected] :
        std::vector<std::pair<std::vector<uint8_t>, std::string>>{
-           {other_version, "rank 1: protocol version 3"},
+           {other_version, "rank 1: protocol version 9"},
            {std::vector<uint8_t>(40, 0xab), "rank 1: not a raystack message"},
            {wire::Encode(2, wire::TileRequest{0, 0}), "claims to come from rank 2"},
            {wire::EncodeError(1, "block 9: checksum mismatch (the block is damaged)"),

@@ -63,8 +63,8 @@ TEST_F(Resume, TheResumedImageEqualsAnUninterruptedRun) {
     ASSERT_TRUE(image::WriteExr(out, partial).ok());
     const ProcessResult r = Render(out, np, {"--resume"});
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    // 96x64 in 16-pixel tiles: 24 tiles, the 12 of the left half kept.
-    EXPECT_NE(r.out.find("12 of 24 tiles finished"), std::string::npos) << r.out;
+    // 96x64: the left half (3072 pixels) kept.
+    EXPECT_NE(r.out.find("3072 of 6144 pixels finished"), std::string::npos) << r.out;
     EXPECT_TRUE(Slurp(out) == expected) << "np " << np;
   }
 }
@@ -82,7 +82,7 @@ TEST_F(Resume, ACheckpointOfAnotherFrameIsRefusedNamingIt) {
 TEST_F(Resume, WithoutACheckpointEverythingIsRendered) {
   const ProcessResult r = Render(dir_->File("fresh.exr"), 0, {"--resume"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("0 of 24 tiles finished"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("0 of 6144 pixels finished"), std::string::npos) << r.out;
 }
 
 }  // namespace

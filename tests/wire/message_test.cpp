@@ -32,13 +32,17 @@ TEST(Message, EveryTypeRoundTrips) {
     EXPECT_EQ(m->tile_request().thread, 1u);
   }
   {
-    const std::vector<uint8_t> bytes = Encode(0, TileAssign{1, 2, 32, 64, 48, 96, 0, 0});
+    const std::vector<uint8_t> bytes = Encode(0, TileAssign{1, 2, 32, 64, 48, 96, 0, 4, 8, 16, 64});
     const Expected<Message> m = Decode(bytes, 0);
     ASSERT_TRUE(m.ok()) << m.status().message();
     const TileAssign t = m->tile_assign();
     EXPECT_EQ(t.x0, 32);
     EXPECT_EQ(t.y1, 96);
     EXPECT_EQ(t.none, 0u);
+    EXPECT_EQ(t.sample_begin, 4u);
+    EXPECT_EQ(t.sample_end, 8u);
+    EXPECT_EQ(t.rank_begin, 16u);
+    EXPECT_EQ(t.rank_end, 64u);
   }
   {
     FrameDone done{};
@@ -79,10 +83,11 @@ TEST(Message, EveryTypeRoundTrips) {
 TEST(Message, PixelBatchRoundTripsBitForBit) {
   std::vector<render::SampleResult> samples;
   for (uint32_t i = 0; i < 1000; ++i) samples.push_back(Sample(i));
-  const std::vector<uint8_t> bytes = EncodePixelBatch(2, 7, samples);
+  const std::vector<uint8_t> bytes = EncodePixelBatch(2, 7, samples, 98765);
   const Expected<Message> m = Decode(bytes, 2);
   ASSERT_TRUE(m.ok()) << m.status().message();
   EXPECT_EQ(m->batch_header().frame, 7u);
+  EXPECT_EQ(m->batch_header().rays, 98765u);
   std::vector<render::SampleResult> got;
   m->batch_samples(&got);
   ASSERT_EQ(got.size(), samples.size());
@@ -112,8 +117,8 @@ TEST(Message, MalformedMessagesNameTheSender) {
   Poke<uint32_t>(&b, 0, 0xdeadbeef);
   ExpectError(b, 4, "not a raystack message");
   b = good;
-  Poke<uint16_t>(&b, 4, 1);
-  ExpectError(b, 4, "protocol version 1");
+  Poke<uint16_t>(&b, 4, kProtocolVersion + 1);
+  ExpectError(b, 4, "protocol version " + std::to_string(kProtocolVersion + 1));
   b = good;
   Poke<uint16_t>(&b, 6, 99);
   ExpectError(b, 4, "unknown type 99");
@@ -131,7 +136,7 @@ TEST(Message, MalformedMessagesNameTheSender) {
   b = Encode(4, TileAssign{});
   b.resize(b.size() - 4);
   Poke<uint32_t>(&b, 12, static_cast<uint32_t>(b.size() - sizeof(MessageHeader)));
-  ExpectError(b, 4, "expected 32");
+  ExpectError(b, 4, "expected 40");
 }
 
 TEST(Message, HostilePixelBatchesAreRefused) {
@@ -151,7 +156,7 @@ TEST(Message, HostilePixelBatchesAreRefused) {
 TEST(Message, NoTruncationOrFlippedByteCrashesOrMisreads) {
   std::vector<render::SampleResult> samples(3, Sample(5));
   const std::vector<std::vector<uint8_t>> messages = {
-      Encode(2, TileAssign{1, 0, 0, 0, 32, 32, 0, 0}), EncodePixelBatch(2, 1, samples),
+      Encode(2, TileAssign{1, 0, 0, 0, 32, 32, 0, 0, 1, 0, 256}), EncodePixelBatch(2, 1, samples),
       Encode(2, FrameDone{1, 2, 9, 0, 0, 0, 0, 0, 0.5, 0, 0})};
   for (const auto& good : messages) {
     for (size_t n = 0; n < good.size(); ++n)  // every truncation

@@ -1,0 +1,97 @@
+#include "common/render/frame_plan.h"
+
+#include <algorithm>
+
+#include "common/render/pixel_priority.h"
+
+namespace raystack::render {
+
+const char* PixelOrderName(PixelOrder order) {
+  return order == PixelOrder::kPriority ? "priority" : "scanline";
+}
+
+Expected<PixelOrder> ParsePixelOrder(const std::string& name) {
+  if (name == "priority") return PixelOrder::kPriority;
+  if (name == "scanline") return PixelOrder::kScanline;
+  return Status::Error("--pixel-order must be priority or scanline, got '" + name + "'");
+}
+
+std::vector<SampleRange> PassRanges(uint32_t spp, uint32_t pass_spp) {
+  std::vector<SampleRange> passes;
+  uint32_t begin = 0;
+  while (begin < spp) {
+    // Doubling: 1, then as many samples as already done, so pass k ends at 2^k.
+    const uint32_t size = pass_spp > 0 ? pass_spp : std::max(1u, begin);
+    const uint32_t end = spp - begin > size ? begin + size : spp;
+    passes.push_back({begin, end});
+    begin = end;
+  }
+  return passes;
+}
+
+FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint32_t pass_spp,
+                        PixelOrder order) {
+  FramePlan plan;
+  plan.width = width;
+  plan.height = height;
+  plan.passes = PassRanges(spp, pass_spp);
+  auto grid_of = [&](int size) {
+    return order == PixelOrder::kPriority ? HilbertTiles(width, height, size)
+                                          : ScanlineTiles(width, height, size);
+  };
+  const std::vector<Tile> grid = grid_of(tile_size);
+  // Rounds of the first pass in priority order: ranks [0,1), [1,4), [4,16), [16,64),
+  // [64,256): each round halves the spacing of the pixels done so far.
+  constexpr uint16_t kRounds[] = {0, 1, 4, 16, 64, 256};
+  // A round's tiles are larger by kRoundScale on a side, so each still holds about as many
+  // pixels as a full tile: the sparse rounds are a few dozen tiles, not thousands of nearly
+  // empty ones (each a request to the master and a feed).
+  constexpr int kRoundScale[] = {16, 8, 4, 2, 1};
+  // A tile holds at most kMaxTileSamples samples: a late pass of many samples per pixel is
+  // handed out as several sweeps of a few samples each, so a stop rule never waits long for
+  // the tiles in flight, and a ray thread's open samples stay bounded.
+  const uint32_t tile_pixels = static_cast<uint32_t>(std::max(1, tile_size * tile_size));
+  const uint32_t chunk = std::max(1u, kMaxTileSamples / tile_pixels);
+  for (uint32_t p = 0; p < plan.passes.size(); ++p) {
+    const bool split = order == PixelOrder::kPriority && p == 0;
+    const int rounds = split ? 5 : 1;
+    for (uint32_t begin = plan.passes[p].begin; begin < plan.passes[p].end; begin += chunk) {
+      const uint32_t end = std::min(plan.passes[p].end, begin + chunk);
+      for (int r = 0; r < rounds; ++r) {
+        Sweep sweep;
+        sweep.pass = p;
+        sweep.pass_end = r + 1 == rounds && end == plan.passes[p].end;
+        const std::vector<Tile> round_grid = split ? grid_of(tile_size * kRoundScale[r]) : grid;
+        for (Tile t : round_grid) {
+          t.sample_begin = begin;
+          t.sample_end = end;
+          if (split) {
+            t.rank_begin = kRounds[r];
+            t.rank_end = kRounds[r + 1];
+          }
+          if (TileSamples(t, spp) > 0) sweep.tiles.push_back(t);
+        }
+        plan.sweeps.push_back(std::move(sweep));
+      }
+    }
+  }
+  return plan;
+}
+
+uint64_t TileSamples(const Tile& tile, uint32_t spp) {
+  const uint32_t end = tile.sample_end == 0 ? spp : tile.sample_end;
+  if (end <= tile.sample_begin) return 0;
+  uint64_t pixels = 0;
+  if (tile.rank_begin == 0 && tile.rank_end >= kPriorityPeriod * kPriorityPeriod) {
+    pixels = static_cast<uint64_t>(std::max(0, tile.pixels()));
+  } else {
+    for (int y = tile.y0; y < tile.y1; ++y)
+      for (int x = tile.x0; x < tile.x1; ++x) {
+        const uint16_t rank = PixelRank(x, y);
+        pixels += rank >= tile.rank_begin && rank < tile.rank_end ? 1 : 0;
+      }
+  }
+  return pixels * (end - tile.sample_begin);
+}
+
+}  // namespace raystack::render

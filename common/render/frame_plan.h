@@ -1,0 +1,62 @@
+#pragma once
+// How a frame is rendered progressively: as passes of a few samples per pixel over the whole
+// image (pass 1 = sample 0, then doubling, or a fixed number per pass), so every pixel has k
+// samples before any has many more, and the image can be stopped after any pass (--spp,
+// --time-limit, --target-error). A pass is handed out as one or more *sweeps* of tiles; in
+// priority order the first pass is split into sweeps by the priority matrix (1/256 of the
+// pixels, spread evenly, then 3/256, 12/256, ...), so a coarse full frame exists early; a
+// round's tiles are larger in proportion, so each holds about a full tile's pixels.
+// Random numbers depend only on (seed, pixel, sample), so the plan never changes the image.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/render/tiles.h"
+
+namespace raystack::render {
+
+enum class PixelOrder { kPriority, kScanline };
+const char* PixelOrderName(PixelOrder order);
+Expected<PixelOrder> ParsePixelOrder(const std::string& name);
+
+struct SampleRange {
+  uint32_t begin = 0, end = 0;  // [begin, end)
+};
+
+// The passes covering samples [0, spp): pass_spp 0 gives 1, 1, 2, 4, ... samples per pixel
+// (the sample count doubles with each pass); otherwise pass_spp per pass (the last may be
+// smaller).
+std::vector<SampleRange> PassRanges(uint32_t spp, uint32_t pass_spp);
+
+struct Sweep {
+  std::vector<Tile> tiles;  // in the order they should be handed out
+  uint32_t pass = 0;        // index into the passes (a pass may take several sweeps)
+  bool pass_end = false;    // the last sweep of its pass: after it, every pixel has
+                            // passes[pass].end samples
+};
+
+struct FramePlan {
+  int width = 0, height = 0;
+  std::vector<SampleRange> passes;
+  std::vector<Sweep> sweeps;
+  uint32_t spp() const { return passes.empty() ? 0 : passes.back().end; }
+  uint64_t total_samples() const {
+    return static_cast<uint64_t>(width) * static_cast<uint64_t>(height) * spp();
+  }
+};
+
+// The most samples one tile of a plan holds (pixels x samples per pixel).
+inline constexpr uint32_t kMaxTileSamples = 16384;
+
+// Priority: Hilbert-ordered tiles, first pass in priority-matrix rounds, pixels within a tile
+// by priority. Scanline: tiles and pixels in scanline order, every pass one sweep.
+FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint32_t pass_spp,
+                        PixelOrder order);
+
+// Samples a tile stands for (its pixels in its rank range times its samples); `spp` resolves a
+// tile whose sample_end is 0 (the whole frame's samples).
+uint64_t TileSamples(const Tile& tile, uint32_t spp);
+
+}  // namespace raystack::render

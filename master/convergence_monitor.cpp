@@ -1,0 +1,105 @@
+#include "master/convergence_monitor.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+
+#include "common/base/log.h"
+
+namespace raystack::master {
+
+Expected<std::unique_ptr<ConvergenceLog>> ConvergenceLog::Open(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  if (!f)
+    return Status::Error(StrFormat("%s: cannot write the convergence log: %s", path.c_str(),
+                                   std::strerror(errno)));
+  std::fputs("frame,event,pass,seconds,rays,samples,pixels_covered,min_samples,error_estimate,"
+             "rel_error_estimate,rmse,relmse\n", f);
+  return std::unique_ptr<ConvergenceLog>(new ConvergenceLog(f));
+}
+
+ConvergenceLog::~ConvergenceLog() { std::fclose(file_); }
+
+void ConvergenceLog::Write(uint32_t frame, const char* event, uint32_t pass,
+                           const render::ConvergencePoint& p) {
+  auto number = [](double v) { return std::isfinite(v) ? StrFormat("%.9g", v) : std::string(); };
+  std::fprintf(file_, "%u,%s,%u,%.6f,%llu,%llu,%llu,%u,%s,%s,%s,%s\n", frame, event, pass,
+               p.seconds, static_cast<unsigned long long>(p.rays),
+               static_cast<unsigned long long>(p.samples),
+               static_cast<unsigned long long>(p.pixels_covered), p.min_samples,
+               number(p.error_estimate).c_str(), number(p.rel_error_estimate).c_str(),
+               number(p.rmse).c_str(), number(p.relmse).c_str());
+  std::fflush(file_);  // a reader (or a crash) sees every row written so far
+}
+
+ConvergenceMonitor::ConvergenceMonitor(const render::Film& film, const render::FramePlan& plan,
+                                       StopRules rules, uint32_t frame, ConvergenceLog* log,
+                                       const image::ImageLayers* reference,
+                                       double log_interval_s)
+    : film_(film),
+      plan_(plan),
+      rules_(rules),
+      frame_(frame),
+      log_(log),
+      reference_(reference),
+      log_interval_s_(log_interval_s) {
+  // Where every curve starts: nothing rendered yet (against a reference, a black image).
+  if (log_) log_->Write(frame_, "start", 0, Measure());
+}
+
+render::ConvergencePoint ConvergenceMonitor::Measure() const {
+  render::ConvergencePoint p;
+  // Counts first, so they never run ahead of the image they describe.
+  p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  p.rays = film_.rays_traced();
+  p.samples = film_.samples_merged();
+  render::EstimateError(film_.Resolve(), reference_, &p);
+  return p;
+}
+
+void ConvergenceMonitor::CheckPassEnds() {
+  const uint64_t pixels = static_cast<uint64_t>(plan_.width) * static_cast<uint64_t>(plan_.height);
+  while (passes_ended_ < plan_.passes.size() && !stopped()) {
+    const uint32_t end = plan_.passes[passes_ended_].end;
+    if (film_.samples_below(end) < pixels * end) return;
+    ++passes_ended_;
+    last_ = Measure();
+    if (log_) log_->Write(frame_, "pass", passes_ended_, last_);
+    if (rules_.target_error > 0 && last_.min_samples >= 2 &&
+        last_.error_estimate <= rules_.target_error && passes_ended_ < plan_.passes.size()) {
+      stop_reason_ = StrFormat("--target-error %g reached after pass %u (%u samples per pixel, "
+                               "estimated error %g)", rules_.target_error, passes_ended_, end,
+                               last_.error_estimate);
+      if (log_) log_->Write(frame_, "stop", passes_ended_, last_);
+    }
+  }
+}
+
+bool ConvergenceMonitor::Poll() {
+  if (stopped()) return false;
+  CheckPassEnds();
+  if (stopped()) return false;
+  const double now =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  if (rules_.time_limit_s > 0 && now >= rules_.time_limit_s) {
+    last_ = Measure();
+    stop_reason_ = StrFormat("--time-limit %g s reached (%llu of %llu samples)",
+                             rules_.time_limit_s, static_cast<unsigned long long>(last_.samples),
+                             static_cast<unsigned long long>(plan_.total_samples()));
+    if (log_) log_->Write(frame_, "stop", passes_ended_, last_);
+    return false;
+  }
+  if (log_ && now - last_log_s_ >= log_interval_s_) {
+    last_log_s_ = now;
+    log_->Write(frame_, "tick", passes_ended_, Measure());
+  }
+  return true;
+}
+
+void ConvergenceMonitor::Finish() {
+  CheckPassEnds();
+  last_ = Measure();
+  if (log_) log_->Write(frame_, "end", passes_ended_, last_);
+}
+
+}  // namespace raystack::master

@@ -1,0 +1,83 @@
+#pragma once
+// Watches a progressive frame while it renders (one process, or the master): writes the
+// convergence log, and applies the stop rules. The renderer asks it a few times a second
+// whether to keep handing out work.
+//
+// The log is CSV, one header line, then one row per event:
+//   frame,event,pass,seconds,rays,samples,pixels_covered,min_samples,error_estimate,
+//   rel_error_estimate,rmse,relmse
+// event: "start" (the frame's clock starts, nothing merged), "tick" (every --log-interval
+// seconds), "pass" (a pass has ended: every pixel has
+// its samples up to the pass's end; `pass` counts the passes ended), "stop" (a stop rule
+// fired), "end" (the frame's last sample is merged). Figures as in common/render/convergence.h;
+// an empty field is a figure not known (no pixel has 2 samples yet; no --reference).
+
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "common/base/status.h"
+#include "common/image/image_layers.h"
+#include "common/render/convergence.h"
+#include "common/render/film.h"
+#include "common/render/frame_plan.h"
+
+namespace raystack::master {
+
+struct StopRules {
+  double time_limit_s = 0;   // 0: none. Stop handing out work after this long
+  double target_error = 0;   // 0: none. Stop after the first pass whose error_estimate <= this
+};
+
+// The CSV file (one for every frame of a job). Not thread-safe: the monitor's thread writes.
+class ConvergenceLog {
+ public:
+  static Expected<std::unique_ptr<ConvergenceLog>> Open(const std::string& path);
+  ~ConvergenceLog();
+  void Write(uint32_t frame, const char* event, uint32_t pass, const render::ConvergencePoint& p);
+
+ private:
+  explicit ConvergenceLog(std::FILE* f) : file_(f) {}
+  std::FILE* file_;
+};
+
+class ConvergenceMonitor {
+ public:
+  // `log` and `reference` may be null; all must outlive the monitor. The frame's clock starts
+  // now.
+  ConvergenceMonitor(const render::Film& film, const render::FramePlan& plan, StopRules rules,
+                     uint32_t frame, ConvergenceLog* log, const image::ImageLayers* reference,
+                     double log_interval_s);
+
+  // Called a few times a second from one thread while the frame renders. False: a stop rule
+  // fired, hand out no more work.
+  bool Poll();
+  // After the frame's last sample: the last passes' rows and the "end" row.
+  void Finish();
+
+  bool stopped() const { return !stop_reason_.empty(); }
+  const std::string& stop_reason() const { return stop_reason_; }  // empty: not stopped
+  // The figures at the last pass end, stop or Finish.
+  const render::ConvergencePoint& last() const { return last_; }
+
+ private:
+  render::ConvergencePoint Measure() const;
+  void CheckPassEnds();
+
+  const render::Film& film_;
+  const render::FramePlan& plan_;
+  const StopRules rules_;
+  const uint32_t frame_;
+  ConvergenceLog* log_;
+  const image::ImageLayers* reference_;
+  const double log_interval_s_;
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+  double last_log_s_ = 0;
+  uint32_t passes_ended_ = 0;
+  std::string stop_reason_;
+  render::ConvergencePoint last_;
+};
+
+}  // namespace raystack::master

@@ -1,0 +1,158 @@
+#!/usr/bin/python3
+"""tools/plot/raystack-plot on logs whose curves are known: the PNG has the asked size and
+the curves' colours where the curves are (and nowhere for a curve not drawn), the area under
+a step curve is exact, and bad logs end with the file and line. Skipped (reported as
+[  SKIPPED ]) when matplotlib is not installed; deploy/install-deps.sh installs it."""
+
+import os
+import struct
+import subprocess
+import sys
+import tempfile
+import unittest
+import zlib
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+TOOL = os.path.join(ROOT, "tools", "plot", "raystack-plot")
+HEADER = ("frame,event,pass,seconds,rays,samples,pixels_covered,min_samples,error_estimate,"
+          "rel_error_estimate,rmse,relmse\n")
+
+
+def read_png_rgb(path):
+    """(width, height, rows of (r, g, b)) of an 8-bit RGB or RGBA PNG (what matplotlib
+    writes), decoded with zlib only."""
+    with open(path, "rb") as f:
+        data = f.read()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n", "not a PNG"
+    pos, idat, w = 8, b"", 0
+    while pos < len(data):
+        n, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + n]
+        if kind == b"IHDR":
+            w, h, depth, colour = struct.unpack(">IIBB", body[:10])
+            assert depth == 8 and colour in (2, 6), (depth, colour)
+            bpp = 3 if colour == 2 else 4
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + n
+    raw = zlib.decompress(idat)
+    stride = w * bpp
+    rows, prev = [], bytearray(stride)
+    for y in range(h):
+        ftype, line = raw[y * (stride + 1)], bytearray(raw[y * (stride + 1) + 1:(y + 1) * (stride + 1)])
+        for i in range(stride):
+            a = line[i - bpp] if i >= bpp else 0
+            b = prev[i]
+            c = prev[i - bpp] if i >= bpp else 0
+            if ftype == 1:
+                line[i] = (line[i] + a) & 255
+            elif ftype == 2:
+                line[i] = (line[i] + b) & 255
+            elif ftype == 3:
+                line[i] = (line[i] + (a + b) // 2) & 255
+            elif ftype == 4:
+                pa, pb, pc = abs(b - c), abs(a - c), abs(a + b - 2 * c)
+                line[i] = (line[i] + (a if pa <= pb and pa <= pc else b if pb <= pc else c)) & 255
+        rows.append([tuple(line[x * bpp:x * bpp + 3]) for x in range(w)])
+        prev = line
+    return w, h, rows
+
+
+def write_log(path, points, estimate=None):
+    with open(path, "w") as f:
+        f.write(HEADER)
+        for i, (t, rmse) in enumerate(points):
+            e = "" if estimate is None else repr(estimate[i])
+            f.write(f"0,tick,{i},{t},{1000 * (i + 1)},{100 * (i + 1)},100,{i},{e},,{rmse},\n")
+
+
+def has_matplotlib():
+    try:
+        import matplotlib  # noqa: F401
+        return True
+    except ImportError:
+        return False
+
+
+class PlotTool(unittest.TestCase):
+    def setUp(self):
+        self.dir = tempfile.TemporaryDirectory()
+        self.tmp = self.dir.name
+
+    def tearDown(self):
+        self.dir.cleanup()
+
+    def run_tool(self, *args):
+        return subprocess.run([sys.executable, TOOL, *args], capture_output=True, text=True)
+
+    def test_png_size_and_curve_colours(self):
+        a = os.path.join(self.tmp, "a.csv")
+        b = os.path.join(self.tmp, "b.csv")
+        # a: high error (upper part of the plot); b: low error (lower part).
+        write_log(a, [(0.1, 1.0), (1.0, 0.9), (10.0, 0.8)])
+        write_log(b, [(0.1, 0.011), (1.0, 0.010), (10.0, 0.009)])
+        out = os.path.join(self.tmp, "p.png")
+        r = self.run_tool(f"slow={a}", f"fast={b}", "-o", out, "--width", "640",
+                          "--height", "400")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        w, h, rows = read_png_rgb(out)
+        self.assertEqual((w, h), (640, 400))
+
+        # matplotlib's C0 (blue, 1f77b4) and C1 (orange, ff7f0e).
+        def near(p, q):
+            return all(abs(x - y) <= 40 for x, y in zip(p, q))
+
+        def rows_with(colour):
+            return [y for y in range(h) if any(near(p, colour) for p in rows[y])]
+
+        blue, orange = rows_with((0x1f, 0x77, 0xb4)), rows_with((0xff, 0x7f, 0x0e))
+        self.assertTrue(blue and orange)
+        # The slow curve lies above the fast one (smaller y is higher), legend aside: compare
+        # the medians of the rows holding each colour.
+        self.assertLess(sorted(blue)[len(blue) // 2], sorted(orange)[len(orange) // 2])
+
+    def test_area_under_a_step_curve(self):
+        a = os.path.join(self.tmp, "a.csv")
+        write_log(a, [(0.0, 2.0), (1.0, 1.0), (3.0, 0.5)])
+        r = self.run_tool(a, "-o", os.path.join(self.tmp, "p.png"), "--area")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("a: area 4 ", r.stdout)  # 2 x 1 s + 1 x 2 s, up to the end at 3 s
+        r = self.run_tool(a, "-o", os.path.join(self.tmp, "p.png"), "--area", "--until", "2")
+        self.assertIn("a: area 3 ", r.stdout)
+
+    def test_estimate_curve_and_linear_axes(self):
+        a = os.path.join(self.tmp, "a.csv")
+        write_log(a, [(0.1, 1.0), (1.0, 0.5)], estimate=[1.1, 0.45])
+        out = os.path.join(self.tmp, "p.png")
+        r = self.run_tool(a, "-o", out, "--estimate", "--linear", "--title", "t")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertGreater(os.path.getsize(out), 1000)
+
+    def test_bad_logs_name_the_file_and_line(self):
+        bad = os.path.join(self.tmp, "bad.csv")
+        with open(bad, "w") as f:
+            f.write(HEADER + "0,tick,0,0.5,10,10,10,1,,,0.5,\n0,tick,1,zero,1,1,1,1,,,1,\n")
+        r = self.run_tool(bad, "-o", os.path.join(self.tmp, "p.png"))
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("bad.csv:3: seconds is 'zero'", r.stderr)
+        r = self.run_tool(os.path.join(self.tmp, "missing.csv"), "-o", "p.png")
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("missing.csv: cannot read", r.stderr)
+        other = os.path.join(self.tmp, "other.csv")
+        with open(other, "w") as f:
+            f.write("a,b\n1,2\n")
+        r = self.run_tool(other, "-o", os.path.join(self.tmp, "p.png"))
+        self.assertIn("other.csv:1: not a raystack convergence log", r.stderr)
+        noref = os.path.join(self.tmp, "noref.csv")
+        write_log(noref, [(0.1, ""), (1.0, "")], estimate=[0.3, 0.2])
+        r = self.run_tool(noref, "-o", os.path.join(self.tmp, "p.png"))
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("without --reference", r.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, "p.png")))
+
+
+if __name__ == "__main__":
+    if not has_matplotlib():
+        print("[  SKIPPED ] python3-matplotlib is not installed (deploy/install-deps.sh)")
+        sys.exit(0)
+    unittest.main(verbosity=2)
