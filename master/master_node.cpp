@@ -51,6 +51,11 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
   return waiting == 0;
 }
 
+std::vector<std::vector<render::Tile>> MasterNode::TilesAssigned() const {
+  std::lock_guard lock(assigned_mu_);
+  return assigned_;
+}
+
 Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, render::Film* film,
                             const std::function<void()>& on_progress, FrameFigures* figures) {
   const auto start = std::chrono::steady_clock::now();
@@ -59,6 +64,10 @@ Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, ren
   figures->slaves.assign(static_cast<size_t>(slaves), SlaveFigures{});
   for (int i = 0; i < slaves; ++i) figures->slaves[static_cast<size_t>(i)].rank = i + 1;
   TileScheduler scheduler(std::move(tiles), slaves);
+  {
+    std::lock_guard lock(assigned_mu_);
+    assigned_.assign(static_cast<size_t>(slaves), {});
+  }
   std::vector<bool> done(static_cast<size_t>(slaves), false);
   int remaining = slaves;
   std::vector<render::SampleResult> samples;
@@ -102,6 +111,8 @@ Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, ren
         render::Tile t;
         if (scheduler.Next(e.from - 1, &t)) {
           a.x0 = t.x0, a.y0 = t.y0, a.x1 = t.x1, a.y1 = t.y1;
+          std::lock_guard lock(assigned_mu_);
+          assigned_[static_cast<size_t>(e.from - 1)].push_back(t);
         } else {
           a.none = 1;
         }

@@ -2,9 +2,12 @@
 
 #include <atomic>
 #include <charconv>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
+#include <limits>
+#include <mutex>
 #include <string>
 #include <thread>
 
@@ -19,6 +22,7 @@
 #include "common/store/store_reader.h"
 #include "common/mpi/mpi_transport.h"
 #include "master/master_node.h"
+#include "master/preview/live_preview.h"
 #include "slave/peer_blocks.h"
 #include "slave/render_engine.h"
 #include "slave/slave_node.h"
@@ -60,6 +64,11 @@ options:
   --no-png                  do not write the PNG quick-look
   --exposure EV             exposure of the PNG quick-look (default 0)
   --stats FILE              also write the run's statistics as JSON
+  --preview PORT|any        serve a live preview of the render at http://ADDR:PORT/ (any: a
+                            free port; the address is printed at start); default off
+  --preview-bind ADDR       the preview's address (default 127.0.0.1, this machine only; any
+                            other, e.g. 0.0.0.0, requires the random token printed at start)
+  --preview-hold S          keep the preview up S seconds after the render (Ctrl-C ends it)
   -q, --quiet               no progress output
   -h, --help                this text
 )";
@@ -75,6 +84,7 @@ struct Args {
   bool quiet = false;
   double checkpoint_s = 0;
   std::string blocks = "auto";
+  preview::LivePreviewOptions preview;
 };
 
 template <typename T>
@@ -139,6 +149,18 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       a->png = false;
     } else if (arg == "--exposure") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->exposure, -64, 64));
+    } else if (arg == "--preview") {
+      std::string v;
+      RAYSTACK_RETURN_IF_ERROR(value(&v));
+      uint16_t port = 0;
+      if (v != "any" && (!ParseNumber(v, &port)))
+        return Status::Error("--preview: '" + v + "' is not a port number (0 to 65535) or 'any'");
+      a->preview.enabled = v == "any" || port != 0;
+      a->preview.server.port = port;
+    } else if (arg == "--preview-bind") {
+      RAYSTACK_RETURN_IF_ERROR(value(&a->preview.server.bind));
+    } else if (arg == "--preview-hold") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->preview.hold_seconds, 0, 1e9));
     } else if (arg == "--stats") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->stats));
     } else if (arg == "-q" || arg == "--quiet") {
@@ -152,6 +174,7 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
     }
   }
   if (!*help && a->scene.empty()) return Status::Error("a scene file is required (see --help)");
+  a->preview.server.exposure = a->exposure;
   return OkStatus();
 }
 
@@ -225,6 +248,28 @@ class Checkpoints {
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
+// The frame's tiles in Hilbert order, as GridTileSource, remembering which were handed out
+// (the live preview shows the ones still in flight).
+class WatchedTileSource final : public slave::TileSource {
+ public:
+  WatchedTileSource(int width, int height, int size) : tiles_(width, height, size) {}
+  bool Next(uint32_t thread, slave::Tile* tile) override {
+    if (!tiles_.Next(thread, tile)) return false;
+    std::lock_guard lock(mu_);
+    given_.push_back(*tile);
+    return true;
+  }
+  std::vector<preview::RankTiles> Given() const {
+    std::lock_guard lock(mu_);
+    return {preview::RankTiles{0, given_}};
+  }
+
+ private:
+  slave::GridTileSource tiles_;
+  mutable std::mutex mu_;
+  std::vector<render::Tile> given_;
+};
+
 Status Run(const Args& args) {
   Expected<render::Scene> scene = render::LoadScene(args.scene);
   if (!scene.ok()) return scene.status();
@@ -239,13 +284,15 @@ Status Run(const Args& args) {
   if (!engine.ok()) return engine.status();
   const render::MaterialTable materials =
       render::MaterialTable::Build((*store)->materials(), *scene);
+  Expected<preview::LivePreview> preview = preview::LivePreview::Start(args.preview);
+  if (!preview.ok()) return preview.status();
 
   std::string stats_json = "[\n";
   for (size_t f = 0; f < frames; ++f) {
     const render::Camera camera(scene->cameras[f]);
     render::Film film(camera.width(), camera.height());
     render::FilmSink sink(&film);
-    slave::GridTileSource tiles(camera.width(), camera.height(), args.tile_size);
+    WatchedTileSource tiles(camera.width(), camera.height(), args.tile_size);
     slave::RenderStats stats;
     Status status;
     const uint64_t total = static_cast<uint64_t>(camera.width()) * camera.height() *
@@ -254,6 +301,8 @@ Status Run(const Args& args) {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
       std::atomic<bool> finished{false};
+      preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
+                          scene->integrator.spp);
       std::thread render([&] {
         status = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
         finished.store(true);
@@ -266,10 +315,12 @@ Status Run(const Args& args) {
         progress.Update(done - shown);
         shown = done;
         checkpoints.Maybe(film);
+        preview->Update([&] { return tiles.Given(); });
       }
       render.join();
       progress.Update(film.samples_merged() - shown);
     }
+    preview->EndFrame(status.ok() ? stats.rays_per_second : std::numeric_limits<double>::quiet_NaN());
     RAYSTACK_RETURN_IF_ERROR(status);
     Expected<std::string> exr = WriteFrame(args, *scene, f, film);
     if (!exr.ok()) return exr.status();
@@ -277,7 +328,9 @@ Status Run(const Args& args) {
     stats_json += stats.ToJson();
     if (f + 1 < frames) stats_json += ",";
   }
-  return WriteStats(args.stats, stats_json + "]\n");
+  RAYSTACK_RETURN_IF_ERROR(WriteStats(args.stats, stats_json + "]\n"));
+  preview->Finish();
+  return OkStatus();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -315,6 +368,19 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
   const std::string output = OutputOf(args, scene);
   const size_t frames = scene.cameras.size();
   MasterNode master(net);
+  Expected<preview::LivePreview> preview = preview::LivePreview::Start(args.preview);
+  if (!preview.ok()) {
+    master.Shutdown(1);
+    return preview.status();
+  }
+  // The tiles each slave has been given this frame (the preview leaves out the finished ones).
+  const auto assigned = [&] {
+    std::vector<preview::RankTiles> ranks;
+    std::vector<std::vector<render::Tile>> by_slave = master.TilesAssigned();
+    for (size_t i = 0; i < by_slave.size(); ++i)
+      ranks.push_back({static_cast<int>(i) + 1, std::move(by_slave[i])});
+    return ranks;
+  };
   std::string json = "[\n";
   for (size_t f = 0; f < frames; ++f) {
     const render::Camera camera(scene.cameras[f]);
@@ -328,6 +394,8 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                                 args.quiet);
       uint64_t shown = 0;
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
+      preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
+                          scene.integrator.spp);
       status = master.RunFrame(static_cast<uint32_t>(f),
                                render::HilbertTiles(camera.width(), camera.height(), args.tile_size),
                                &film, [&] {
@@ -335,9 +403,14 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                                  progress.Update(done - shown);
                                  shown = done;
                                  checkpoints.Maybe(film);
+                                 preview->Update(assigned);
                                },
                                &figures);
     }
+    uint64_t rays = 0;
+    for (const SlaveFigures& s : figures.slaves) rays += s.done.rays;
+    preview->EndFrame(status.ok() && figures.seconds > 0 ? static_cast<double>(rays) / figures.seconds
+                                                         : std::numeric_limits<double>::quiet_NaN());
     Expected<std::string> exr = status.ok() ? WriteFrame(args, scene, f, film)
                                             : Expected<std::string>(status);
     if (!exr.ok()) {  // every rank ends, none is left waiting
@@ -364,7 +437,9 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
     json += FiguresJson(f, figures) + (f + 1 < frames ? ",\n" : "\n");
   }
   if (!master.Shutdown(0)) LOG_WARNING("master", "a slave did not acknowledge the end of the job");
-  return WriteStats(args.stats, json + "]\n");
+  RAYSTACK_RETURN_IF_ERROR(WriteStats(args.stats, json + "]\n"));
+  preview->Finish();
+  return OkStatus();
 }
 
 // --blocks auto: rem when each slave's share of the store (stored bytes) fits in half of its

@@ -1,0 +1,66 @@
+#include "master/preview/preview_frame.h"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+
+#include "common/image/png_writer.h"
+
+namespace raystack::master::preview {
+
+FilmSnapshot TakeSnapshot(const render::Film& film, uint32_t frame) {
+  // Resolve holds the film's lock for one pass; everything else here works on the copy.
+  const image::ImageLayers layers = film.Resolve();
+  FilmSnapshot s;
+  s.width = layers.width;
+  s.height = layers.height;
+  s.frame = frame;
+  s.counts = layers.samples;
+  s.rgb.resize(layers.pixel_count() * 3);
+  uint64_t merged = 0;
+  for (size_t i = 0; i < layers.pixel_count(); ++i) {
+    for (size_t c = 0; c < 3; ++c) s.rgb[3 * i + c] = layers.rgba[4 * i + c];
+    merged += layers.samples[i];
+  }
+  s.samples_merged = merged;
+  return s;
+}
+
+Srgb8Encoder::Srgb8Encoder() {
+  // Bisect over the bit patterns of non-negative floats (ordered like the floats themselves)
+  // for the first value of each code: exact whatever the curve's rounding.
+  for (int code = 1; code <= 255; ++code) {
+    uint32_t lo = 0, hi = std::bit_cast<uint32_t>(1.0f);  // LinearToSrgb8(1) == 255
+    while (lo < hi) {
+      const uint32_t mid = lo + (hi - lo) / 2;
+      if (image::LinearToSrgb8(std::bit_cast<float>(mid)) >= code) hi = mid;
+      else lo = mid + 1;
+    }
+    lower_[static_cast<size_t>(code - 1)] = std::bit_cast<float>(lo);
+  }
+}
+
+uint8_t Srgb8Encoder::Encode(float linear) const {
+  if (!(linear > 0)) return 0;  // NaN and negatives, as LinearToSrgb8
+  return static_cast<uint8_t>(std::upper_bound(lower_.begin(), lower_.end(), linear) - lower_.begin());
+}
+
+void EncodeFrame(const FilmSnapshot& snapshot, float exposure, const Srgb8Encoder& encoder,
+                 std::vector<uint8_t>* out) {
+  const size_t pixels = static_cast<size_t>(snapshot.width) * static_cast<size_t>(snapshot.height);
+  out->resize(kFrameHeaderBytes + 4 * pixels);
+  const FrameHeader header{kFrameMagic, kFrameVersion, static_cast<uint32_t>(snapshot.width),
+                           static_cast<uint32_t>(snapshot.height), snapshot.frame, exposure,
+                           snapshot.samples_merged};
+  std::memcpy(out->data(), &header, sizeof header);  // x86-64 and the page: little-endian
+  const float scale = std::exp2(exposure);
+  uint8_t* p = out->data() + kFrameHeaderBytes;
+  for (size_t i = 0; i < pixels; ++i, p += 4) {
+    const bool computed = snapshot.counts[i] > 0;
+    for (size_t c = 0; c < 3; ++c) p[c] = computed ? encoder.Encode(snapshot.rgb[3 * i + c] * scale) : 0;
+    p[3] = computed ? 255 : 0;
+  }
+}
+
+}  // namespace raystack::master::preview

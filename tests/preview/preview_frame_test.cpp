@@ -1,0 +1,80 @@
+#include "master/preview/preview_frame.h"
+
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "common/image/png_writer.h"
+
+namespace raystack::master::preview {
+namespace {
+
+render::SampleResult Sample(uint32_t pixel, uint32_t index, float r, float g, float b) {
+  render::SampleResult s{};
+  s.pixel = pixel;
+  s.sample = index;
+  s.rgb[0] = r, s.rgb[1] = g, s.rgb[2] = b;
+  s.z = 1;
+  s.hit = 1;
+  return s;
+}
+
+TEST(Srgb8Encoder, EqualsThePngToneMapForEveryCodeBoundaryAndASweep) {
+  const Srgb8Encoder encoder;
+  // Every 4099th float from 0 to 1.5 (about 260 000 values, all 256 codes), and the specials.
+  for (uint32_t bits = 0; bits <= std::bit_cast<uint32_t>(1.5f); bits += 4099) {
+    const float v = std::bit_cast<float>(bits);
+    ASSERT_EQ(encoder.Encode(v), image::LinearToSrgb8(v)) << v;
+  }
+  for (float v : {0.0f, -0.0f, -1.0f, 1.0f, 0.0031308f, std::numeric_limits<float>::infinity(),
+                  std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::denorm_min()})
+    EXPECT_EQ(encoder.Encode(v), image::LinearToSrgb8(v)) << v;
+  // Around each code's boundary, to the last bit.
+  for (int code = 1; code < 256; ++code) {
+    const float lo = std::pow((code - 0.5f) / 255.0f, 2.2f);  // near the boundary
+    for (int d = -3000; d <= 3000; ++d) {
+      const float v = std::bit_cast<float>(std::bit_cast<uint32_t>(lo) + static_cast<uint32_t>(d));
+      ASSERT_EQ(encoder.Encode(v), image::LinearToSrgb8(v)) << v;
+    }
+  }
+}
+
+TEST(EncodeFrame, HeaderThenToneMappedPixelsWithComputedInAlpha) {
+  render::Film film(3, 2);
+  const render::SampleResult samples[] = {Sample(0, 0, 0.5f, 0.25f, 2.0f), Sample(0, 1, 0.5f, 0.25f, 0.0f),
+                                          Sample(4, 0, 0.1f, 0.2f, 0.3f)};
+  film.Merge(samples);
+  const FilmSnapshot snapshot = TakeSnapshot(film, 7);
+  EXPECT_EQ(snapshot.samples_merged, 3u);
+  std::vector<uint8_t> bytes;
+  EncodeFrame(snapshot, 1.0f, Srgb8Encoder(), &bytes);
+  ASSERT_EQ(bytes.size(), kFrameHeaderBytes + 4 * 6);
+  FrameHeader h;
+  std::memcpy(&h, bytes.data(), sizeof h);
+  EXPECT_EQ(h.magic, kFrameMagic);
+  EXPECT_EQ(h.version, kFrameVersion);
+  EXPECT_EQ(h.width, 3u);
+  EXPECT_EQ(h.height, 2u);
+  EXPECT_EQ(h.frame, 7u);
+  EXPECT_EQ(h.exposure, 1.0f);
+  EXPECT_EQ(h.samples_merged, 3u);
+  const uint8_t* p = bytes.data() + kFrameHeaderBytes;
+  // Pixel 0: mean (0.5, 0.25, 1.0), times 2^1.
+  EXPECT_EQ(p[0], image::LinearToSrgb8(1.0f));
+  EXPECT_EQ(p[1], image::LinearToSrgb8(0.5f));
+  EXPECT_EQ(p[2], 255);
+  EXPECT_EQ(p[3], 255);
+  // Pixel 4 = (1, 1).
+  EXPECT_EQ(p[16 + 0], image::LinearToSrgb8(0.2f));
+  EXPECT_EQ(p[16 + 2], image::LinearToSrgb8(0.6f));
+  EXPECT_EQ(p[16 + 3], 255);
+  // The others are not computed: transparent black, for the page to fill.
+  for (int i : {1, 2, 3, 5})
+    for (int c = 0; c < 4; ++c) EXPECT_EQ(p[4 * i + c], 0) << i;
+}
+
+}  // namespace
+}  // namespace raystack::master::preview
