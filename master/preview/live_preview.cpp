@@ -66,6 +66,10 @@ void LivePreview::Finish() {
     server_->Hold(hold_seconds_);
   }
   server_->Stop();
+  const ServerCounters c = server_->counters();
+  std::printf("preview: %llu frames sent to viewers, %llu skipped for slow viewers, %llu requests "
+              "refused\n", static_cast<unsigned long long>(c.frames_sent),
+              static_cast<unsigned long long>(c.frames_skipped), static_cast<unsigned long long>(c.refused));
 }
 
 }  // namespace raystack::master::preview
