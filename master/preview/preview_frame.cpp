@@ -10,20 +10,12 @@
 namespace raystack::master::preview {
 
 FilmSnapshot TakeSnapshot(const render::Film& film, uint32_t frame) {
-  // Resolve holds the film's lock for one pass; everything else here works on the copy.
-  const image::ImageLayers layers = film.Resolve();
   FilmSnapshot s;
-  s.width = layers.width;
-  s.height = layers.height;
+  s.width = film.width();
+  s.height = film.height();
   s.frame = frame;
-  s.counts = layers.samples;
-  s.rgb.resize(layers.pixel_count() * 3);
-  uint64_t merged = 0;
-  for (size_t i = 0; i < layers.pixel_count(); ++i) {
-    for (size_t c = 0; c < 3; ++c) s.rgb[3 * i + c] = layers.rgba[4 * i + c];
-    merged += layers.samples[i];
-  }
-  s.samples_merged = merged;
+  film.ResolveColour(&s.rgb, &s.counts);
+  for (uint32_t n : s.counts) s.samples_merged += n;
   return s;
 }
 

@@ -1,5 +1,6 @@
 #include "master/preview/preview_server.h"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -227,7 +228,11 @@ class PreviewServer::Impl {
  private:
   void Accept();
   void ArmTick() {
-    tick_.expires_after(std::chrono::milliseconds(kRefreshMs));
+    // Copying the film holds its lock (a merge waits meanwhile): on a large film, refresh
+    // less often, so that copies hold it at most 1/kMaxCopyShare of the time.
+    const auto wait = std::max<std::chrono::steady_clock::duration>(
+        std::chrono::milliseconds(kRefreshMs), last_copy_ * kMaxCopyShare);
+    tick_.expires_after(wait);
     tick_.async_wait([this](const error_code& ec) {
       if (ec) return;
       Refresh();
@@ -261,6 +266,8 @@ class PreviewServer::Impl {
   std::atomic<int> viewers_{0};
 
   // The server's thread only.
+  static constexpr int kMaxCopyShare = 20;
+  std::chrono::steady_clock::duration last_copy_{};
   std::vector<std::shared_ptr<Viewer>> viewers_list_;
   std::shared_ptr<const FilmSnapshot> latest_;
   std::shared_ptr<const std::string> latest_status_;
@@ -477,7 +484,9 @@ void PreviewServer::Impl::Refresh() {
       // Only when it changed: a paused render costs nothing.
       const uint64_t merged = film_->samples_merged();
       if (merged != last_merged_) {
+        const auto start = std::chrono::steady_clock::now();
         fresh = std::make_shared<const FilmSnapshot>(TakeSnapshot(*film_, film_frame_));
+        last_copy_ = std::chrono::steady_clock::now() - start;
         snapshots_.fetch_add(1);
         last_merged_ = merged;
       }

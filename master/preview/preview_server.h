@@ -5,8 +5,8 @@
 //
 // The render never waits for a viewer: it only hands over a status (Publish: a small copy
 // under a lock that no I/O ever holds) and the film to look at (AttachFilm/DetachFilm, once
-// per frame). The server's thread copies the film at most kRefreshMs apart while someone
-// watches, and each viewer holds at most one frame waiting to be sent: a newer one replaces
+// per frame). The server's thread copies the film every kRefreshMs while someone watches (less
+// often on a film so large that copying it would hold the film's lock over 5% of the time), and each viewer holds at most one frame waiting to be sent: a newer one replaces
 // it, so a slow or stalled viewer skips frames and costs nothing else.
 //
 // Served: exactly "/" (the page) and "/ws" (the stream); everything else is 404, requests over

@@ -42,6 +42,28 @@ TEST(Srgb8Encoder, EqualsThePngToneMapForEveryCodeBoundaryAndASweep) {
   }
 }
 
+// The preview's light copy (Film::ResolveColour) gives the very bits of Film::Resolve, so the
+// page shows what the EXR and PNG hold.
+TEST(TakeSnapshot, HasTheBitsOfResolve) {
+  render::Film film(17, 9);
+  std::vector<render::SampleResult> batch;
+  uint32_t state = 12345;
+  auto next = [&] { return (state = state * 1664525u + 1013904223u) >> 8; };
+  for (uint32_t k = 0; k < 400; ++k) {
+    const uint32_t pixel = next() % (17 * 9 - 5);  // the last 5 pixels get nothing
+    batch.push_back(Sample(pixel, k, static_cast<float>(next() % 1000) / 333.0f,
+                           static_cast<float>(next() % 1000) / 77.0f, static_cast<float>(next() % 7)));
+  }
+  film.Merge(batch);
+  const image::ImageLayers layers = film.Resolve();
+  const FilmSnapshot s = TakeSnapshot(film, 0);
+  ASSERT_EQ(s.counts, layers.samples);
+  EXPECT_EQ(s.samples_merged, 400u);
+  for (size_t i = 0; i < layers.pixel_count(); ++i)
+    for (size_t c = 0; c < 3; ++c)
+      ASSERT_EQ(std::bit_cast<uint32_t>(s.rgb[3 * i + c]), std::bit_cast<uint32_t>(layers.rgba[4 * i + c])) << i;
+}
+
 TEST(EncodeFrame, HeaderThenToneMappedPixelsWithComputedInAlpha) {
   render::Film film(3, 2);
   const render::SampleResult samples[] = {Sample(0, 0, 0.5f, 0.25f, 2.0f), Sample(0, 1, 0.5f, 0.25f, 0.0f),
