@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <set>
+#include <tuple>
 #include <thread>
 #include <vector>
 
@@ -55,6 +57,7 @@ struct JobOutcome {
   std::vector<uint64_t> disk_reads, owned_blocks;  // per slave, with --blocks rem
   std::vector<image::ImageLayers> frames;
   std::vector<master::FrameFigures> figures;
+  std::vector<std::vector<std::vector<render::Tile>>> assigned;  // per frame, per slave
 };
 
 JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, int slaves,
@@ -97,10 +100,12 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
     master::FrameFigures figures;
     out.master = node.RunFrame(static_cast<uint32_t>(f),
                                render::HilbertTiles(camera.width(), camera.height(), tile), &film,
-                               [] {}, &figures);
+                               [&] { (void)node.TilesAssigned(); },  // as the preview reads it
+                               &figures);
     if (!out.master.ok()) break;
     out.frames.push_back(film.Resolve());
     out.figures.push_back(figures);
+    out.assigned.push_back(node.TilesAssigned());
   }
   EXPECT_TRUE(node.Shutdown(out.master.ok() ? 0 : 1));
   for (std::thread& t : threads) t.join();
@@ -157,6 +162,16 @@ TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
         tiles += x.done.tiles;
       }
       EXPECT_EQ(tiles, render::HilbertTiles(80, 60, 8).size());
+      // The master's record of who was given what (the preview's tiles in flight): each
+      // slave's own count, and every tile of the frame once.
+      ASSERT_EQ(job.assigned[f].size(), static_cast<size_t>(slaves));
+      std::set<std::tuple<int, int>> corners;
+      for (int i = 0; i < slaves; ++i) {
+        EXPECT_EQ(job.assigned[f][static_cast<size_t>(i)].size(), job.figures[f].slaves[static_cast<size_t>(i)].done.tiles);
+        for (const render::Tile& t : job.assigned[f][static_cast<size_t>(i)])
+          EXPECT_TRUE(corners.insert({t.x0, t.y0}).second) << "tile handed out twice";
+      }
+      EXPECT_EQ(corners.size(), tiles);
     }
   }
 }
