@@ -39,7 +39,9 @@ class HeadlessChromium {
         kBinary, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
         // Without these three, Chromium's connections are refused on a closed network.
         "--disable-background-networking", "--disable-component-update", "--disable-sync",
-        "--user-data-dir=" + profile_dir, "--remote-debugging-pipe", "about:blank"};
+        // Containers often have a small /dev/shm.
+        "--disable-dev-shm-usage", "--user-data-dir=" + profile_dir, "--remote-debugging-pipe",
+        "about:blank"};
     pid_ = fork();
     if (pid_ < 0) return Fail(error, "fork failed");
     if (pid_ == 0) {
