@@ -140,6 +140,12 @@ class PreviewServer::Impl {
   }
 
   void AttachFilm(const render::Film* film, uint32_t frame) {
+    if (static_cast<uint64_t>(film->width()) * static_cast<uint64_t>(film->height()) > kMaxFramePixels) {
+      LOG_WARNING("preview", "a %dx%d frame is larger than the preview streams (%llu pixels); "
+                  "only its status is shown", film->width(), film->height(),
+                  static_cast<unsigned long long>(kMaxFramePixels));
+      film = nullptr;
+    }
     std::lock_guard lock(film_mu_);
     film_ = film;
     film_frame_ = frame;
@@ -428,6 +434,11 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
     response_.set(http::field::cache_control, "no-store");
     response_.set("X-Content-Type-Options", "nosniff");
     response_.set("Referrer-Policy", "no-referrer");  // the token stays out of Referer headers
+    // The page runs its own inline script and talks to its own server, nothing else; no
+    // other site may frame it.
+    response_.set("Content-Security-Policy",
+                  "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
+                  "connect-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'");
     response_.set(http::field::connection, "close");
     response_.body() = std::move(body);
     response_.prepare_payload();
