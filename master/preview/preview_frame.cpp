@@ -4,7 +4,9 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
+#include "common/base/check.h"
 #include "common/image/png_writer.h"
 
 namespace raystack::master::preview {
@@ -31,11 +33,23 @@ Srgb8Encoder::Srgb8Encoder() {
     }
     lower_[static_cast<size_t>(code - 1)] = std::bit_cast<float>(lo);
   }
+  lower_[255] = std::numeric_limits<float>::infinity();  // no code 256: stops the step below
+  CHECK(lower_[0] > std::bit_cast<float>(kFirstBits));  // what is below the buckets is code 0
+  for (size_t b = 0; b < kBuckets; ++b) {
+    const float start = std::bit_cast<float>(kFirstBits + (static_cast<uint32_t>(b) << kBucketShift));
+    bucket_code_[b] = static_cast<uint8_t>(std::upper_bound(lower_.begin(), lower_.begin() + 255, start) -
+                                           lower_.begin());
+  }
 }
 
 uint8_t Srgb8Encoder::Encode(float linear) const {
   if (!(linear > 0)) return 0;  // NaN and negatives, as LinearToSrgb8
-  return static_cast<uint8_t>(std::upper_bound(lower_.begin(), lower_.end(), linear) - lower_.begin());
+  if (linear >= 1) return 255;
+  const uint32_t bits = std::bit_cast<uint32_t>(linear);
+  if (bits < kFirstBits) return 0;
+  size_t code = bucket_code_[(bits - kFirstBits) >> kBucketShift];
+  while (linear >= lower_[code]) ++code;  // lower_[code] is where code + 1 starts  // lower_[code] is where code + 1 starts
+  return static_cast<uint8_t>(code);
 }
 
 void EncodeFrame(const FilmSnapshot& snapshot, float exposure, const Srgb8Encoder& encoder,

@@ -20,16 +20,16 @@ cat > "$work/scene.json" <<JSON
   "integrator": { "type": "path", "max_depth": 3, "spp": 4, "seed": 1 },
   "output": "$work/out.exr" }
 JSON
+# Wall seconds, and the render's own CPU seconds (user + system: its ray threads and the
+# preview server, not Chromium, which on this 2-core machine competes for the same cores).
 render() {  # extra options...
-  local start end
-  start=$(date +%s.%N)
-  "$build/master/raystack" render "$work/scene.json" --threads 2 --no-png -q "$@" > "$work/log" 2>&1
-  end=$(date +%s.%N)
-  echo "$end - $start" | bc
+  /usr/bin/time -f "%e s wall, %U+%S s CPU" -o "$work/time" \
+    "$build/master/raystack" render "$work/scene.json" --threads 2 --no-png -q "$@" > "$work/log" 2>&1
+  cat "$work/time"
 }
 for r in $(seq "$repeats"); do
-  echo "run $r: no preview           $(render) s"
-  echo "run $r: preview, no viewer   $(render --preview 47311) s"
+  echo "run $r: no preview           $(render)"
+  echo "run $r: preview, no viewer   $(render --preview 47311)"
   # A viewer: Chromium opens the page as soon as the port answers, and stays until the end.
   (
     for _ in $(seq 200); do curl -s -o /dev/null "http://127.0.0.1:47312/" && break; sleep 0.02; done
@@ -39,7 +39,7 @@ for r in $(seq "$repeats"); do
       > "$work/chromium.log" 2>&1
   ) &
   viewer=$!
-  echo "run $r: preview + Chromium  $(render --preview 47312) s   ($(grep 'frames sent' "$work/log" | sed 's/preview: //'))"
+  echo "run $r: preview + Chromium  $(render --preview 47312)   ($(grep 'frames sent' "$work/log" | sed 's/preview: //'))"
   kill "$viewer" 2>/dev/null || true
   wait "$viewer" 2>/dev/null || true
 done
