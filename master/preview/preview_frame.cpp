@@ -48,7 +48,7 @@ uint8_t Srgb8Encoder::Encode(float linear) const {
   const uint32_t bits = std::bit_cast<uint32_t>(linear);
   if (bits < kFirstBits) return 0;
   size_t code = bucket_code_[(bits - kFirstBits) >> kBucketShift];
-  while (linear >= lower_[code]) ++code;  // lower_[code] is where code + 1 starts  // lower_[code] is where code + 1 starts
+  while (linear >= lower_[code]) ++code;  // lower_[code] is where code + 1 starts
   return static_cast<uint8_t>(code);
 }
 

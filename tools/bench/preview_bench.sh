@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # What watching costs: the same render without the preview, with the preview on and nobody
 # watching, and with a headless Chromium showing the page the whole time (960x540, 4 spp path
-# tracing, 2 ray threads, one process). Prints the wall time of each run and the preview's
+# tracing, 2 ray threads, one process). Prints each run's wall and CPU time and the preview's
 # own figures (frames sent / skipped). Run it under flock /tmp/raystack-bench.lock on a shared
 # machine.
 #   tools/bench/preview_bench.sh [BUILD_DIR] [REPEATS]
