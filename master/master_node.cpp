@@ -86,6 +86,11 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
   return waiting == 0;
 }
 
+std::vector<std::vector<render::Tile>> MasterNode::TilesAssigned() const {
+  std::lock_guard lock(assigned_mu_);
+  return assigned_;
+}
+
 // The next tile for `rank`: a returned one first, then the current sweep's, then the next
 // sweep's; false once a stop rule holds or every sweep is out.
 bool MasterNode::NextTile(Frame* f, int rank, render::Tile* t) {
@@ -129,6 +134,8 @@ Status MasterNode::Answer(Frame* f, int rank, uint32_t thread) {
     a.sample_begin = t.sample_begin, a.sample_end = t.sample_end;
     a.rank_begin = t.rank_begin, a.rank_end = t.rank_end;
     f->ledger.Assign(t, rank);
+    std::lock_guard lock(assigned_mu_);
+    assigned_[static_cast<size_t>(rank - 1)].push_back(t);
   } else if (!f->stopped && f->ledger.unfinished() > 0) {
     f->held.emplace_back(rank, thread);  // a lost slave's tiles may still come back
     return OkStatus();
@@ -291,6 +298,10 @@ Status MasterNode::RunFrame(uint32_t frame, const render::FramePlan& plan, rende
   Frame f{frame, film, figures, &plan, 0, nullptr, {}, false, TileLedger(film->width(), plan.spp()),
           std::vector<bool>(static_cast<size_t>(net_->size()), false), 0, {}, {}, {}};
   if (!plan.sweeps.empty()) f.scheduler = std::make_unique<TileScheduler>(plan.sweeps[0].tiles, slaves);
+  {
+    std::lock_guard lock(assigned_mu_);
+    assigned_.assign(static_cast<size_t>(slaves), {});
+  }
   for (int r = 1; r <= slaves; ++r) {
     SlaveFigures& s = figures->slaves[static_cast<size_t>(r - 1)];
     s.rank = r;

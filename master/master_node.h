@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,9 @@ class MasterNode {
   // they still send until each has acknowledged: a slave blocked sending a pixel batch must be
   // able to finish before every rank ends. False if some slave did not answer within `timeout`.
   bool Shutdown(uint32_t reason, std::chrono::milliseconds timeout = std::chrono::seconds(30));
+  // The tiles handed out so far in the current (or last) frame, per slave (index = rank - 1),
+  // in the order given. Thread-safe: the live preview reads it while RunFrame runs.
+  std::vector<std::vector<render::Tile>> TilesAssigned() const;
 
  private:
   struct SlaveState {
@@ -98,6 +102,8 @@ class MasterNode {
   std::vector<SlaveState> slaves_;  // by rank (0: unused)
   // Messages for a later frame that arrived early (a fast slave's first requests).
   std::deque<transport::Envelope> early_;
+  mutable std::mutex assigned_mu_;
+  std::vector<std::vector<render::Tile>> assigned_;  // guarded by assigned_mu_
 };
 
 }  // namespace raystack::master

@@ -3,8 +3,11 @@
 #include <atomic>
 #include <charconv>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
+#include <mutex>
 #include <string>
 #include <thread>
 
@@ -20,6 +23,7 @@
 #include "common/mpi/mpi_transport.h"
 #include "master/convergence_monitor.h"
 #include "master/master_node.h"
+#include "master/preview/live_preview.h"
 #include "master/resume.h"
 #include "slave/peer_blocks.h"
 #include "slave/render_engine.h"
@@ -88,6 +92,11 @@ options:
   --no-png                  do not write the PNG quick-look
   --exposure EV             exposure of the PNG quick-look (default 0)
   --stats FILE              also write the run's statistics as JSON
+  --preview PORT|any        serve a live preview of the render at http://ADDR:PORT/ (any: a
+                            free port; the address is printed at start); default off
+  --preview-bind ADDR       the preview's address (default 127.0.0.1, this machine only; any
+                            other, e.g. 0.0.0.0, requires the random token printed at start)
+  --preview-hold S          keep the preview up S seconds after the render (Ctrl-C ends it)
   --lost-after S            under mpirun, the master drops a slave it has not heard from for
                             S seconds (default 5; slaves send a heartbeat every 0.5 s); its
                             unfinished tiles go to the others, and the image stays exact.
@@ -125,6 +134,7 @@ struct Args {
   int fault_rank = 0;  // 0: every slave
   int64_t kill_after_tiles = -1;
   int64_t fail_read = -1;
+  preview::LivePreviewOptions preview;
 };
 
 template <typename T>
@@ -209,6 +219,18 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       a->png = false;
     } else if (arg == "--exposure") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->exposure, -64, 64));
+    } else if (arg == "--preview") {
+      std::string v;
+      RAYSTACK_RETURN_IF_ERROR(value(&v));
+      uint16_t port = 0;
+      if (v != "any" && (!ParseNumber(v, &port)))
+        return Status::Error("--preview: '" + v + "' is not a port number (0 to 65535) or 'any'");
+      a->preview.enabled = v == "any" || port != 0;
+      a->preview.server.port = port;
+    } else if (arg == "--preview-bind") {
+      RAYSTACK_RETURN_IF_ERROR(value(&a->preview.server.bind));
+    } else if (arg == "--preview-hold") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->preview.hold_seconds, 0, 1e9));
     } else if (arg == "--stats") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->stats));
     } else if (arg == "--resume") {
@@ -232,6 +254,7 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
     }
   }
   if (!*help && a->scene.empty()) return Status::Error("a scene file is required (see --help)");
+  a->preview.server.exposure = a->exposure;
   return OkStatus();
 }
 
@@ -372,6 +395,29 @@ class Checkpoints {
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
+// The frame's tiles in Hilbert order, as GridTileSource, remembering which were handed out
+// (the live preview shows the ones still in flight).
+class WatchedTileSource final : public slave::TileSource {
+ public:
+  explicit WatchedTileSource(const render::FramePlan& plan) : tiles_(plan) {}
+  bool Next(uint32_t thread, slave::Tile* tile) override {
+    if (!tiles_.Next(thread, tile)) return false;
+    std::lock_guard lock(mu_);
+    given_.push_back(*tile);
+    return true;
+  }
+  std::vector<preview::RankTiles> Given() const {
+    std::lock_guard lock(mu_);
+    return {preview::RankTiles{0, given_}};
+  }
+  void Stop() { tiles_.Stop(); }  // a stop rule holds
+
+ private:
+  slave::PlanTileSource tiles_;
+  mutable std::mutex mu_;
+  std::vector<render::Tile> given_;
+};
+
 Status Run(const Args& args) {
   Expected<render::Scene> scene = LoadSceneFor(args);
   if (!scene.ok()) return scene.status();
@@ -388,6 +434,8 @@ Status Run(const Args& args) {
   if (!engine.ok()) return engine.status();
   const render::MaterialTable materials =
       render::MaterialTable::Build((*store)->materials(), *scene);
+  Expected<preview::LivePreview> preview = preview::LivePreview::Start(args.preview);
+  if (!preview.ok()) return preview.status();
 
   std::string stats_json = "[\n";
   for (size_t f = 0; f < frames; ++f) {
@@ -396,7 +444,7 @@ Status Run(const Args& args) {
     render::FilmSink sink(&film);
     render::FramePlan plan = PlanOf(args, *scene, camera);
     RAYSTACK_RETURN_IF_ERROR(ResumeInto(args, *scene, f, &plan, &film));
-    slave::PlanTileSource tiles(plan);
+    WatchedTileSource tiles(plan);
     std::unique_ptr<image::ImageLayers> reference;
     RAYSTACK_RETURN_IF_ERROR(LoadReference(args, f, frames, camera, &reference));
     slave::RenderStats stats;
@@ -408,6 +456,8 @@ Status Run(const Args& args) {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
       std::atomic<bool> finished{false};
+      preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
+                          scene->integrator.spp);
       std::thread render([&] {
         status = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
         finished.store(true);
@@ -424,10 +474,13 @@ Status Run(const Args& args) {
         shown = done;
         checkpoints.Maybe(film);
         if (!monitor.Poll()) tiles.Stop();
+        preview->SetErrorEstimate(monitor.last().error_estimate);  // at the last pass end
+        preview->Update([&] { return tiles.Given(); });
       }
       render.join();
       progress.Update(film.samples_merged() - shown);
     }
+    preview->EndFrame(status.ok() ? stats.rays_per_second : std::numeric_limits<double>::quiet_NaN());
     RAYSTACK_RETURN_IF_ERROR(status);
     monitor.Finish();
     ReportStop(args, monitor);
@@ -437,7 +490,9 @@ Status Run(const Args& args) {
     stats_json += stats.ToJson();
     if (f + 1 < frames) stats_json += ",";
   }
-  return WriteStats(args.stats, stats_json + "]\n");
+  RAYSTACK_RETURN_IF_ERROR(WriteStats(args.stats, stats_json + "]\n"));
+  preview->Finish();
+  return OkStatus();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -478,6 +533,19 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
   MasterOptions options;
   options.lost_after = std::chrono::milliseconds(static_cast<int64_t>(args.lost_after_s * 1000));
   MasterNode master(net, options);
+  Expected<preview::LivePreview> preview = preview::LivePreview::Start(args.preview);
+  if (!preview.ok()) {
+    master.Shutdown(1);
+    return preview.status();
+  }
+  // The tiles each slave has been given this frame (the preview leaves out the finished ones).
+  const auto assigned = [&] {
+    std::vector<preview::RankTiles> ranks;
+    std::vector<std::vector<render::Tile>> by_slave = master.TilesAssigned();
+    for (size_t i = 0; i < by_slave.size(); ++i)
+      ranks.push_back({static_cast<int>(i) + 1, std::move(by_slave[i])});
+    return ranks;
+  };
   std::string json = "[\n";
   for (size_t f = 0; f < frames; ++f) {
     const render::Camera camera(scene.cameras[f]);
@@ -499,12 +567,17 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                                 args.quiet);
       uint64_t shown = 0;
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
+      preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
+                          scene.integrator.spp);
       status = master.RunFrame(static_cast<uint32_t>(f), plan, &film, [&] {
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);
                                  shown = done;
                                  checkpoints.Maybe(film);
-                                 return monitor.Poll();
+                                 const bool go_on = monitor.Poll();
+                                 preview->SetErrorEstimate(monitor.last().error_estimate);
+                                 preview->Update(assigned);
+                                 return go_on;
                                },
                                &figures);
     }
@@ -512,6 +585,10 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
       monitor.Finish();
       ReportStop(args, monitor);
     }
+    uint64_t rays = 0;
+    for (const SlaveFigures& s : figures.slaves) rays += s.done.rays;
+    preview->EndFrame(status.ok() && figures.seconds > 0 ? static_cast<double>(rays) / figures.seconds
+                                                         : std::numeric_limits<double>::quiet_NaN());
     Expected<std::string> exr = status.ok() ? WriteFrame(args, scene, f, film)
                                             : Expected<std::string>(status);
     if (!exr.ok()) {  // every rank ends, none is left waiting
@@ -543,7 +620,9 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
     json += FiguresJson(f, figures) + (f + 1 < frames ? ",\n" : "\n");
   }
   if (!master.Shutdown(0)) LOG_WARNING("master", "a slave did not acknowledge the end of the job");
-  return WriteStats(args.stats, json + "]\n");
+  RAYSTACK_RETURN_IF_ERROR(WriteStats(args.stats, json + "]\n"));
+  preview->Finish();
+  return OkStatus();
 }
 
 // --blocks auto: rem when each slave's share of the store (stored bytes) fits in half of its

@@ -145,4 +145,17 @@ image::ImageLayers Film::Resolve() const {
   return out;
 }
 
+void Film::ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts) const {
+  rgb->resize(pixels_.size() * 3);
+  counts->resize(pixels_.size());
+  std::lock_guard lock(mu_);
+  for (size_t i = 0; i < pixels_.size(); ++i) {
+    const Pixel& p = pixels_[i];
+    (*counts)[i] = p.count;
+    const double n = p.count;  // divided as in Resolve, so both give the same bits
+    for (int c = 0; c < 3; ++c)
+      (*rgb)[3 * i + static_cast<size_t>(c)] = p.count > 0 ? static_cast<float>(p.rgb[c].Value() / n) : 0.0f;
+  }
+}
+
 }  // namespace raystack::render

@@ -49,6 +49,10 @@ class Film {
   // The current image: mean radiance, coverage alpha, Z/normal/albedo, counts and the
   // variance of the mean (luminance). Thread-safe.
   image::ImageLayers Resolve() const;
+  // Only the mean radiance (3 floats per pixel, 0 without samples) and the sample counts, into
+  // the caller's buffers (resized): the light copy the live preview takes several times a
+  // second, holding the lock far shorter than Resolve. Thread-safe.
+  void ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts) const;
 
  private:
   struct Pixel {

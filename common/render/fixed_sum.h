@@ -16,14 +16,22 @@ class FixedSum {
  public:
   // 2^-50 resolution (~9e-16) and a range of about +-1.5e23: radiance of 1e-6 to 1e12, and
   // squares of it for variances, are all within range.
-  static constexpr int kFractionBits = 50;
+  static constexpr int kFractionBits = 50;  // Value() scales by 0x1p-50 to match
 
   // Adds x (a finite value; callers drop non-finite ones and count them).
   void Add(double x) { value_ += ToFixed(x); }
   void Add(const FixedSum& other) { value_ += other.value_; }
   // Takes back an Add(x) exactly (integers): the sum is as if x had never been added.
   void Subtract(double x) { value_ -= ToFixed(x); }
-  double Value() const { return std::ldexp(static_cast<double>(value_), -kFractionBits); }
+  double Value() const {
+    // Most sums fit in 64 bits, whose conversion is one instruction (the 128-bit one is a
+    // library call): both round the same integer the same way. Scaling by a power of two is
+    // exact, as ldexp.
+    const int64_t low = static_cast<int64_t>(value_);
+    const double v = static_cast<Int128>(low) == value_ ? static_cast<double>(low)
+                                                        : static_cast<double>(value_);
+    return v * 0x1p-50;
+  }
   Int128 raw() const { return value_; }
   void set_raw(Int128 v) { value_ = v; }
 

@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <functional>
+#include <set>
+#include <tuple>
 
 #include <thread>
 #include <vector>
@@ -57,6 +59,7 @@ struct JobOutcome {
   std::vector<uint64_t> disk_reads, owned_blocks;  // per slave, with --blocks rem
   std::vector<image::ImageLayers> frames;
   std::vector<master::FrameFigures> figures;
+  std::vector<std::vector<std::vector<render::Tile>>> assigned;  // per frame, per slave
 };
 
 // What goes wrong in a job, on purpose.
@@ -146,11 +149,13 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
     out.master = plan ? node.RunFrame(static_cast<uint32_t>(f), *plan, &film, keep_going, &figures)
                       : node.RunFrame(static_cast<uint32_t>(f),
                                       render::HilbertTiles(camera.width(), camera.height(), tile),
-                                      static_cast<uint32_t>(scene.integrator.spp), &film, [] {},
+                                      static_cast<uint32_t>(scene.integrator.spp), &film,
+                                      [&] { (void)node.TilesAssigned(); },  // as the preview reads it
                                       &figures);
     if (!out.master.ok()) break;
     out.frames.push_back(film.Resolve());
     out.figures.push_back(figures);
+    out.assigned.push_back(node.TilesAssigned());
   }
   EXPECT_TRUE(node.Shutdown(out.master.ok() ? 0 : 1));
   for (std::thread& t : threads) t.join();
@@ -215,6 +220,16 @@ TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
       }
       EXPECT_GE(slaves_with_tiles, 1u);
       EXPECT_EQ(tiles, render::HilbertTiles(80, 60, 8).size());
+      // The master's record of who was given what (the preview's tiles in flight): each
+      // slave's own count, and every tile of the frame once.
+      ASSERT_EQ(job.assigned[f].size(), static_cast<size_t>(slaves));
+      std::set<std::tuple<int, int>> corners;
+      for (int i = 0; i < slaves; ++i) {
+        EXPECT_EQ(job.assigned[f][static_cast<size_t>(i)].size(), job.figures[f].slaves[static_cast<size_t>(i)].done.tiles);
+        for (const render::Tile& t : job.assigned[f][static_cast<size_t>(i)])
+          EXPECT_TRUE(corners.insert({t.x0, t.y0}).second) << "tile handed out twice";
+      }
+      EXPECT_EQ(corners.size(), tiles);
     }
   }
 }

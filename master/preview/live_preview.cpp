@@ -1,0 +1,75 @@
+#include "master/preview/live_preview.h"
+
+#include <cstdio>
+
+namespace raystack::master::preview {
+
+Expected<LivePreview> LivePreview::Start(const LivePreviewOptions& options) {
+  LivePreview preview;
+  if (!options.enabled) return preview;
+  Expected<std::unique_ptr<PreviewServer>> server = PreviewServer::Start(options.server);
+  if (!server.ok()) return server.status();
+  preview.server_ = std::move(*server);
+  preview.hold_seconds_ = options.hold_seconds;
+  // Always printed (also with --quiet): without it nobody can open the page.
+  std::printf("preview: %s\n", preview.server_->Url().c_str());
+  if (!preview.server_->token().empty())
+    std::printf("preview: bound to %s, so the token above is required (token=%s)\n",
+                options.server.bind.c_str(), preview.server_->token().c_str());
+  else
+    std::printf("preview: loopback only; from another machine: ssh -L %u:127.0.0.1:%u THIS_HOST, "
+                "then open http://localhost:%u/\n", preview.server_->port(),
+                preview.server_->port(), preview.server_->port());
+  std::fflush(stdout);
+  return preview;
+}
+
+void LivePreview::BeginFrame(const render::Film* film, uint32_t frame, uint32_t frames, int spp) {
+  if (!server_) return;
+  film_ = film;
+  status_ = PreviewStatus{};
+  status_.frame = frame;
+  status_.frames = frames;
+  status_.spp = spp;
+  status_.samples_total = static_cast<uint64_t>(film->width()) * static_cast<uint64_t>(film->height()) *
+                          static_cast<uint64_t>(spp);
+  start_ = std::chrono::steady_clock::now();
+  server_->AttachFilm(film, frame);
+  server_->Publish(status_);
+}
+
+void LivePreview::Update(const std::function<std::vector<RankTiles>()>& tiles) {
+  if (!server_ || film_ == nullptr) return;
+  status_.samples_done = film_->samples_merged();
+  status_.elapsed_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  status_.tiles = tiles();
+  server_->Publish(status_);
+}
+
+void LivePreview::EndFrame(double rays_per_second) {
+  if (!server_ || film_ == nullptr) return;
+  status_.samples_done = film_->samples_merged();
+  status_.elapsed_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  status_.rays_per_second = rays_per_second;
+  status_.finished = true;
+  status_.tiles.clear();
+  server_->DetachFilm();  // the final copy first, so the status never runs ahead of the image
+  server_->Publish(status_);
+  film_ = nullptr;
+}
+
+void LivePreview::Finish() {
+  if (!server_) return;
+  if (hold_seconds_ > 0) {
+    std::printf("preview: showing the final image for %g s more (Ctrl-C ends it)\n", hold_seconds_);
+    std::fflush(stdout);
+    server_->Hold(hold_seconds_);
+  }
+  server_->Stop();
+  const ServerCounters c = server_->counters();
+  std::printf("preview: %llu frames sent to viewers, %llu skipped for slow viewers, %llu requests "
+              "refused\n", static_cast<unsigned long long>(c.frames_sent),
+              static_cast<unsigned long long>(c.frames_skipped), static_cast<unsigned long long>(c.refused));
+}
+
+}  // namespace raystack::master::preview

@@ -1,0 +1,55 @@
+#pragma once
+// The render command's side of the live preview: starts the server when asked, tells it about
+// each frame (film, progress, tiles, rays/s) and keeps the final image up at the end. Every
+// call is a no-op when the preview is off, so the render loops call it unconditionally.
+// Not thread-safe: one render loop drives it (the server it feeds is thread-safe).
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "common/base/status.h"
+#include "common/render/film.h"
+#include "master/preview/preview_server.h"
+#include "master/preview/preview_status.h"
+
+namespace raystack::master::preview {
+
+struct LivePreviewOptions {
+  bool enabled = false;
+  ServerOptions server;
+  double hold_seconds = 0;  // keep serving this long after the job (SIGINT/SIGTERM end it)
+};
+
+class LivePreview {
+ public:
+  LivePreview() = default;  // off
+  // Starts the server and prints where to look (and the token) on stdout.
+  static Expected<LivePreview> Start(const LivePreviewOptions& options);
+
+  bool on() const { return server_ != nullptr; }
+  PreviewServer* server() { return server_.get(); }
+
+  // Frame `frame` of `frames` renders into `film` (alive until EndFrame) at `spp`.
+  void BeginFrame(const render::Film* film, uint32_t frame, uint32_t frames, int spp);
+  // Publishes the progress so far; `tiles` is only called when the preview is on.
+  void Update(const std::function<std::vector<RankTiles>()>& tiles);
+  // The current error estimate of the image (from per-pixel variance), shown until replaced;
+  // NaN (the default) shows as "—".
+  void SetErrorEstimate(double error) { status_.error_estimate = error; }
+  // The frame is complete: its final image, and its rays per second (NaN if unknown).
+  void EndFrame(double rays_per_second);
+  // The job is over: serve the final image for the hold time, then close.
+  void Finish();
+
+ private:
+  std::unique_ptr<PreviewServer> server_;
+  double hold_seconds_ = 0;
+  const render::Film* film_ = nullptr;
+  PreviewStatus status_;
+  std::chrono::steady_clock::time_point start_;
+};
+
+}  // namespace raystack::master::preview

@@ -1,0 +1,61 @@
+#include "master/preview/preview_status.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "common/base/log.h"
+
+namespace raystack::master::preview {
+namespace {
+
+constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
+
+// JSON has no NaN: unknown figures are null, which the page shows as "—".
+std::string Number(double v) { return std::isfinite(v) ? StrFormat("%.6g", v) : "null"; }
+
+bool TileDone(const render::Tile& t, int width, const std::vector<uint32_t>& counts, int spp) {
+  for (int y = t.y0; y < t.y1; ++y)
+    for (int x = t.x0; x < t.x1; ++x) {
+      const size_t i = static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x);
+      if (i >= counts.size() || counts[i] < static_cast<uint32_t>(spp)) return false;
+    }
+  return true;
+}
+
+}  // namespace
+
+std::string StatusJson(const PreviewStatus& s, int width, const std::vector<uint32_t>& counts) {
+  const double progress =
+      s.samples_total > 0 ? static_cast<double>(s.samples_done) / static_cast<double>(s.samples_total) : 0.0;
+  const double per_second = s.elapsed_seconds > 0 ? static_cast<double>(s.samples_done) / s.elapsed_seconds : kUnknown;
+  // Time left at the mean rate so far; unknown until the first samples are in.
+  const double left = s.finished ? 0.0
+                      : s.samples_done > 0 && per_second > 0
+                          ? static_cast<double>(s.samples_total - std::min(s.samples_done, s.samples_total)) / per_second
+                          : kUnknown;
+  std::string json = StrFormat(
+      "{\"type\":\"status\",\"frame\":%u,\"frames\":%u,\"samples_done\":%llu,\"samples_total\":%llu,"
+      "\"progress\":%s,\"elapsed_seconds\":%s,\"samples_per_second\":%s,\"rays_per_second\":%s,"
+      "\"seconds_left\":%s,\"error_estimate\":%s,\"finished\":%s,\"tiles\":[",
+      s.frame, s.frames, static_cast<unsigned long long>(s.samples_done),
+      static_cast<unsigned long long>(s.samples_total), Number(progress).c_str(),
+      Number(s.elapsed_seconds).c_str(), Number(per_second).c_str(),
+      Number(s.rays_per_second).c_str(), Number(left).c_str(), Number(s.error_estimate).c_str(),
+      s.finished ? "true" : "false");
+  bool first_rank = true;
+  for (const RankTiles& r : s.tiles) {
+    json += StrFormat("%s{\"rank\":%d,\"tiles\":[", first_rank ? "" : ",", r.rank);
+    first_rank = false;
+    bool first = true;
+    for (const render::Tile& t : r.tiles) {
+      if (s.finished || (!counts.empty() && TileDone(t, width, counts, s.spp))) continue;
+      json += StrFormat("%s[%d,%d,%d,%d]", first ? "" : ",", t.x0, t.y0, t.x1, t.y1);
+      first = false;
+    }
+    json += "]}";
+  }
+  return json + "]}";
+}
+
+}  // namespace raystack::master::preview

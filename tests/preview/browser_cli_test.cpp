@@ -1,0 +1,234 @@
+// `raystack render --preview` as a user runs it, watched by a real headless Chromium: the
+// canvas equals the film at the end (one process and under mpirun), a viewer that connects
+// mid-render gets the current image, an exposed preview needs its token, and a viewer that
+// never reads does not hold the render up.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "common/image/exr_io.h"
+#include "common/image/png_writer.h"
+#include "tests/preview/background_process.h"
+#include "tests/preview/headless_chromium.h"
+#include "tests/preview/http_client.h"
+#include "tests/support/store_dir_fixture.h"
+
+namespace raystack::master::preview {
+namespace {
+
+using prep::testing::ProcessResult;
+using prep::testing::RunProcess;
+using prep::testing::Slurp;
+using testing::BackgroundProcess;
+using testing::DecodeBase64;
+using testing::HeadlessChromium;
+using testing::WsViewer;
+
+constexpr auto kPatience = std::chrono::seconds(300);  // against hangs only, never a measurement
+
+#define SKIP_WITHOUT_CHROMIUM()                                                                  \
+  if (!HeadlessChromium::Installed())                                                             \
+  GTEST_SKIP() << HeadlessChromium::kBinary << " is missing (Debian package chromium; CI installs it)"
+
+class PreviewCli : public raystack::testing::StoreDirFixture {
+ protected:
+  void SetUp() override { MakeStore("spheres:20000"); }
+
+  std::string Scene(int width, int height, int spp) {
+    const std::string path = dir_->File("scene.json");
+    std::ofstream(path) << R"({ "store": "store",
+      "camera": { "position": [0, 2, 6], "look_at": [0, 0, 0], "fov_y_deg": 45, "width": )"
+                        << width << R"(, "height": )" << height << R"( },
+      "lights": [ { "type": "point", "position": [4, 9, 6], "intensity": [160, 150, 140] } ],
+      "materials": { "default": { "type": "diffuse", "albedo": [0.75, 0.72, 0.68] } },
+      "background": [0.05, 0.06, 0.09],
+      "integrator": { "type": "path", "max_depth": 3, "spp": )" << spp << R"(, "seed": 3 },
+      "output": "out.exr" })";
+    return path;
+  }
+
+  // `raystack render` (under `mpirun -np np` when np > 0) with the given extra options.
+  std::vector<std::string> Command(int np, const std::string& scene, std::vector<std::string> extra) {
+    std::vector<std::string> argv;
+    if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
+    for (const std::string& a : {raystack::testing::kRaystackBinary, std::string("render"), scene,
+                                 std::string("--cache-mb"), std::string("1"), std::string("-q")})
+      argv.push_back(a);
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return argv;
+  }
+
+  std::string Profile(const std::string& name = "chromium-profile") {
+    const std::string path = dir_->File(name);
+    std::filesystem::create_directories(path);
+    return path;
+  }
+};
+
+uint16_t PortOf(const std::string& url) {
+  const size_t colon = url.rfind(':');
+  return static_cast<uint16_t>(std::stoi(url.substr(colon + 1)));
+}
+
+// The canvas the page shows, as RGBA8.
+std::vector<uint8_t> Canvas(HeadlessChromium* browser, std::string* error) {
+  const nlohmann::json v = browser->Evaluate("preview.pixels()", error);
+  return v.is_string() ? DecodeBase64(v.get<std::string>()) : std::vector<uint8_t>();
+}
+
+// Largest difference, in 8-bit codes, between the canvas and the EXR tone-mapped as the PNG is.
+int MaxDifference(const std::vector<uint8_t>& canvas, const image::ImageLayers& exr, float exposure) {
+  int worst = 0;
+  const float scale = std::exp2(exposure);
+  for (size_t i = 0; i < exr.pixel_count(); ++i) {
+    for (size_t c = 0; c < 3; ++c)
+      worst = std::max(worst, std::abs(int{canvas[4 * i + c]} - int{image::LinearToSrgb8(exr.rgba[4 * i + c] * scale)}));
+    worst = std::max(worst, 255 - int{canvas[4 * i + 3]});  // every pixel opaque at the end
+  }
+  return worst;
+}
+
+class PreviewCliRanks : public PreviewCli, public ::testing::WithParamInterface<int> {};
+
+// After the render, the canvas equals the film, tone-mapped at the job's --exposure, within
+// 1 of 255 per channel (it is the PNG's own tone map, so in fact exactly).
+TEST_P(PreviewCliRanks, TheCanvasMatchesTheFilmAfterTheRender) {
+  SKIP_WITHOUT_CHROMIUM();
+  const int np = GetParam();
+  constexpr int kWidth = 96, kHeight = 64;
+  BackgroundProcess render(Command(np, Scene(kWidth, kHeight, 4),
+                                   {"--threads", "2", "--exposure", "1", "--preview", "any",
+                                    "--preview-hold", "600"}),
+                           dir_->path());
+  ASSERT_TRUE(render.WaitForOutput("preview: http", kPatience)) << render.out() << render.err();
+  const std::string url = render.LineAfter("preview: ");
+  HeadlessChromium browser;
+  std::string error;
+  ASSERT_TRUE(browser.Start(Profile(), &error)) << error;
+  ASSERT_TRUE(browser.Open(url, &error)) << error;
+  ASSERT_TRUE(browser.WaitFor("window.preview !== undefined && preview.status !== null && "
+                              "preview.status.finished && preview.frame !== null && "
+                              "preview.frame.samples === preview.status.samples_total",
+                              kPatience, &error)) << error;
+  ASSERT_TRUE(render.WaitForOutput("showing the final image", kPatience)) << render.out() << render.err();
+  EXPECT_EQ(browser.Evaluate("preview.frame.exposure", &error), 1.0);
+  EXPECT_EQ(browser.Evaluate("document.getElementById('rays').textContent === '—'", &error), false)
+      << "rays/s is known once the frame is done";
+  const std::vector<uint8_t> canvas = Canvas(&browser, &error);
+  ASSERT_EQ(canvas.size(), 4u * kWidth * kHeight) << error;
+  Expected<image::ImageLayers> exr = image::ReadExr(dir_->File("out.exr"));
+  ASSERT_TRUE(exr.ok()) << exr.status().message();
+  EXPECT_LE(MaxDifference(canvas, *exr, 1.0f), 1);
+  render.Signal(SIGTERM);  // ends the hold
+  const int code = render.Wait();
+  if (np == 0) {
+    EXPECT_EQ(code, 0) << render.err();
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(OneProcessAndMpirun, PreviewCliRanks, ::testing::Values(0, 3),
+                         [](const ::testing::TestParamInfo<int>& p) { return p.param ? "mpirun_np3" : "one_process"; });
+
+// A viewer that connects while the frame renders gets the image as it is (samples merged so
+// far, part of the frame), then newer ones.
+TEST_F(PreviewCli, AViewerConnectingMidRenderGetsTheCurrentImage) {
+  SKIP_WITHOUT_CHROMIUM();
+  // Slow on purpose (one thread, many samples); the test ends it once it has seen enough.
+  BackgroundProcess render(Command(0, Scene(160, 120, 512), {"--threads", "1", "--preview", "any",
+                                                             "--checkpoint-s", "1", "--no-png"}),
+                           dir_->path());
+  ASSERT_TRUE(render.WaitForOutput("preview: http", kPatience)) << render.out() << render.err();
+  // The first checkpoint proves the render has been going for a second before anyone watches.
+  const auto deadline = std::chrono::steady_clock::now() + kPatience;
+  while (!std::filesystem::exists(dir_->File("out.exr")) && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  ASSERT_TRUE(std::filesystem::exists(dir_->File("out.exr")));
+  HeadlessChromium browser;
+  std::string error;
+  ASSERT_TRUE(browser.Start(Profile(), &error)) << error;
+  ASSERT_TRUE(browser.Open(render.LineAfter("preview: "), &error)) << error;
+  ASSERT_TRUE(browser.WaitFor("window.preview !== undefined && preview.frames > 0 && preview.status !== null",
+                              kPatience, &error)) << error;
+  const nlohmann::json first = browser.Evaluate("preview.frame", &error);
+  const uint64_t total = browser.Evaluate("preview.status.samples_total", &error).get<uint64_t>();
+  EXPECT_EQ(total, 160u * 120u * 512u);
+  const uint64_t samples = first["samples"].get<uint64_t>();
+  EXPECT_GT(samples, 0u) << "the first image a late viewer gets is the current one, not a blank";
+  EXPECT_LT(samples, total) << "the render should still be going (it takes minutes)";
+  const std::vector<uint8_t> canvas = Canvas(&browser, &error);
+  ASSERT_EQ(canvas.size(), 4u * 160 * 120) << error;
+  size_t opaque = 0;
+  for (size_t i = 3; i < canvas.size(); i += 4) opaque += canvas[i] == 255;
+  EXPECT_GT(opaque, 0u);
+  // And it refines.
+  EXPECT_TRUE(browser.WaitFor("preview.frame.samples > " + std::to_string(samples), kPatience, &error))
+      << error;
+  EXPECT_EQ(browser.Evaluate("document.getElementById('legend').textContent.includes('this process')", &error),
+            true) << "the tiles in flight are listed";
+}
+
+// Bound to another address than loopback, the preview needs the token printed at start.
+TEST_F(PreviewCli, AnExposedPreviewRefusesRequestsWithoutTheToken) {
+  SKIP_WITHOUT_CHROMIUM();
+  BackgroundProcess render(Command(0, Scene(48, 32, 2), {"--threads", "2", "--preview", "any",
+                                                         "--preview-bind", "0.0.0.0",
+                                                         "--preview-hold", "600"}),
+                           dir_->path());
+  ASSERT_TRUE(render.WaitForOutput("(token=", kPatience)) << render.out() << render.err();
+  const std::string url = render.LineAfter("preview: http");
+  const uint16_t port = PortOf(url.substr(0, url.find('/', 3)));
+  const std::string token = render.LineAfter("(token=").substr(0, 32);
+  ASSERT_EQ(token.size(), 32u) << render.out();
+  EXPECT_EQ(testing::Get(port, "/"), 403);
+  EXPECT_EQ(testing::Get(port, "/?token=0123"), 403);
+  EXPECT_EQ(testing::Get(port, "/?token=" + token), 200);
+  EXPECT_EQ(testing::Get(port, "/favicon.ico?token=" + token), 404);
+  WsViewer no_token;
+  EXPECT_FALSE(no_token.Open(port));
+
+  HeadlessChromium browser;
+  std::string error;
+  ASSERT_TRUE(browser.Start(Profile(), &error)) << error;
+  const std::string base = "http://127.0.0.1:" + std::to_string(port) + "/";
+  ASSERT_TRUE(browser.Open(base, &error)) << error;
+  ASSERT_TRUE(browser.WaitFor("location.port === '" + std::to_string(port) +
+                              "' && document.readyState === 'complete'", kPatience, &error)) << error;
+  EXPECT_EQ(browser.Evaluate("window.preview === undefined && document.body.innerText.includes('forbidden')", &error),
+            true);
+  HeadlessChromium with_token;
+  ASSERT_TRUE(with_token.Start(Profile("chromium-profile-2"), &error)) << error;
+  ASSERT_TRUE(with_token.Open(base + "?token=" + token, &error)) << error;
+  ASSERT_TRUE(with_token.WaitFor("window.preview !== undefined && preview.status !== null && "
+                                 "preview.status.finished && preview.frame !== null && "
+                                 "preview.frame.samples === preview.status.samples_total",
+                                 kPatience, &error)) << error;
+  render.Signal(SIGTERM);
+  EXPECT_EQ(render.Wait(), 0) << render.err();
+}
+
+// A viewer that never reads (a tiny receive buffer, never emptied) is skipped: the render
+// finishes and its image is the image of a render nobody watched, bit for bit.
+TEST_F(PreviewCli, AViewerThatNeverReadsDoesNotHoldTheRender) {
+  // 1 MB frames: the viewer's kernel buffers fill within a few frames.
+  const std::string scene = Scene(512, 512, 4);
+  const ProcessResult plain = RunProcess(
+      Command(0, scene, {"--threads", "2", "--output", dir_->File("plain.exr"), "--no-png"}), dir_->path());
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  BackgroundProcess render(Command(0, scene, {"--threads", "2", "--preview", "any", "--no-png"}),
+                           dir_->path());
+  ASSERT_TRUE(render.WaitForOutput("preview: http", kPatience)) << render.out() << render.err();
+  WsViewer stalled;
+  ASSERT_TRUE(stalled.Open(PortOf(render.LineAfter("preview: ").substr(0, render.LineAfter("preview: ").size() - 1)),
+                           "", 4096));
+  EXPECT_EQ(render.Wait(), 0) << render.err();
+  const std::string a = Slurp(dir_->File("plain.exr")), b = Slurp(dir_->File("out.exr"));
+  ASSERT_FALSE(a.empty());
+  EXPECT_TRUE(a == b);
+  std::printf("%s", render.out().c_str());  // how many frames were skipped, for the log
+}
+
+}  // namespace
+}  // namespace raystack::master::preview

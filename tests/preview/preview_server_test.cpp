@@ -1,0 +1,201 @@
+#include "master/preview/preview_server.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <cstring>
+#include <thread>
+
+#include "common/image/png_writer.h"
+#include "master/preview/preview_frame.h"
+#include "tests/preview/http_client.h"
+
+namespace raystack::master::preview {
+namespace {
+
+using testing::Get;
+using testing::StatusOf;
+using testing::WsViewer;
+
+std::unique_ptr<PreviewServer> StartOn(const std::string& bind) {
+  ServerOptions options;
+  options.bind = bind;
+  Expected<std::unique_ptr<PreviewServer>> server = PreviewServer::Start(options);
+  EXPECT_TRUE(server.ok()) << server.status().message();
+  return server.ok() ? std::move(*server) : nullptr;
+}
+
+// Merges one sample into every pixel of `film`, sample index `n`, grey `v`.
+void FillFilm(render::Film* film, uint32_t n, float v) {
+  std::vector<render::SampleResult> batch(static_cast<size_t>(film->width()) * static_cast<size_t>(film->height()));
+  for (size_t i = 0; i < batch.size(); ++i) {
+    batch[i] = {};
+    batch[i].pixel = static_cast<uint32_t>(i);
+    batch[i].sample = n;
+    batch[i].rgb[0] = batch[i].rgb[1] = batch[i].rgb[2] = v;
+  }
+  film->Merge(batch);
+}
+
+TEST(PreviewServer, ServesThePageAndNothingElse) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  const uint16_t port = server->port();
+  EXPECT_TRUE(server->token().empty());
+  EXPECT_EQ(server->Url(), "http://127.0.0.1:" + std::to_string(port) + "/");
+  EXPECT_EQ(Get(port, "/"), 200);
+  EXPECT_EQ(Get(port, "/?exposure=1"), 200);
+  EXPECT_EQ(Get(port, "/index.html"), 404);
+  EXPECT_EQ(Get(port, "/../etc/passwd"), 404);
+  EXPECT_EQ(Get(port, "/ws"), 404);  // the stream without an upgrade
+  EXPECT_EQ(StatusOf(port, "POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 0\r\n\r\n"), 405);
+  EXPECT_EQ(StatusOf(port, "garbage\r\n\r\n"), 400);
+  // A request larger than kMaxRequestBytes is refused, not buffered.
+  const std::string big(4 * kMaxRequestBytes, 'a');
+  EXPECT_EQ(StatusOf(port, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Big: " + big + "\r\n\r\n"), 431);
+  // A body (and a GET with one) is refused.
+  EXPECT_EQ(StatusOf(port, "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 5\r\n\r\nhello"), 400);
+  EXPECT_GE(server->counters().refused, 7u);
+  EXPECT_EQ(Get(port, "/"), 200);  // and it still serves
+}
+
+TEST(PreviewServer, OnLoopbackRefusesForeignHostsAndOrigins) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  const uint16_t port = server->port();
+  EXPECT_EQ(Get(port, "/", "localhost:8080"), 200);  // e.g. through an SSH tunnel
+  EXPECT_EQ(Get(port, "/", "[::1]:80"), 200);
+  EXPECT_EQ(Get(port, "/", "attacker.example"), 403);  // DNS rebinding
+  EXPECT_EQ(Get(port, "/", "127.0.0.1", "Origin: http://attacker.example\r\n"), 403);
+  EXPECT_EQ(Get(port, "/", "127.0.0.1", "Origin: http://127.0.0.1:1234\r\n"), 200);
+}
+
+TEST(PreviewServer, ExposedItRequiresTheToken) {
+  auto server = StartOn("0.0.0.0");
+  ASSERT_TRUE(server);
+  const uint16_t port = server->port();
+  const std::string token = server->token();
+  ASSERT_EQ(token.size(), 32u);
+  EXPECT_NE(server->Url().find("?token=" + token), std::string::npos);
+  EXPECT_EQ(Get(port, "/"), 403);
+  EXPECT_EQ(Get(port, "/?token="), 403);
+  EXPECT_EQ(Get(port, "/?token=" + std::string(32, '0')), 403);
+  EXPECT_EQ(Get(port, "/?token=" + token + "x"), 403);
+  EXPECT_EQ(Get(port, "/?token=" + token), 200);
+  EXPECT_EQ(Get(port, "/?exposure=2&token=" + token), 200);
+  EXPECT_EQ(Get(port, "/nothing?token=" + token), 404);
+  WsViewer without, with;
+  EXPECT_FALSE(without.Open(port));
+  EXPECT_TRUE(with.Open(port, "?token=" + token));
+  // Two servers, two tokens.
+  auto other = StartOn("0.0.0.0");
+  ASSERT_TRUE(other);
+  EXPECT_NE(other->token(), token);
+}
+
+TEST(PreviewServer, BadAddressesAreErrorsNamingThem) {
+  ServerOptions options;
+  options.bind = "not-an-address";
+  Expected<std::unique_ptr<PreviewServer>> bad = PreviewServer::Start(options);
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("not-an-address"), std::string::npos);
+  auto first = StartOn("127.0.0.1");
+  ASSERT_TRUE(first);
+  options.bind = "127.0.0.1";
+  options.port = first->port();
+  Expected<std::unique_ptr<PreviewServer>> taken = PreviewServer::Start(options);
+  ASSERT_FALSE(taken.ok());
+  EXPECT_NE(taken.status().message().find("127.0.0.1:" + std::to_string(first->port())),
+            std::string::npos) << taken.status().message();
+}
+
+TEST(PreviewServer, AViewerGetsTheStatusAndTheCurrentImageAndCanSetItsExposure) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  render::Film film(8, 4);
+  FillFilm(&film, 0, 0.25f);
+  server->AttachFilm(&film, 3);
+  PreviewStatus status;
+  status.frame = 3;
+  status.frames = 4;
+  status.samples_total = 64;
+  status.samples_done = 32;
+  server->Publish(status);
+  WsViewer viewer;
+  ASSERT_TRUE(viewer.Open(server->port()));
+  std::string message;
+  bool binary = false;
+  bool got_status = false, got_frame = false;
+  while (!(got_status && got_frame)) {
+    ASSERT_TRUE(viewer.Read(&message, &binary));
+    if (!binary) {
+      const nlohmann::json j = nlohmann::json::parse(message);
+      EXPECT_EQ(j["frame"], 3);
+      EXPECT_EQ(j["samples_done"], 32);
+      got_status = true;
+    } else {
+      ASSERT_EQ(message.size(), kFrameHeaderBytes + 4 * 32);
+      FrameHeader h;
+      std::memcpy(&h, message.data(), sizeof h);
+      EXPECT_EQ(h.frame, 3u);
+      EXPECT_EQ(h.samples_merged, 32u);
+      EXPECT_EQ(static_cast<uint8_t>(message[kFrameHeaderBytes]), image::LinearToSrgb8(0.25f));
+      got_frame = true;
+    }
+  }
+  // The viewer's exposure: the frame on show comes again, brighter.
+  viewer.Write("exposure 1");
+  do ASSERT_TRUE(viewer.Read(&message, &binary));
+  while (!binary);
+  EXPECT_EQ(static_cast<uint8_t>(message[kFrameHeaderBytes]), image::LinearToSrgb8(0.5f));
+  // A message over the bound closes the stream.
+  viewer.Write(std::string(kMaxViewerMessageBytes + 1, 'x'));
+  while (viewer.Read(&message, &binary)) {
+  }
+  server->DetachFilm();
+}
+
+// A viewer that never reads: the server skips its frames (at most one waits), the film keeps
+// being published, other viewers keep getting frames, and the server still stops.
+TEST(PreviewServer, AViewerThatNeverReadsBlocksNothing) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  render::Film film(512, 512);  // 1 MB a frame
+  server->AttachFilm(&film, 0);
+  WsViewer stalled, reading;
+  ASSERT_TRUE(stalled.Open(server->port(), "", 4096));
+  ASSERT_TRUE(reading.Open(server->port()));
+  std::atomic<bool> stop{false};
+  std::atomic<int> frames_read{0};
+  std::thread reader([&] {
+    std::string m;
+    bool binary;
+    while (!stop.load() && reading.Read(&m, &binary))
+      if (binary) frames_read.fetch_add(1);
+  });
+  // New samples keep coming, as from a render; every Publish returns at once whatever the
+  // viewers do (this loop would hang otherwise).
+  uint32_t n = 0;
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while ((server->counters().frames_skipped < 3 || frames_read.load() < 10) &&
+         std::chrono::steady_clock::now() < give_up) {
+    FillFilm(&film, n++, 0.5f);
+    PreviewStatus s;
+    s.samples_done = film.samples_merged();
+    server->Publish(s);
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  const ServerCounters c = server->counters();
+  EXPECT_GE(c.frames_skipped, 3u);
+  EXPECT_GE(frames_read.load(), 10);
+  EXPECT_EQ(c.viewers, 2);
+  server->DetachFilm();
+  stop = true;
+  server->Stop();  // closes both; the reader's read fails and it ends
+  reader.join();
+}
+
+}  // namespace
+}  // namespace raystack::master::preview

@@ -1,0 +1,56 @@
+#include "master/preview/preview_status.h"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+namespace raystack::master::preview {
+namespace {
+
+TEST(StatusJson, UnknownFiguresAreNullAndFinishedTilesLeaveTheList) {
+  PreviewStatus s;
+  s.frame = 1;
+  s.frames = 2;
+  s.spp = 2;
+  s.samples_total = 4 * 2 * 2;
+  s.samples_done = 8;
+  s.elapsed_seconds = 2;
+  s.tiles = {{1, {{0, 0, 2, 2}, {2, 0, 4, 2}}}, {2, {}}};
+  // A 4x2 image: the left tile has all its samples, the right one lacks one.
+  const std::vector<uint32_t> counts = {2, 2, 2, 1, 2, 2, 0, 0};
+  const nlohmann::json j = nlohmann::json::parse(StatusJson(s, 4, counts));
+  EXPECT_EQ(j["type"], "status");
+  EXPECT_EQ(j["frame"], 1);
+  EXPECT_EQ(j["frames"], 2);
+  EXPECT_DOUBLE_EQ(j["progress"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(j["samples_per_second"].get<double>(), 4.0);
+  EXPECT_DOUBLE_EQ(j["seconds_left"].get<double>(), 2.0);  // 8 samples left at 4/s
+  EXPECT_TRUE(j["rays_per_second"].is_null());
+  EXPECT_TRUE(j["error_estimate"].is_null());
+  EXPECT_EQ(j["finished"], false);
+  ASSERT_EQ(j["tiles"].size(), 2u);
+  EXPECT_EQ(j["tiles"][0]["rank"], 1);
+  ASSERT_EQ(j["tiles"][0]["tiles"].size(), 1u);
+  EXPECT_EQ(j["tiles"][0]["tiles"][0], nlohmann::json({2, 0, 4, 2}));
+  EXPECT_TRUE(j["tiles"][1]["tiles"].empty());
+
+  s.error_estimate = 0.125;
+  s.rays_per_second = 1e6;
+  s.finished = true;
+  const nlohmann::json done = nlohmann::json::parse(StatusJson(s, 4, counts));
+  EXPECT_DOUBLE_EQ(done["error_estimate"].get<double>(), 0.125);
+  EXPECT_DOUBLE_EQ(done["rays_per_second"].get<double>(), 1e6);
+  EXPECT_DOUBLE_EQ(done["seconds_left"].get<double>(), 0.0);
+  EXPECT_TRUE(done["tiles"][0]["tiles"].empty());  // nothing is in flight once done
+}
+
+TEST(StatusJson, NothingDoneYetHasNoTimeLeft) {
+  PreviewStatus s;
+  s.samples_total = 100;
+  const nlohmann::json j = nlohmann::json::parse(StatusJson(s, 0, {}));
+  EXPECT_TRUE(j["seconds_left"].is_null());
+  EXPECT_TRUE(j["samples_per_second"].is_null());
+  EXPECT_DOUBLE_EQ(j["progress"].get<double>(), 0.0);
+}
+
+}  // namespace
+}  // namespace raystack::master::preview
