@@ -38,6 +38,7 @@ case "$cmd" in
   down)
     for ns in $(ip netns list | awk '{print $1}' | grep -E "^$name-(sw|h[0-9]+)$" || true); do
       ip netns del "$ns"
+      rm -rf "${TMPDIR:-/tmp}/raystack-netns-$ns"  # its temporary folder (deploy/netns-rsh.sh)
     done
     ;;
   *) usage ;;

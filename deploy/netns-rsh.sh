@@ -10,4 +10,8 @@ case "$host" in
   10.231.0.*) index=$((${host##*.} - 1)) ;;
   *) echo "netns-rsh: $host is not a host of netns cluster $RAYSTACK_NETNS" >&2; exit 1 ;;
 esac
-exec ip netns exec "$RAYSTACK_NETNS-h$index" /bin/sh -c "$*"
+# The "hosts" share one filesystem and hostname: each gets a temporary folder of its own, or
+# Open MPI's daemons would race for the same session folder.
+tmp="${TMPDIR:-/tmp}/raystack-netns-$RAYSTACK_NETNS-h$index"
+mkdir -p "$tmp"
+exec ip netns exec "$RAYSTACK_NETNS-h$index" env TMPDIR="$tmp" /bin/sh -c "$*"

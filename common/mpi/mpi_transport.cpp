@@ -49,6 +49,19 @@ Expected<std::unique_ptr<MpiTransport>> MpiTransport::Init(int* argc, char*** ar
   return std::unique_ptr<MpiTransport>(new MpiTransport(rank, size));
 }
 
+struct MpiTransport::Incoming {
+  bool active = false, too_large = false;
+  int count = 0;
+  MPI_Request request = MPI_REQUEST_NULL;
+  std::vector<uint8_t> bytes;
+};
+
+MpiTransport::MpiTransport(int rank, int size)
+    : rank_(rank),
+      size_(size),
+      dead_(std::make_unique<std::atomic<bool>[]>(static_cast<size_t>(size))),
+      incoming_(static_cast<size_t>(size)) {}
+
 MpiTransport::~MpiTransport() { MPI_Finalize(); }
 
 Status MpiTransport::Send(int to, std::span<const uint8_t> bytes) {
@@ -84,35 +97,61 @@ void MpiTransport::NoteRankDied(int rank) {
   if (rank >= 0 && rank < size_) dead_[static_cast<size_t>(rank)] = true;
 }
 
+// A message is received with MPI_Irecv and watched, not MPI_Recv: a large message comes in
+// fragments, and a sender that dies between two never completes it. A receive in progress
+// stays with its sender (other senders' messages are taken meanwhile, that sender's later
+// ones wait, so each sender's messages keep their order) until it completes, or until the
+// sender is known dead (NoteRankDied), when it is dropped.
 Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
     std::chrono::milliseconds timeout) {
+  std::lock_guard lock(receive_mu_);
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   auto pause = std::chrono::microseconds(20);
   for (;;) {
-    int flag = 0;
-    MPI_Status status;
-    if (const int rc = MPI_Iprobe(MPI_ANY_SOURCE, kTag, MPI_COMM_WORLD, &flag, &status);
-        rc != MPI_SUCCESS)
-      return Status::Error(StrFormat("rank %d: MPI_Iprobe failed: %s", rank_, MpiError(rc).c_str()));
-    if (flag) {
-      int count = 0;
-      MPI_Get_count(&status, MPI_BYTE, &count);
-      transport::Envelope e;
-      e.from = status.MPI_SOURCE;
-      const bool too_large = count < 0 || static_cast<uint64_t>(count) > transport::kMaxMessageBytes;
-      // A message too large is still received (into a small buffer, truncated) so the queue
-      // moves on; the caller gets an error naming the sender.
-      e.bytes.resize(too_large ? 1 : static_cast<size_t>(count));
-      MPI_Status received;
-      const int rc = MPI_Recv(e.bytes.data(), too_large ? 1 : count, MPI_BYTE, e.from, kTag,
-                              MPI_COMM_WORLD, &received);
-      if (too_large)
+    for (int i = 0; i < size_; ++i) {
+      const int from = (next_source_ + i) % size_;
+      Incoming& in = incoming_[static_cast<size_t>(from)];
+      if (!in.active) {
+        int flag = 0;
+        MPI_Status status;
+        if (const int rc = MPI_Iprobe(from, kTag, MPI_COMM_WORLD, &flag, &status); rc != MPI_SUCCESS)
+          return Status::Error(StrFormat("rank %d: MPI_Iprobe failed: %s", rank_, MpiError(rc).c_str()));
+        if (!flag) continue;
+        int count = 0;
+        MPI_Get_count(&status, MPI_BYTE, &count);
+        // A message too large is still received (into one byte, truncated) so the queue
+        // moves on; the caller gets an error naming the sender.
+        in.too_large = count < 0 || static_cast<uint64_t>(count) > transport::kMaxMessageBytes;
+        in.count = count;
+        in.bytes.assign(in.too_large ? 1 : static_cast<size_t>(count), 0);
+        if (const int rc = MPI_Irecv(in.bytes.data(), in.too_large ? 1 : count, MPI_BYTE, from,
+                                     kTag, MPI_COMM_WORLD, &in.request);
+            rc != MPI_SUCCESS)
+          return Status::Error(StrFormat("rank %d: receiving from rank %d failed: %s", rank_,
+                                         from, MpiError(rc).c_str()));
+        in.active = true;
+      }
+      int done = 0;
+      const int rc = MPI_Test(&in.request, &done, MPI_STATUS_IGNORE);
+      if (!done && rc == MPI_SUCCESS) {
+        if (dead_[static_cast<size_t>(from)].load()) {  // it will never come
+          MPI_Request_free(&in.request);
+          in.active = false;
+        }
+        continue;
+      }
+      in.active = false;
+      next_source_ = (from + 1) % size_;  // fairness: the next call starts after this sender
+      if (in.too_large)
         return Status::Error(StrFormat("message from rank %d: %d bytes, more than the %llu a "
-                                       "message may have", e.from, count,
+                                       "message may have", from, in.count,
                                        static_cast<unsigned long long>(transport::kMaxMessageBytes)));
       if (rc != MPI_SUCCESS)
         return Status::Error(StrFormat("rank %d: receiving from rank %d failed: %s", rank_,
-                                       e.from, MpiError(rc).c_str()));
+                                       from, MpiError(rc).c_str()));
+      transport::Envelope e;
+      e.from = from;
+      e.bytes = std::move(in.bytes);
       return std::optional<transport::Envelope>(std::move(e));
     }
     if (std::chrono::steady_clock::now() >= deadline) return std::optional<transport::Envelope>();

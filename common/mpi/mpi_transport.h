@@ -11,6 +11,8 @@
 
 #include <atomic>
 #include <memory>
+#include <mutex>
+#include <vector>
 
 #include "common/transport/transport.h"
 
@@ -39,11 +41,15 @@ class MpiTransport final : public transport::Transport {
   [[noreturn]] static void ExitWithoutFinalize(int code);
 
  private:
-  MpiTransport(int rank, int size)
-      : rank_(rank), size_(size), dead_(std::make_unique<std::atomic<bool>[]>(static_cast<size_t>(size))) {}
+  MpiTransport(int rank, int size);
   int rank_, size_;
   std::atomic<bool> rank_died_{false};
   std::unique_ptr<std::atomic<bool>[]> dead_;  // by rank
+  // Receives in progress, by sender (Receive; defined where mpi.h is).
+  struct Incoming;
+  std::mutex receive_mu_;
+  std::vector<Incoming> incoming_;
+  int next_source_ = 0;
 };
 
 }  // namespace raystack::mpi
