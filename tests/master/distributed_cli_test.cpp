@@ -82,9 +82,8 @@ TEST_F(DistributedCli, ImagesEqualTheOneProcessImage) {
 
 // kill -9 of a slave mid-render (the slave does it to itself at its 3rd tile, so the test
 // knows it happens mid-render), and a slave whose store reads fail: the master drops it, the
-// others render its unfinished tiles, and the image equals the one-process image. (With
-// --blocks rem a killed owner sometimes still stalls a peer inside Open MPI: see the README;
-// the rem fallback itself is tested in-process, Distributed.ALostOrFailedSlave...)
+// others render its unfinished tiles (with --blocks rem, the others read the killed owner's
+// blocks from disk), and the image equals the one-process image.
 TEST_F(DistributedCli, ALostSlaveCostsTimeNeverPixels) {
   const std::string scene = Scene(R"({ "type": "path", "max_depth": 3, "spp": 2, "seed": 9 })");
   const ProcessResult one = Render(scene, 0, dir_->File("one.exr"));
@@ -96,6 +95,7 @@ TEST_F(DistributedCli, ALostSlaveCostsTimeNeverPixels) {
   };
   for (const Case& c : std::vector<Case>{
            {"killed", "loc", {"--fault-rank", "2", "--fault-kill-after-tiles", "3"}, "is lost"},
+           {"killed", "rem", {"--fault-rank", "2", "--fault-kill-after-tiles", "3"}, "is lost"},
            {"unreadable", "loc", {"--fault-rank", "3", "--fault-fail-read", "0"}, "failed"}}) {
     std::vector<std::string> extra = c.faults;
     extra.insert(extra.end(), {"--lost-after", "2"});
