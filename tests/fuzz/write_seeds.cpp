@@ -85,7 +85,14 @@ int main(int argc, char** argv) {
 
   Write(dir + "/wire/hello", wire::Encode(1, wire::Hello{4, 0}));
   Write(dir + "/wire/tile_request", wire::Encode(1, wire::TileRequest{0, 2}));
-  Write(dir + "/wire/tile_assign", wire::Encode(1, wire::TileAssign{0, 1, 0, 0, 32, 32, 0, 0}));
+  wire::TileAssign assign{};
+  assign.thread = 1;
+  assign.x1 = assign.y1 = 32;
+  assign.sample_end = 4;
+  assign.rank_end = 64;
+  Write(dir + "/wire/tile_assign", wire::Encode(1, assign));
+  Write(dir + "/wire/heartbeat", wire::Encode(1, wire::Heartbeat{7, 0}));
+  Write(dir + "/wire/rank_lost", wire::Encode(1, wire::RankLost{2, 1}));
   wire::FrameDone done{};
   done.samples = 1024;
   done.seconds = 1.5;
