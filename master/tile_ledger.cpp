@@ -56,11 +56,4 @@ std::vector<render::Tile> TileLedger::Release(int rank, std::vector<render::Samp
   return released;
 }
 
-std::vector<render::Tile> TileLedger::InFlight(int rank) const {
-  std::vector<render::Tile> out;
-  for (const Entry& e : in_flight_)
-    if (e.rank == rank) out.push_back(e.tile);
-  return out;
-}
-
 }  // namespace raystack::master

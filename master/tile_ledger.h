@@ -35,8 +35,6 @@ class TileLedger {
 
   // Tiles handed out and not finished.
   size_t unfinished() const { return unfinished_; }
-  // The tiles `rank` renders now.
-  std::vector<render::Tile> InFlight(int rank) const;
 
  private:
   struct Entry {

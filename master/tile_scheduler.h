@@ -3,8 +3,7 @@
 // ones, since its block cache is warm there). The frame's tiles in Hilbert order are cut into
 // one contiguous span per slave; a slave takes the next tile of its own span, and once that is
 // used up, the last tile of the span with the most left (the far end of another slave's
-// region, where it will arrive last). Tiles a lost slave left unfinished come back and go
-// first to whoever asks next. Not thread-safe: the master's one loop owns it.
+// region, where it will arrive last). Not thread-safe: the master's one loop owns it.
 
 #include <cstdint>
 #include <vector>
@@ -18,13 +17,10 @@ class TileScheduler {
   TileScheduler(std::vector<render::Tile> tiles, int slaves);
   // The index of the next tile for `slave` (0-based), false when none is left to hand out.
   bool Next(int slave, size_t* index);
-  // Tile `index`, handed out before, must be rendered again by someone else.
-  void Return(size_t index) { returned_.push_back(index); }
   const render::Tile& tile(size_t index) const { return tiles_[index]; }
   const std::vector<render::Tile>& tiles() const { return tiles_; }
   uint64_t handed_out() const { return handed_out_; }
   bool exhausted() const {
-    if (!returned_.empty()) return false;
     for (const Span& s : spans_)
       if (s.begin < s.end) return false;
     return true;
@@ -36,7 +32,6 @@ class TileScheduler {
   };
   std::vector<render::Tile> tiles_;
   std::vector<Span> spans_;
-  std::vector<size_t> returned_;
   uint64_t handed_out_ = 0;
 };
 
@@ -47,12 +42,6 @@ inline TileScheduler::TileScheduler(std::vector<render::Tile> tiles, int slaves)
 }
 
 inline bool TileScheduler::Next(int slave, size_t* index) {
-  if (!returned_.empty()) {
-    *index = returned_.back();
-    returned_.pop_back();
-    ++handed_out_;
-    return true;
-  }
   Span& own = spans_[static_cast<size_t>(slave) % spans_.size()];
   if (own.begin < own.end) {
     *index = own.begin++;

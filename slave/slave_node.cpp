@@ -226,14 +226,14 @@ void SlaveNode::ReceiveLoop() {
       if (peers_) peers_->Stop();
       changed_.notify_all();
     } else if (from == 0 && type == wire::MessageType::kRankLost) {
-      const uint32_t lost = m->rank_lost().rank;
-      if (lost == 0 || lost >= static_cast<uint32_t>(net_->size()))
+      const wire::RankLost lost = m->rank_lost();
+      if (lost.rank == 0 || lost.rank >= static_cast<uint32_t>(net_->size())) {
         Failed(Status::Error(
-            StrFormat("the master reports rank %u lost, which is not a slave", lost)));
-      else if (m->rank_lost().died)
-        net_->NoteRankDied(static_cast<int>(lost));
-      if (peers_ && lost > 0 && lost < static_cast<uint32_t>(net_->size()))
-        peers_->OwnerLost(static_cast<int>(lost));
+            StrFormat("the master reports rank %u lost, which is not a slave", lost.rank)));
+      } else {
+        if (lost.died) net_->NoteRankDied(static_cast<int>(lost.rank));
+        if (peers_) peers_->OwnerLost(static_cast<int>(lost.rank));
+      }
     } else if (from > 0 && peers_ && type == wire::MessageType::kBlockRequest) {
       const Status s = peers_->OnRequest(from, m->block_request());
       if (!s.ok()) Failed(s);

@@ -34,7 +34,6 @@ class GridTileSource final : public TileSource {
  public:
   GridTileSource(int width, int height, int size)
       : tiles_(render::HilbertTiles(width, height, size)) {}
-  explicit GridTileSource(std::vector<Tile> tiles) : tiles_(std::move(tiles)) {}
   bool Next(uint32_t, Tile* tile) override {
     const size_t i = next_.fetch_add(1);
     if (i >= tiles_.size()) return false;

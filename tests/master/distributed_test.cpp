@@ -316,23 +316,16 @@ TEST(TileScheduler, EveryTileOnceEachSlaveStartsInItsOwnRegion) {
   master::TileScheduler scheduler(tiles, 3);
   std::vector<std::vector<size_t>> got(3);
   size_t index;
-  bool returned = false;
   for (int round = 0; ; ++round) {
     bool any = false;
     for (int s = 0; s < 3; ++s) {
       if (s == 2 && round % 2) continue;  // slave 2 is slower: the others take over its span
       if (!scheduler.Next(s, &index)) continue;
       any = true;
-      if (s == 2 && round == 8 && !returned) {  // slave 2 is lost with this tile: it comes back
-        scheduler.Return(index);
-        returned = true;
-        continue;
-      }
       got[s].push_back(index);
     }
     if (!any) break;
   }
-  EXPECT_TRUE(returned);
   std::vector<int> seen(tiles.size(), 0);
   for (const auto& g : got)
     for (size_t i : g) ++seen[i];
@@ -343,7 +336,7 @@ TEST(TileScheduler, EveryTileOnceEachSlaveStartsInItsOwnRegion) {
     EXPECT_EQ(got[s][1], got[s][0] + 1);
     EXPECT_EQ(got[s][2], got[s][1] + 1);
   }
-  EXPECT_EQ(scheduler.handed_out(), tiles.size() + 1);  // the returned tile went out twice
+  EXPECT_EQ(scheduler.handed_out(), tiles.size());
 }
 
 // A fake slave that sends `bytes` to the master where a tile request should be.
