@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <charconv>
+#include <csignal>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -110,6 +111,8 @@ fault injection (for tests and drills):
   --fault-kill-after-tiles N  the slave kills itself (SIGKILL, as kill -9) when given its
                             N-th tile
   --fault-fail-read K       the slave's K-th block read (0-based) fails, as a disk error
+  --fault-kill-after-checkpoints N  the one process, or the master, kills itself (SIGKILL)
+                            right after its N-th checkpoint: the whole job dies (--resume)
 )";
 
 struct Args {
@@ -134,6 +137,7 @@ struct Args {
   int fault_rank = 0;  // 0: every slave
   int64_t kill_after_tiles = -1;
   int64_t fail_read = -1;
+  int64_t kill_after_checkpoints = -1;
   preview::LivePreviewOptions preview;
 };
 
@@ -241,6 +245,8 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->fault_rank, 1, 1 << 20));
     } else if (arg == "--fault-kill-after-tiles") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->kill_after_tiles, 1, 1e12));
+    } else if (arg == "--fault-kill-after-checkpoints") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->kill_after_checkpoints, 1, 1e12));
     } else if (arg == "--fault-fail-read") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->fail_read, 0, 1e12));
     } else if (arg == "-q" || arg == "--quiet") {
@@ -379,24 +385,36 @@ Status ResumeInto(const Args& args, const render::Scene& scene, size_t f,
 // a reader never sees half a file and a crash leaves the last checkpoint).
 class Checkpoints {
  public:
-  Checkpoints(double every_s, std::string path) : every_s_(every_s), path_(std::move(path)) {}
+  // `kill_after` (fault injection, > 0): the process kills itself with SIGKILL right after
+  // its `kill_after`-th checkpoint, as a crash of the whole job would.
+  Checkpoints(double every_s, std::string path, int64_t kill_after = -1)
+      : every_s_(every_s), path_(std::move(path)), kill_after_(kill_after) {}
   void Maybe(const render::Film& film) {
     if (every_s_ <= 0) return;
     const auto now = std::chrono::steady_clock::now();
     if (std::chrono::duration<double>(now - last_).count() < every_s_) return;
     last_ = now;
     const Status s = image::WriteExr(path_, film.Resolve());
-    if (!s.ok()) LOG_WARNING("render", "checkpoint: %s", s.message().c_str());
+    if (!s.ok()) {  // tried again at the next one
+      LOG_WARNING("render", "checkpoint: %s", s.message().c_str());
+      return;
+    }
+    if (++written_ == kill_after_) {
+      LOG_WARNING("render", "killing the job after checkpoint %lld (--fault-kill-after-checkpoints)",
+                  static_cast<long long>(written_));
+      std::raise(SIGKILL);
+    }
   }
 
  private:
   double every_s_;
   std::string path_;
+  int64_t kill_after_, written_ = 0;
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
-// The frame's tiles in Hilbert order, as GridTileSource, remembering which were handed out
-// (the live preview shows the ones still in flight).
+// The frame plan's tiles, as PlanTileSource, remembering which were handed out (the live
+// preview shows the ones still in flight).
 class WatchedTileSource final : public slave::TileSource {
  public:
   explicit WatchedTileSource(const render::FramePlan& plan) : tiles_(plan) {}
@@ -462,7 +480,8 @@ Status Run(const Args& args) {
         status = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
         finished.store(true);
       });
-      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
+      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
+                              args.kill_after_checkpoints);
       uint64_t shown = 0;
       // Polled at least as often as the convergence log asks for rows.
       const auto poll = std::chrono::microseconds(
@@ -566,7 +585,8 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
       uint64_t shown = 0;
-      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"));
+      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
+                              args.kill_after_checkpoints);
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
                           scene.integrator.spp);
       status = master.RunFrame(static_cast<uint32_t>(f), plan, &film, [&] {

@@ -69,6 +69,36 @@ TEST_F(Resume, TheResumedImageEqualsAnUninterruptedRun) {
   }
 }
 
+// The whole job really dies (SIGKILL right after its 2nd checkpoint; under mpirun the others
+// go with it), and --resume finishes from that checkpoint. 48 samples per pixel, so the render
+// outlasts two checkpoints, in whole tiles (one pass), so a mid-render checkpoint holds
+// finished pixels.
+TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
+  const std::vector<std::string> whole_tiles = {"--spp", "48", "--pass-spp", "48",
+                                                "--checkpoint-s", "0.05"};
+  const ProcessResult full = Render(dir_->File("full.exr"), 0, whole_tiles);
+  ASSERT_EQ(full.exit_code, 0) << full.err;
+  const std::string expected = Slurp(dir_->File("full.exr"));
+  for (int np : {0, 3}) {
+    const std::string out = dir_->File("killed" + std::to_string(np) + ".exr");
+    std::vector<std::string> killed = whole_tiles;
+    killed.insert(killed.end(), {"--fault-kill-after-checkpoints", "2"});
+    const ProcessResult died = Render(out, np, killed);
+    ASSERT_NE(died.exit_code, 0) << "np " << np << ": the job was not killed " << died.out;
+    Expected<image::ImageLayers> checkpoint = image::ReadExr(out);
+    ASSERT_TRUE(checkpoint.ok()) << checkpoint.status().message();
+    uint64_t finished = 0;
+    for (uint32_t n : checkpoint->samples) finished += n == 48;
+    EXPECT_GT(finished, 0u) << "np " << np << ": the checkpoint holds no finished pixel";
+    EXPECT_LT(finished, checkpoint->samples.size()) << "np " << np << ": the checkpoint is whole";
+    const ProcessResult resumed = Render(out, np, {"--spp", "48", "--pass-spp", "48", "--resume"});
+    ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+    EXPECT_NE(resumed.out.find(std::to_string(finished) + " of 6144 pixels finished"),
+              std::string::npos) << resumed.out;
+    EXPECT_TRUE(Slurp(out) == expected) << "np " << np;
+  }
+}
+
 TEST_F(Resume, ACheckpointOfAnotherFrameIsRefusedNamingIt) {
   image::ImageLayers other;
   other.Resize(10, 10);
