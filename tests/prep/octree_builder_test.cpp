@@ -312,6 +312,42 @@ TEST_F(OctreeBuilderTest, OutputIsDeterministicWhateverTheThreads) {
   }
 }
 
+// The partition pass reads the model in pieces, one per thread, each with its own bucket
+// files: the store must still be the same byte for byte whatever the number of pieces, for a
+// model cut by triangle ranges and for one cut by replicated copies.
+TEST_F(OctreeBuilderTest, PartitionedOutputIsTheSameWhateverTheThreads) {
+  struct Model {
+    const char* generate;
+    std::array<int, 3> replicate;
+  } models[] = {{"spheres:150000", {1, 1, 1}}, {"spheres:30000", {3, 1, 2}}};
+  for (const Model& model : models) {
+    SCOPED_TRACE(model.generate);
+    std::string files[3][3];
+    for (int run = 0; run < 3; ++run) {
+      ConvertOptions o = Options(StrFormat("pieces%d-%d", run, model.replicate[0]));
+      o.generate = model.generate;
+      o.replicate = model.replicate;
+      o.max_block_bytes = 32 * 1024;
+      o.target_block_bytes = 8 * 1024;
+      o.memory_limit_bytes = 16ull << 20;  // buckets of ~25 k triangles: partitioned
+      o.threads = run + 1;
+      Expected<ConvertReport> r = Convert(o);
+      ASSERT_TRUE(r.ok()) << r.status().message();
+      ASSERT_GE(r->partition_passes, 1u);
+      files[run][0] = testing::Slurp(o.output + "/blocks.bin");
+      files[run][1] = testing::Slurp(o.output + "/index.bin");
+      files[run][2] = testing::Slurp(o.output + "/octree.bin");
+    }
+    const char* names[3] = {"blocks.bin", "index.bin", "octree.bin"};
+    for (int run = 1; run < 3; ++run)
+      for (int f = 0; f < 3; ++f) {
+        EXPECT_FALSE(files[0][f].empty()) << names[f];
+        EXPECT_TRUE(files[0][f] == files[run][f])
+            << names[f] << " differs between 1 and " << run + 1 << " threads";
+      }
+  }
+}
+
 TEST_F(OctreeBuilderTest, PartitionPathMatchesInMemoryPath) {
   StoreContents stores[2];
   ConvertReport reports[2];

@@ -178,6 +178,41 @@ TEST_F(TriangleSpoolTest, TruncatedFileWithoutAttributesIsDamaged) {
   EXPECT_NE(s.message().find("damaged"), std::string::npos) << s.message();
 }
 
+// Pieces read by range, one after the other, are the whole spool (the partition pass reads
+// pieces on several threads), in memory and spilled; a range needs same-size records.
+TEST_F(TriangleSpoolTest, RangesInTurnGiveBackEveryTriangleInOrder) {
+  TriangleSpool memory(dir_->File("range-memory.tmp"), uint64_t{1} << 30);
+  TriangleSpool spilled(dir_->File("range-spilled.tmp"), 500, 4096);
+  Fill(&memory, kTriangles, /*plain=*/true);
+  Fill(&spilled, kTriangles, /*plain=*/true);
+  for (const TriangleSpool* spool : {&memory, &spilled}) {
+    uint32_t next = 0;
+    const uint64_t cuts[] = {0, 1, 9000, 9001, 25000, kTriangles};
+    for (size_t c = 0; c + 1 < std::size(cuts); ++c) {
+      Status s = spool->ForEachRange(cuts[c], cuts[c + 1] - cuts[c],
+                                     [&](std::span<const PackedTriangle> tris, auto attrs) {
+                                       EXPECT_TRUE(attrs.empty());
+                                       for (const PackedTriangle& t : tris) {
+                                         TriangleAttributes a;
+                                         if (!SameTriangle(t, MakeTriangle(next++, &a, true)))
+                                           return Status::Error("triangle differs");
+                                       }
+                                       return OkStatus();
+                                     });
+      EXPECT_TRUE(s.ok()) << s.message();
+      EXPECT_EQ(next, cuts[c + 1]);
+    }
+    Status beyond = spool->ForEachRange(kTriangles - 5, 6, [](auto, auto) { return OkStatus(); });
+    ASSERT_FALSE(beyond.ok());
+    EXPECT_NE(beyond.message().find("beyond"), std::string::npos) << beyond.message();
+  }
+  TriangleSpool mixed(dir_->File("range-mixed.tmp"), 0);
+  Fill(&mixed, 100);
+  Status s = mixed.ForEachRange(0, 10, [](auto, auto) { return OkStatus(); });
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("range-mixed.tmp"), std::string::npos) << s.message();
+}
+
 // Spools sharing one writer thread, appended to in turn (as partition buckets are), each get
 // back exactly their own triangles, with and without attributes.
 TEST_F(TriangleSpoolTest, ThroughWriteBehindGivesBackEveryTriangleInOrder) {

@@ -10,7 +10,7 @@ namespace raystack::prep {
 BlockPipeline::BlockPipeline(int threads, store::StoreWriter* writer, bool shuffle,
                              uint32_t max_block_bytes, BvhBuildOptions bvh)
     : writer_(writer), shuffle_(shuffle), max_block_bytes_(max_block_bytes), bvh_(bvh),
-      max_in_flight_(static_cast<size_t>(16 * std::max(threads, 1))) {
+      max_in_flight_(static_cast<size_t>(64 * std::max(threads, 1))) {
   for (int i = 0; i < std::max(threads, 1); ++i) workers_.emplace_back([this] { Work(); });
 }
 
@@ -30,6 +30,11 @@ void BlockPipeline::Submit(LeafJob job) {
   ++in_flight_;
   queue_.emplace_back(submitted_++, std::move(job));
   work_ready_.notify_one();
+}
+
+void BlockPipeline::WaitUntil(const std::function<bool()>& ready) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  space_ready_.wait(lock, [&] { return ready() || !error_.ok(); });
 }
 
 Status BlockPipeline::Drain() {
@@ -106,6 +111,7 @@ void BlockPipeline::Work() {
     encoded.octree_leaf = job.octree_leaf;
     uint64_t splits = 0;
     Encode(job, job.refs, job.ref_bounds, &encoder, &encoded, &splits);
+    job = LeafJob{};  // lets go of its bucket before WaitUntil's callers are woken
 
     std::lock_guard<std::mutex> lock(mutex_);
     stats_.cap_splits += splits;

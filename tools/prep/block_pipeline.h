@@ -12,6 +12,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -54,6 +55,9 @@ class BlockPipeline {
   ~BlockPipeline();  // stops the workers (after Drain, or abandoning on error)
 
   void Submit(LeafJob job);
+  // Waits until `ready()` holds; it is checked under the pipeline's lock each time a leaf is
+  // written (and a job drops what it kept alive before that).
+  void WaitUntil(const std::function<bool()>& ready);
   // Waits until every submitted leaf is written; returns the first error, if any.
   Status Drain();
   PipelineStats stats() const;

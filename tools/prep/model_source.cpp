@@ -1,5 +1,7 @@
 #include "tools/prep/model_source.h"
 
+#include <algorithm>
+
 #include "common/base/log.h"
 
 namespace raystack::prep {
@@ -46,24 +48,53 @@ ReplicatedSource::ReplicatedSource(const TriangleSpool& spool, const Bounds3f& b
 
 Status ReplicatedSource::ForEach(const TriangleSpool::Visitor& visit) const {
   if (copies() == 1) return spool_.ForEach(visit);
+  return ForEachCopy(0, copies(), visit);
+}
+
+int ReplicatedSource::MaxParts() const {
+  constexpr uint64_t kMinPiece = 1 << 16;  // triangles: smaller pieces are not worth a thread
+  if (copies() > 1) return static_cast<int>(std::min<uint64_t>(copies(), 64));
+  if (spool_.has_attributes()) return 1;
+  return static_cast<int>(std::clamp<uint64_t>(spool_.triangles() / kMinPiece, 1, 64));
+}
+
+Status ReplicatedSource::ForEachPart(int part, int parts, const TriangleSpool::Visitor& visit) const {
+  if (parts < 1 || parts > MaxParts() || part < 0 || part >= parts)
+    return Status::Error(StrFormat("piece %d of %d: the model offers at most %d", part, parts,
+                                   MaxParts()));
+  const auto piece = [&](uint64_t total, uint64_t* first, uint64_t* end) {
+    *first = total * static_cast<uint64_t>(part) / static_cast<uint64_t>(parts);
+    *end = total * static_cast<uint64_t>(part + 1) / static_cast<uint64_t>(parts);
+  };
+  uint64_t first, end;
+  if (copies() > 1) {
+    piece(copies(), &first, &end);
+    return ForEachCopy(first, end, visit);
+  }
+  piece(spool_.triangles(), &first, &end);
+  return spool_.ForEachRange(first, end - first, visit);
+}
+
+Status ReplicatedSource::ForEachCopy(uint64_t first, uint64_t end,
+                                     const TriangleSpool::Visitor& visit) const {
   const uint64_t n = spool_.triangles();
-  uint64_t copy = 0;
+  const auto nx = static_cast<uint64_t>(grid_[0]), ny = static_cast<uint64_t>(grid_[1]);
   std::vector<PackedTriangle> moved;
-  for (int z = 0; z < grid_[2]; ++z)
-    for (int y = 0; y < grid_[1]; ++y)
-      for (int x = 0; x < grid_[0]; ++x, ++copy) {
-        const Vec3f offset{step_.x * static_cast<float>(x), step_.y * static_cast<float>(y),
-                           step_.z * static_cast<float>(z)};
-        RAYSTACK_RETURN_IF_ERROR(spool_.ForEach(
-            [&](std::span<const PackedTriangle> tris, std::span<const TriangleAttributes> attrs) {
-              moved.assign(tris.begin(), tris.end());
-              for (PackedTriangle& t : moved) {
-                for (Vec3f& p : t.p) p = p + offset;
-                t.id = static_cast<uint32_t>(copy * n + t.id);
-              }
-              return visit(moved, attrs);
-            }));
-      }
+  for (uint64_t copy = first; copy < end; ++copy) {
+    // Copies run x fastest, then y, then z.
+    const uint64_t x = copy % nx, y = copy / nx % ny, z = copy / (nx * ny);
+    const Vec3f offset{step_.x * static_cast<float>(x), step_.y * static_cast<float>(y),
+                       step_.z * static_cast<float>(z)};
+    RAYSTACK_RETURN_IF_ERROR(spool_.ForEach(
+        [&](std::span<const PackedTriangle> tris, std::span<const TriangleAttributes> attrs) {
+          moved.assign(tris.begin(), tris.end());
+          for (PackedTriangle& t : moved) {
+            for (Vec3f& p : t.p) p = p + offset;
+            t.id = static_cast<uint32_t>(copy * n + t.id);
+          }
+          return visit(moved, attrs);
+        }));
+  }
   return OkStatus();
 }
 

@@ -46,6 +46,10 @@ class ReplicatedSource : public TriangleSource {
                    std::array<int, 3> grid);
 
   Status ForEach(const TriangleSpool::Visitor& visit) const override;
+  // Pieces are runs of copies, or runs of the model's triangles when there is one copy (and
+  // the spool's records all have the same size).
+  int MaxParts() const override;
+  Status ForEachPart(int part, int parts, const TriangleSpool::Visitor& visit) const override;
   uint64_t triangles() const override { return spool_.triangles() * copies(); }
   uint64_t bytes() const override { return spool_.bytes() * copies(); }
   Bounds3f bounds() const override { return bounds_; }
@@ -53,6 +57,9 @@ class ReplicatedSource : public TriangleSource {
   uint64_t copies() const { return uint64_t(grid_[0]) * grid_[1] * grid_[2]; }
 
  private:
+  // Copies [first, end) in order, each moved to its place on the grid.
+  Status ForEachCopy(uint64_t first, uint64_t end, const TriangleSpool::Visitor& visit) const;
+
   const TriangleSpool& spool_;
   Bounds3f base_, bounds_;
   bool attributes_;

@@ -1,5 +1,7 @@
 #include "tools/prep/octree_builder.h"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -123,8 +125,13 @@ class Builder {
                        int depth) {
     // Jobs of the previous bucket may still be encoding from its triangles: the new bucket
     // gets its own arrays, and jobs share ownership of theirs (so loading this bucket overlaps
-    // encoding the last one; the bucket budget allows for two in memory).
+    // encoding the last one). The bucket budget allows for two in memory, so the one before
+    // must be done with first; the queue of jobs is long enough to keep the encoders busy
+    // while a bucket loads.
+    pipeline_.WaitUntil([&] { return older_bucket_.expired(); });
+    older_bucket_ = previous_bucket_;
     auto bucket = std::make_shared<Bucket>();
+    previous_bucket_ = bucket;
     bucket->triangles.reserve(source.triangles());
 
     RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
@@ -249,23 +256,45 @@ class Builder {
   Bounds3f root_;
   std::vector<OctreeNode> nodes_;
   std::shared_ptr<const Bucket> bucket_;  // the one being subdivided
+  // The last two buckets loaded (alive while jobs hold them).
+  std::weak_ptr<const Bucket> previous_bucket_, older_bucket_;
   int max_depth_ = 0;
   uint32_t multi_block_leaves_ = 0, partition_passes_ = 0;
 };
 
-// A bucket on disk, readable as a source.
-class SpoolSource : public TriangleSource {
+// A bucket on disk, readable as a source: the files its pieces wrote (one per thread of the
+// partition pass), read in order.
+class BucketSource : public TriangleSource {
  public:
-  SpoolSource(const TriangleSpool& spool, Bounds3f bounds, bool attributes)
-      : spool_(spool), bounds_(bounds), attributes_(attributes) {}
-  Status ForEach(const TriangleSpool::Visitor& visit) const override { return spool_.ForEach(visit); }
-  uint64_t triangles() const override { return spool_.triangles(); }
-  uint64_t bytes() const override { return spool_.bytes(); }
+  BucketSource(std::vector<const TriangleSpool*> spools, Bounds3f bounds, bool attributes)
+      : spools_(std::move(spools)), bounds_(bounds), attributes_(attributes) {}
+  Status ForEach(const TriangleSpool::Visitor& visit) const override {
+    for (const TriangleSpool* s : spools_) RAYSTACK_RETURN_IF_ERROR(s->ForEach(visit));
+    return OkStatus();
+  }
+  int MaxParts() const override { return static_cast<int>(spools_.size()); }
+  Status ForEachPart(int part, int parts, const TriangleSpool::Visitor& visit) const override {
+    const size_t n = spools_.size();
+    for (size_t i = n * static_cast<size_t>(part) / static_cast<size_t>(parts);
+         i < n * static_cast<size_t>(part + 1) / static_cast<size_t>(parts); ++i)
+      RAYSTACK_RETURN_IF_ERROR(spools_[i]->ForEach(visit));
+    return OkStatus();
+  }
+  uint64_t triangles() const override {
+    uint64_t n = 0;
+    for (const TriangleSpool* s : spools_) n += s->triangles();
+    return n;
+  }
+  uint64_t bytes() const override {
+    uint64_t n = 0;
+    for (const TriangleSpool* s : spools_) n += s->bytes();
+    return n;
+  }
   Bounds3f bounds() const override { return bounds_; }
   bool has_attributes() const override { return attributes_; }
 
  private:
-  const TriangleSpool& spool_;
+  std::vector<const TriangleSpool*> spools_;
   Bounds3f bounds_;
   bool attributes_;
 };
@@ -337,40 +366,41 @@ struct CellGrid {
   }
 };
 
-// Classifies a batch on several threads, then appends to the buckets on this one, slice by
-// slice, so each bucket gets its triangles in the same order as a serial pass would.
+// How many pieces may each keep `buckets` files open: Debian's default soft limit (1024
+// descriptors) is below two pieces of 512 buckets, so it is raised towards the hard limit
+// first, and the pieces are fewer if that is not enough.
+int PiecesWithinFileLimit(int pieces, uint32_t buckets) {
+  constexpr uint64_t kSpareDescriptors = 64;  // the store, inputs, logs
+  const uint64_t needed = uint64_t{buckets} * static_cast<uint64_t>(pieces) + kSpareDescriptors;
+  rlimit limit{};
+  if (getrlimit(RLIMIT_NOFILE, &limit) != 0) return 1;
+  if (limit.rlim_cur != RLIM_INFINITY && limit.rlim_cur < needed) {
+    rlimit raised = limit;
+    raised.rlim_cur = limit.rlim_max == RLIM_INFINITY ? needed : std::min<rlim_t>(needed, limit.rlim_max);
+    if (setrlimit(RLIMIT_NOFILE, &raised) == 0) limit = raised;
+  }
+  if (limit.rlim_cur == RLIM_INFINITY) return pieces;
+  const uint64_t fit = limit.rlim_cur > kSpareDescriptors ? (limit.rlim_cur - kSpareDescriptors) / buckets : 0;
+  return static_cast<int>(std::clamp<uint64_t>(fit, 1, static_cast<uint64_t>(pieces)));
+}
+
+// Appends each triangle of a batch to the bucket of every level-`levels` cell it overlaps.
 Status ClassifyBatch(std::span<const PackedTriangle> tris, std::span<const TriangleAttributes> attrs,
-                     const Bounds3f& cell, const CellGrid& grid, int threads,
-                     std::vector<std::vector<std::pair<uint32_t, uint32_t>>>* slices,
+                     const Bounds3f& cell, const CellGrid& grid, std::vector<uint32_t>* cells,
                      std::vector<TriangleSpool>* buckets) {
-  const size_t n = tris.size();
-  const int levels = grid.levels;
-  const size_t parts = std::clamp<size_t>(static_cast<size_t>(threads), 1, std::max<size_t>(n / 256, 1));
-  slices->resize(parts);
-  auto work = [&](size_t part) {
-    std::vector<std::pair<uint32_t, uint32_t>>& slice = (*slices)[part];
-    slice.clear();
-    std::vector<uint32_t> cells;
-    for (size_t i = part * n / parts; i < (part + 1) * n / parts; ++i) {
-      const Bounds3f b = ClipTriangleToCell(tris[i].p, cell);
-      if (b.Empty()) continue;
-      uint32_t only;
-      if (grid.CellOf(b, &only)) {  // most triangles: a lookup instead of a descent
-        slice.emplace_back(only, static_cast<uint32_t>(i));
-        continue;
-      }
-      cells.clear();
-      Classify(tris[i], b, cell, levels, 0, &cells);
-      for (uint32_t c : cells) slice.emplace_back(c, static_cast<uint32_t>(i));
+  for (size_t i = 0; i < tris.size(); ++i) {
+    const Bounds3f b = ClipTriangleToCell(tris[i].p, cell);
+    if (b.Empty()) continue;
+    const TriangleAttributes* a = attrs.empty() ? nullptr : &attrs[i];
+    uint32_t only;
+    if (grid.CellOf(b, &only)) {  // most triangles: a lookup instead of a descent
+      RAYSTACK_RETURN_IF_ERROR((*buckets)[only].Append(tris[i], a));
+      continue;
     }
-  };
-  std::vector<std::thread> helpers;
-  for (size_t part = 1; part < parts; ++part) helpers.emplace_back(work, part);
-  work(0);
-  for (std::thread& h : helpers) h.join();
-  for (const auto& slice : *slices)
-    for (const auto& [bucket, i] : slice)
-      RAYSTACK_RETURN_IF_ERROR((*buckets)[bucket].Append(tris[i], attrs.empty() ? nullptr : &attrs[i]));
+    cells->clear();
+    Classify(tris[i], b, cell, grid.levels, 0, cells);
+    for (uint32_t c : *cells) RAYSTACK_RETURN_IF_ERROR((*buckets)[c].Append(tris[i], a));
+  }
   return OkStatus();
 }
 
@@ -429,52 +459,72 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
   const auto start = std::chrono::steady_clock::now();
   LOG_INFO("prep", "partitioning %llu triangles into %u buckets on disk (depth %d)",
            static_cast<unsigned long long>(source.triangles()), count, depth);
+  // The source is read in pieces on `parts` threads, each with its own bucket files; a
+  // bucket is then its pieces' files read in order, which is the source's order, so the
+  // result does not depend on the number of threads. One writer thread copies the files'
+  // buffers into the page cache (the kernel's work) behind them.
+  const int parts = PiecesWithinFileLimit(std::clamp(options_.threads, 1, source.MaxParts()), count);
   // Declared before the buckets, which flush through it until they are destroyed.
-  WriteBehind writer(kBucketWriteBytes, kBucketWritesQueued);
-  std::vector<TriangleSpool> buckets;
-  buckets.reserve(count);
-  for (uint32_t i = 0; i < count; ++i)
-    buckets.emplace_back(StrFormat("%s/bucket-d%d-n%u-%u.tmp", options_.temp_dir.c_str(), depth,
-                                   node, i),
-                         writer);
-  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> slices;
+  WriteBehind writer(kBucketWriteBytes / static_cast<size_t>(parts), kBucketWritesQueued);
+  std::vector<std::vector<TriangleSpool>> pieces(static_cast<size_t>(parts));
+  for (int part = 0; part < parts; ++part) {
+    pieces[part].reserve(count);
+    for (uint32_t i = 0; i < count; ++i)
+      pieces[part].emplace_back(StrFormat("%s/bucket-d%d-n%u-%u-%d.tmp", options_.temp_dir.c_str(),
+                                          depth, node, i, part),
+                                writer);
+  }
   const CellGrid grid(cell, levels);
-  // The writer thread keeps a core busy copying into the page cache; with the grid lookup,
-  // classifying on the remaining cores keeps up (measured on 2 cores: 8.9 s with one
-  // classifying thread against 11.2 s with two, for the dragon x125).
-  const int classify_threads = std::max(1, options_.threads - 1);
-  RAYSTACK_RETURN_IF_ERROR(source.ForEach([&](std::span<const PackedTriangle> tris,
-                                              std::span<const TriangleAttributes> attrs) {
-    return ClassifyBatch(tris, attrs, cell, grid, classify_threads, &slices, &buckets);
-  }));
-  for (TriangleSpool& b : buckets) RAYSTACK_RETURN_IF_ERROR(b.Close());
+  std::vector<Status> piece_status(static_cast<size_t>(parts));
+  auto classify = [&](int part) {
+    std::vector<uint32_t> cells;
+    piece_status[part] = source.ForEachPart(
+        part, parts,
+        [&](std::span<const PackedTriangle> tris, std::span<const TriangleAttributes> attrs) {
+          return ClassifyBatch(tris, attrs, cell, grid, &cells, &pieces[part]);
+        });
+    for (TriangleSpool& b : pieces[part])
+      if (piece_status[part].ok()) piece_status[part] = b.Close();
+  };
+  std::vector<std::thread> helpers;
+  for (int part = 1; part < parts; ++part) helpers.emplace_back(classify, part);
+  classify(0);
+  for (std::thread& h : helpers) h.join();
+  for (const Status& s : piece_status) RAYSTACK_RETURN_IF_ERROR(s);
   uint64_t bucket_bytes = 0;
-  for (const TriangleSpool& b : buckets) bucket_bytes += b.bytes();
-  LOG_INFO("prep", "partitioned in %.1f s (%.2f GB of bucket files)",
-           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+  for (const auto& piece : pieces)
+    for (const TriangleSpool& b : piece) bucket_bytes += b.bytes();
+  LOG_INFO("prep", "partitioned in %.1f s on %d threads (%.2f GB of bucket files)",
+           std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), parts,
            static_cast<double>(bucket_bytes) / 1e9);
 
   // Walk the levels in Morton order, creating inner nodes; buckets become subtrees.
   struct Walk {
     Builder* self;
-    std::vector<TriangleSpool>* buckets;
+    std::vector<std::vector<TriangleSpool>>* pieces;
     int levels, base_depth, stall;
     uint64_t source_triangles;
     Status Go(uint32_t n, const Bounds3f& c, int level, uint32_t morton) {
       if (level == levels) {
-        TriangleSpool& spool = (*buckets)[morton];
-        if (spool.triangles() == 0) return OkStatus();
-        SpoolSource sub(spool, c, self->attributes_);
+        std::vector<const TriangleSpool*> files;
+        uint64_t triangles = 0;
+        for (const auto& piece : *pieces) {
+          if (piece[morton].triangles() == 0) continue;
+          files.push_back(&piece[morton]);
+          triangles += piece[morton].triangles();
+        }
+        if (triangles == 0) return OkStatus();
+        BucketSource sub(std::move(files), c, self->attributes_);
         const int depth = base_depth + level;
         // Without this, coincident triangles beyond the bucket capacity were partitioned
         // again and again, one level deeper each time, forever.
-        const int next_stall = spool.triangles() >= source_triangles ? stall + levels : 0;
-        Status s = spool.triangles() <= self->bucket_capacity_
+        const int next_stall = triangles >= source_triangles ? stall + levels : 0;
+        Status s = triangles <= self->bucket_capacity_
                        ? self->BuildInMemory(sub, n, c, depth)
                    : depth >= kMaxDepth || next_stall >= kMaxStall
                        ? self->StreamLeaf(sub, n, c, depth)
                        : self->Partition(sub, n, c, depth, next_stall);
-        spool.Clear();
+        for (auto& piece : *pieces) piece[morton].Clear();
         return s;
       }
       const uint32_t first = self->AddChildren();
@@ -488,7 +538,7 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
       if (!any) self->nodes_[n] = {0, 0, store::kOctreeEmpty, 0};
       return OkStatus();
     }
-  } walk{this, &buckets, levels, depth, stall, source.triangles()};
+  } walk{this, &pieces, levels, depth, stall, source.triangles()};
   return walk.Go(node, cell, 0, 0);
 }
 

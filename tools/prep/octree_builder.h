@@ -4,7 +4,9 @@
 // If the model fits the in-memory budget it is subdivided directly. Otherwise the stream is
 // split into 8^k buckets (the cells of octree level k, k <= 3) on disk, each triangle going to
 // every cell it overlaps; each bucket is then subdivided in memory (or split again if it is
-// still too large). Buckets and children are visited in Morton order, so blocks reach the
+// still too large). The partition pass reads the stream in pieces on several threads, each
+// with its own bucket files, and a bucket is its pieces' files in order: the source's order,
+// so the store does not depend on the thread count. Buckets and children are visited in Morton order, so blocks reach the
 // disk along a Z-order curve: neighbours in space are neighbours in blocks.bin.
 //
 // Subdivision stops at a cell whose block size estimate is closer (in ratio) to the target
@@ -53,6 +55,13 @@ class TriangleSource {
   virtual uint64_t bytes() const = 0;  // as spooled
   virtual Bounds3f bounds() const = 0;
   virtual bool has_attributes() const = 0;  // any triangle with normals or uvs
+  // The stream cut into contiguous pieces, so the partition pass can read it on several
+  // threads: pieces 0, 1, ..., parts - 1 in turn are ForEach's stream, triangle for triangle.
+  // `parts` is at most MaxParts() (1 for a source that cannot be cut).
+  virtual int MaxParts() const { return 1; }
+  virtual Status ForEachPart(int part, int parts, const TriangleSpool::Visitor& visit) const {
+    return parts == 1 && part == 0 ? ForEach(visit) : Status::Error("this source cannot be cut");
+  }
 };
 
 struct BuildResult {

@@ -128,12 +128,13 @@ Status TriangleSpool::Close() {
   return OkStatus();
 }
 
-Status TriangleSpool::ForEachPlain(const Visitor& visit) const {
+Status TriangleSpool::ForEachPlain(uint64_t first, uint64_t count, bool whole,
+                                   const Visitor& visit) const {
   std::vector<PackedTriangle> tris(kBatch);
   if (!spilled_) {
-    const size_t count = memory_.size() / sizeof(PackedTriangle);
-    for (size_t at = 0; at < count; at += kBatch) {
-      const size_t n = std::min(kBatch, count - at);
+    const uint64_t end = first + count;
+    for (uint64_t at = first; at < end; at += kBatch) {
+      const size_t n = static_cast<size_t>(std::min<uint64_t>(kBatch, end - at));
       std::memcpy(tris.data(), memory_.data() + at * sizeof(PackedTriangle), n * sizeof(PackedTriangle));
       RAYSTACK_RETURN_IF_ERROR(visit(std::span<const PackedTriangle>(tris.data(), n), {}));
     }
@@ -141,25 +142,38 @@ Status TriangleSpool::ForEachPlain(const Visitor& visit) const {
   }
   std::FILE* f = std::fopen(path_.c_str(), "rb");
   if (!f) return Status::Error(path_ + ": cannot reopen temporary file: " + std::strerror(errno));
+  if (first > 0 && fseeko(f, static_cast<off_t>(first * sizeof(PackedTriangle)), SEEK_SET) != 0) {
+    std::fclose(f);
+    return Status::Error(path_ + ": temporary file is damaged (cannot seek)");
+  }
   uint64_t seen = 0;
   Status status;
-  for (;;) {
-    const size_t n = std::fread(tris.data(), sizeof(PackedTriangle), kBatch, f);
+  while (seen < count) {
+    const size_t n = std::fread(tris.data(), sizeof(PackedTriangle),
+                                static_cast<size_t>(std::min<uint64_t>(kBatch, count - seen)), f);
     if (n == 0) break;
     seen += n;
     status = visit(std::span<const PackedTriangle>(tris.data(), n), {});
     if (!status.ok()) break;
   }
-  const bool damaged = std::ferror(f) || std::fgetc(f) != EOF;
+  const bool damaged = std::ferror(f) || (whole && std::fgetc(f) != EOF);
   std::fclose(f);
   if (!status.ok()) return status;
-  if (damaged || seen != triangles_) return Status::Error(path_ + ": temporary file is damaged");
+  if (damaged || seen != count) return Status::Error(path_ + ": temporary file is damaged");
   return OkStatus();
+}
+
+Status TriangleSpool::ForEachRange(uint64_t first, uint64_t count, const Visitor& visit) const {
+  if (has_attributes_)
+    return Status::Error(path_ + ": records of different sizes cannot be read by range");
+  if (first > triangles_ || count > triangles_ - first)
+    return Status::Error(path_ + ": range beyond the spool's end");
+  return ForEachPlain(first, count, first + count == triangles_, visit);
 }
 
 Status TriangleSpool::ForEach(const Visitor& visit) const {
   // Without attributes every record is one PackedTriangle: batches are read in one piece.
-  if (!has_attributes_) return ForEachPlain(visit);
+  if (!has_attributes_) return ForEachPlain(0, triangles_, true, visit);
   std::vector<PackedTriangle> tris;
   std::vector<TriangleAttributes> attrs;
   tris.reserve(kBatch);

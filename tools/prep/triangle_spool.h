@@ -48,12 +48,17 @@ class TriangleSpool {
   using Visitor = std::function<Status(std::span<const PackedTriangle>,
                                        std::span<const TriangleAttributes>)>;
   Status ForEach(const Visitor& visit) const;
+  // Streams triangles [first, first + count) of a spool whose records all have the same size
+  // (no triangle with attributes): the converter reads pieces of one spool on several threads.
+  Status ForEachRange(uint64_t first, uint64_t count, const Visitor& visit) const;
+  bool has_attributes() const { return has_attributes_; }
   // Deletes the spill file and frees memory.
   void Clear();
 
  private:
   Status Spill();
-  Status ForEachPlain(const Visitor& visit) const;  // every record a bare PackedTriangle
+  // Every record a bare PackedTriangle: triangles [first, first + count), or all of them.
+  Status ForEachPlain(uint64_t first, uint64_t count, bool whole, const Visitor& visit) const;
   Status AppendBehind(const PackedTriangle& t, const TriangleAttributes* attributes, bool with);
 
   std::string path_;
