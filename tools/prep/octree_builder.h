@@ -6,8 +6,9 @@
 // every cell it overlaps; each bucket is then subdivided in memory (or split again if it is
 // still too large). The partition pass reads the stream in pieces on several threads, each
 // with its own bucket files, and a bucket is its pieces' files in order: the source's order,
-// so the store does not depend on the thread count. Buckets and children are visited in Morton order, so blocks reach the
-// disk along a Z-order curve: neighbours in space are neighbours in blocks.bin.
+// so the store does not depend on the thread count. Buckets and children are visited in
+// Morton order, so blocks reach the disk along a Z-order curve: neighbours in space are
+// neighbours in blocks.bin.
 //
 // Subdivision stops at a cell whose block size estimate is closer (in ratio) to the target
 // than its children's mean would be. The cap is never exceeded: the encoding pipeline splits
