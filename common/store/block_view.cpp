@@ -138,7 +138,7 @@ bool BlockView::Intersect(const Ray& ray, Hit* hit) const {
   bool found = false;
   // Hits equal to the best t must still be tested (the smaller id wins a tie), so the
   // triangle test's open upper bound is one float above it.
-  float tmax = block_view_internal::NextUp(hit->t);
+  float tmax = NextUp(hit->t);
   TraverseBvh(nodes(), ray, &tmax, [&](uint32_t first, uint32_t count) {
     found |= IntersectLeaf(setup, ray, first, count, &tmax, hit);
     return false;

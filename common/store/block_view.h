@@ -12,6 +12,7 @@
 #include "common/base/status.h"
 #include "common/geometry/bounds.h"
 #include "common/geometry/bvh.h"
+#include "common/geometry/next_float.h"
 #include "common/geometry/ray.h"
 #include "common/geometry/triangle.h"
 #include "common/store/block_layout.h"
@@ -76,20 +77,6 @@ class BlockView {
   const float *nx_ = nullptr, *ny_ = nullptr, *nz_ = nullptr;
 };
 
-namespace block_view_internal {
-
-// std::nextafter(x, +inf), inline (libm's is a call per hit).
-inline float NextUp(float x) {
-  if (!(x < std::numeric_limits<float>::infinity())) return x;  // +inf and NaN
-  if (x == 0.0f) return std::numeric_limits<float>::denorm_min();
-  uint32_t bits;
-  std::memcpy(&bits, &x, sizeof(bits));
-  bits = x > 0 ? bits + 1 : bits - 1;  // the magnitude grows for x > 0, shrinks for x < 0
-  std::memcpy(&x, &bits, sizeof(bits));
-  return x;
-}
-
-}  // namespace block_view_internal
 
 inline bool BlockView::IntersectLeaf(const RayTriangleSetup& setup, const Ray& ray,
                                      uint32_t first, uint32_t count, float* tmax,
@@ -107,7 +94,7 @@ inline bool BlockView::IntersectLeaf(const RayTriangleSetup& setup, const Ray& r
       hit->triangle_id = ids_[i];
       hit->local_triangle = i;
       hit->block_id = id_;
-      *tmax = block_view_internal::NextUp(t);
+      *tmax = NextUp(t);
       found = true;
     }
   }

@@ -58,7 +58,7 @@ void BlockView::IntersectBatch(std::span<const Ray> rays, std::span<Hit> hits) c
         lane_ray[k] = &chunk[static_cast<size_t>(src)];
         lane_hit[k] = &chunk_hits[src];
         setup[k] = RayTriangleSetup(*lane_ray[k]);
-        tmax[k] = block_view_internal::NextUp(lane_hit[k]->t);
+        tmax[k] = NextUp(lane_hit[k]->t);
       }
       const RayPacket4 packet(lane_ray, count);
       TraverseBvhPacket4(nodes(), packet, (1 << count) - 1, tmax,

@@ -174,16 +174,5 @@ TEST(BlockViewBatch, SmallAndEmptyBatches) {
   }
 }
 
-TEST(BlockViewBatch, NextUpIsNextafter) {
-  const float inf = std::numeric_limits<float>::infinity();
-  for (float x : {0.0f, -0.0f, 1.0f, -1.0f, 3.5e-30f, -3.5e-30f, 1e38f, -1e38f,
-                  std::numeric_limits<float>::denorm_min(), -std::numeric_limits<float>::denorm_min(),
-                  std::numeric_limits<float>::max(), -std::numeric_limits<float>::max(), inf, -inf}) {
-    const float a = block_view_internal::NextUp(x), b = std::nextafter(x, inf);
-    EXPECT_EQ(std::memcmp(&a, &b, sizeof(float)), 0) << x;
-  }
-  EXPECT_TRUE(std::isnan(block_view_internal::NextUp(std::numeric_limits<float>::quiet_NaN())));
-}
-
 }  // namespace
 }  // namespace raystack::store

@@ -1,7 +1,10 @@
 #include "tools/prep/clip.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+
+#include "common/geometry/next_float.h"
 
 namespace raystack::prep {
 namespace {
@@ -62,18 +65,18 @@ Bounds3f ClipTriangleToCell(const Vec3f p[3], const Bounds3f& cell) {
   for (int k = 0; k < 3; ++k) mn[k] = mx[k] = a[0].v[k];
   for (int i = 1; i < n; ++i)
     for (int k = 0; k < 3; ++k) {
-      mn[k] = std::fmin(mn[k], a[i].v[k]);
-      mx[k] = std::fmax(mx[k], a[i].v[k]);
+      mn[k] = std::min(mn[k], a[i].v[k]);  // finite points: no NaN to care for, unlike fmin
+      mx[k] = std::max(mx[k], a[i].v[k]);
     }
   Bounds3f out;
   for (int k = 0; k < 3; ++k) {
     // Round outward, then never beyond the triangle's own box (which is exact).
-    float lo_f = std::nextafter(static_cast<float>(mn[k]), -std::numeric_limits<float>::infinity());
-    float hi_f = std::nextafter(static_cast<float>(mx[k]), std::numeric_limits<float>::infinity());
+    float lo_f = NextDown(static_cast<float>(mn[k]));
+    float hi_f = NextUp(static_cast<float>(mx[k]));
     // ... nor beyond the cell: blocks lie inside their cells. Points of the triangle within
     // the widening but outside the cell belong to the neighbour, which has the triangle too.
-    out.lower[k] = std::fmax(std::fmax(lo_f, tri.lower[k]), cell.lower[k]);
-    out.upper[k] = std::fmin(std::fmin(hi_f, tri.upper[k]), cell.upper[k]);
+    out.lower[k] = std::max({lo_f, tri.lower[k], cell.lower[k]});
+    out.upper[k] = std::min({hi_f, tri.upper[k], cell.upper[k]});
     if (out.lower[k] > out.upper[k]) return Bounds3f{};
   }
   return out;
