@@ -106,6 +106,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   options.shuffle = args.shuffle;
   options.bvh = args.bvh;
   options.progress = &progress;
+  options.quiet = args.quiet;
   if (vertices > 0 && sink.triangles() > 0)
     options.vertices_per_triangle = std::clamp(
         static_cast<float>(static_cast<double>(vertices) / static_cast<double>(sink.triangles())) * 1.15f,

@@ -475,12 +475,16 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
                                 writer);
   }
   const CellGrid grid(cell, levels);
+  // The blocks' progress bar only moves once buckets are subdivided: this pass has its own.
+  ProgressReporter progress(StrFormat("partitioning into %u buckets", count), source.triangles(),
+                            "tri", options_.quiet);
   std::vector<Status> piece_status(static_cast<size_t>(parts));
   auto classify = [&](int part) {
     std::vector<uint32_t> cells;
     piece_status[part] = source.ForEachPart(
         part, parts,
         [&](std::span<const PackedTriangle> tris, std::span<const TriangleAttributes> attrs) {
+          progress.Update(tris.size());
           return ClassifyBatch(tris, attrs, cell, grid, &cells, &pieces[part]);
         });
     for (TriangleSpool& b : pieces[part])
@@ -491,6 +495,7 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
   classify(0);
   for (std::thread& h : helpers) h.join();
   for (const Status& s : piece_status) RAYSTACK_RETURN_IF_ERROR(s);
+  progress.Done();
   uint64_t bucket_bytes = 0;
   for (const auto& piece : pieces)
     for (const TriangleSpool& b : piece) bucket_bytes += b.bytes();

@@ -45,6 +45,7 @@ struct BuildOptions {
   BvhBuildOptions bvh;
   float vertices_per_triangle = 0.6f;  // for size estimates (closed meshes ~0.5, soups 3)
   ProgressReporter* progress = nullptr;  // fed with references placed in blocks
+  bool quiet = true;  // no progress of its own (the partition pass's)
 };
 
 // A stream of triangles the builder may read several times.
