@@ -42,6 +42,11 @@ void LivePreview::Update(const std::function<std::vector<RankTiles>()>& tiles) {
   if (!server_ || film_ == nullptr) return;
   status_.samples_done = film_->samples_merged();
   status_.elapsed_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  // Every pixel batch carries the rays its thread traced since its last one, so the film's
+  // count is live (a batch behind per thread); unknown until the first batch.
+  const uint64_t rays = film_->rays_traced();
+  if (rays > 0 && status_.elapsed_seconds > 0)
+    status_.rays_per_second = static_cast<double>(rays) / status_.elapsed_seconds;
   status_.tiles = tiles();
   server_->Publish(status_);
 }

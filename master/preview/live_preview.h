@@ -34,12 +34,14 @@ class LivePreview {
 
   // Frame `frame` of `frames` renders into `film` (alive until EndFrame) at `spp`.
   void BeginFrame(const render::Film* film, uint32_t frame, uint32_t frames, int spp);
-  // Publishes the progress so far; `tiles` is only called when the preview is on.
+  // Publishes the progress so far (rays/s from the rays the film has been told of); `tiles`
+  // is only called when the preview is on.
   void Update(const std::function<std::vector<RankTiles>()>& tiles);
   // The current error estimate of the image (from per-pixel variance), shown until replaced;
   // NaN (the default) shows as "—".
   void SetErrorEstimate(double error) { status_.error_estimate = error; }
-  // The frame is complete: its final image, and its rays per second (NaN if unknown).
+  // The frame is complete: its final image, and its rays per second from the engines' own
+  // counts (NaN if unknown).
   void EndFrame(double rays_per_second);
   // The job is over: serve the final image for the hold time, then close.
   void Finish();

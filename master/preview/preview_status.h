@@ -24,7 +24,8 @@ struct PreviewStatus {
   uint64_t samples_total = 0;      // width * height * spp
   int spp = 1;                     // samples per pixel the frame asks for
   double elapsed_seconds = 0;      // since the frame started
-  // NaN when not known (yet): rays are counted by the engines and reported at the frame's end.
+  // NaN when not known (yet): while rendering, from the rays each pixel batch reports; at the
+  // frame's end, the engines' totals.
   double rays_per_second = std::numeric_limits<double>::quiet_NaN();
   // The current error estimate of the image (from per-pixel variance; filled by the
   // convergence log when it exists); NaN shows as "—".

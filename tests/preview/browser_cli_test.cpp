@@ -166,6 +166,11 @@ TEST_F(PreviewCli, AViewerConnectingMidRenderGetsTheCurrentImage) {
   // And it refines.
   EXPECT_TRUE(browser.WaitFor("preview.frame.samples > " + std::to_string(samples), kPatience, &error))
       << error;
+  // Rays per second are shown while it renders, not only once the frame is done.
+  EXPECT_TRUE(browser.WaitFor("preview.status.rays_per_second > 0 && !preview.status.finished && "
+                              "document.getElementById('rays').textContent !== '—'",
+                              kPatience, &error))
+      << error;
   EXPECT_EQ(browser.Evaluate("document.getElementById('legend').textContent.includes('this process')", &error),
             true) << "the tiles in flight are listed";
 }
