@@ -4,6 +4,7 @@
 #   flock /tmp/raystack-bench.lock tools/bench/priority_repeat_bench.sh WORK_DIR STORE
 set -e
 cd "$(dirname "$0")/../.."; root=$PWD; w=${1:-$(mktemp -d)}; store=${2:?usage: priority_repeat_bench.sh WORK_DIR STORE (a store of --generate spheres:200000)}
+mkdir -p "$w"
 rs=$root/build/master/raystack; plot=$root/tools/plot/raystack-plot
 scene() { cat > $w/$1.json <<JSON
 { "store": "$store",
