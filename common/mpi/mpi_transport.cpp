@@ -62,7 +62,34 @@ MpiTransport::MpiTransport(int rank, int size)
       dead_(std::make_unique<std::atomic<bool>[]>(static_cast<size_t>(size))),
       incoming_(static_cast<size_t>(size)) {}
 
-MpiTransport::~MpiTransport() { MPI_Finalize(); }
+struct MpiTransport::Posted {
+  int to = 0;
+  MPI_Request request = MPI_REQUEST_NULL;
+  std::vector<uint8_t> bytes;
+};
+
+MpiTransport::~MpiTransport() {
+  // Posted answers still in flight are given a few seconds to be taken (MPI_Finalize with
+  // sends pending is erroneous); a peer that stopped receiving does not hold the end up.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  for (;;) {
+    {
+      std::lock_guard lock(posted_mu_);
+      (void)ProgressPosted();
+      if (posted_.empty()) break;
+      if (std::chrono::steady_clock::now() >= deadline) {
+        for (Posted& p : posted_) {
+          MPI_Request_free(&p.request);
+          abandoned_.push_back(std::move(p.bytes));
+        }
+        posted_.clear();
+        break;
+      }
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
+  MPI_Finalize();
+}
 
 Status MpiTransport::Send(int to, std::span<const uint8_t> bytes) {
   if (to < 0 || to >= size_) return Status::Error(StrFormat("rank %d: no rank %d", rank_, to));
@@ -92,6 +119,53 @@ Status MpiTransport::Send(int to, std::span<const uint8_t> bytes) {
   return OkStatus();
 }
 
+Status MpiTransport::Post(int to, std::vector<uint8_t> bytes) {
+  if (to < 0 || to >= size_) return Status::Error(StrFormat("rank %d: no rank %d", rank_, to));
+  if (bytes.size() > transport::kMaxMessageBytes)
+    return Status::Error(StrFormat("rank %d: message of %zu bytes is too large", rank_,
+                                   bytes.size()));
+  std::lock_guard lock(posted_mu_);
+  if (dead_[static_cast<size_t>(to)].load())
+    return Status::Error(StrFormat("rank %d: rank %d is gone, the message to it is dropped",
+                                   rank_, to));
+  // The node keeps its place in the list, so the buffer MPI reads stays where it is.
+  Posted& p = posted_.emplace_back();
+  p.to = to;
+  p.bytes = std::move(bytes);
+  if (const int rc = MPI_Isend(p.bytes.data(), static_cast<int>(p.bytes.size()), MPI_BYTE, to,
+                               kTag, MPI_COMM_WORLD, &p.request);
+      rc != MPI_SUCCESS) {
+    posted_.pop_back();
+    return Status::Error(StrFormat("rank %d: sending to rank %d failed: %s", rank_, to,
+                                   MpiError(rc).c_str()));
+  }
+  posted_count_.store(posted_.size());
+  return ProgressPosted();
+}
+
+Status MpiTransport::ProgressPosted() {
+  for (auto it = posted_.begin(); it != posted_.end();) {
+    int done = 0;
+    const int rc = MPI_Test(&it->request, &done, MPI_STATUS_IGNORE);
+    if (rc != MPI_SUCCESS && posted_error_.ok())
+      posted_error_ = Status::Error(StrFormat("rank %d: sending to rank %d failed: %s", rank_,
+                                              it->to, MpiError(rc).c_str()));
+    if (done || rc != MPI_SUCCESS) {
+      it = posted_.erase(it);
+    } else if (dead_[static_cast<size_t>(it->to)].load()) {  // never completes
+      MPI_Request_free(&it->request);
+      abandoned_.push_back(std::move(it->bytes));
+      it = posted_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  posted_count_.store(posted_.size());
+  Status error = posted_error_;
+  posted_error_ = OkStatus();
+  return error;
+}
+
 void MpiTransport::NoteRankDied(int rank) {
   rank_died_ = true;
   if (rank >= 0 && rank < size_) dead_[static_cast<size_t>(rank)] = true;
@@ -108,6 +182,10 @@ Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
   const auto deadline = std::chrono::steady_clock::now() + timeout;
   auto pause = std::chrono::microseconds(20);
   for (;;) {
+    if (posted_count_.load() > 0) {  // the posted sends progress while this rank waits
+      std::lock_guard posted_lock(posted_mu_);
+      RAYSTACK_RETURN_IF_ERROR(ProgressPosted());
+    }
     for (int i = 0; i < size_; ++i) {
       const int from = (next_source_ + i) % size_;
       Incoming& in = incoming_[static_cast<size_t>(from)];

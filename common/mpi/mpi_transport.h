@@ -10,6 +10,7 @@
 // naming its sender (it is still drained, so the next one can be read).
 
 #include <atomic>
+#include <list>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -31,6 +32,9 @@ class MpiTransport final : public transport::Transport {
   int rank() const override { return rank_; }
   int size() const override { return size_; }
   Status Send(int to, std::span<const uint8_t> bytes) override;
+  // MPI_Isend of bytes it keeps; Receive (and the next Post) test the sends in flight and drop
+  // the finished ones, and those to a rank known dead.
+  Status Post(int to, std::vector<uint8_t> bytes) override;
   Expected<std::optional<transport::Envelope>> Receive(std::chrono::milliseconds timeout) override;
   // Ends every rank of the job (MPI_Abort), for errors that one rank cannot recover from.
   [[noreturn]] void Abort(int code);
@@ -47,6 +51,15 @@ class MpiTransport final : public transport::Transport {
   std::unique_ptr<std::atomic<bool>[]> dead_;  // by rank
   // Receives in progress, by sender (Receive; defined where mpi.h is).
   struct Incoming;
+  // Posted sends in flight (defined where mpi.h is).
+  struct Posted;
+  // Tests the posted sends, drops the finished ones; the first failure. Holds posted_mu_.
+  Status ProgressPosted();
+  std::mutex posted_mu_;
+  std::list<Posted> posted_;
+  std::list<std::vector<uint8_t>> abandoned_;  // sends to dead ranks: MPI may still read them
+  std::atomic<size_t> posted_count_{0};
+  Status posted_error_;
   std::mutex receive_mu_;
   std::vector<Incoming> incoming_;
   int next_source_ = 0;
