@@ -149,16 +149,26 @@ Status MpiTransport::Post(int to, std::vector<uint8_t> bytes) {
 }
 
 Status MpiTransport::ProgressPosted() {
-  for (auto it = posted_.begin(); it != posted_.end();) {
-    int done = 0;
-    const int rc = MPI_Test(&it->request, &done, MPI_STATUS_IGNORE);
+  // One MPI_Testsome for all of them: MPI_Test each would make one progress call per send in
+  // flight, and an owner may have an answer in flight for every fetch its peers have out.
+  std::vector<MPI_Request> requests;
+  requests.reserve(posted_.size());
+  for (const Posted& p : posted_) requests.push_back(p.request);
+  std::vector<int> finished(requests.size());
+  int count = 0;
+  if (!requests.empty()) {
+    const int rc = MPI_Testsome(static_cast<int>(requests.size()), requests.data(), &count,
+                                finished.data(), MPI_STATUSES_IGNORE);
     if (rc != MPI_SUCCESS && posted_error_.ok())
-      posted_error_ = Status::Error(StrFormat("rank %d: sending to rank %d failed: %s", rank_,
-                                              it->to, MpiError(rc).c_str()));
-    if (done || rc != MPI_SUCCESS) {
+      posted_error_ = Status::Error(StrFormat("rank %d: a posted send failed: %s", rank_,
+                                              MpiError(rc).c_str()));
+  }
+  size_t i = 0;
+  for (auto it = posted_.begin(); it != posted_.end(); ++i) {
+    if (requests[i] == MPI_REQUEST_NULL) {  // done (Testsome frees finished requests)
       it = posted_.erase(it);
     } else if (dead_[static_cast<size_t>(it->to)].load()) {  // never completes
-      MPI_Request_free(&it->request);
+      MPI_Request_free(&requests[i]);
       abandoned_.push_back(std::move(it->bytes));
       it = posted_.erase(it);
     } else {
