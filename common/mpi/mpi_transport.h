@@ -5,11 +5,14 @@
 // slave's ray threads send pixel batches while its receiver waits for tiles; Init refuses to
 // run with less.
 //
-// Receive probes for any sender and sleeps between probes (MPI has no wait-with-timeout), at
-// most 100 us: an idle rank costs ~1% of a core, and a peer's block request waits little. A message larger than kMaxMessageBytes is an error
-// naming its sender (it is still drained, so the next one can be read).
+// Receive probes for any sender and sleeps between probes (MPI has no wait-with-timeout): at
+// most 100 us while messages come, so a peer's block request waits little, and up to 1 ms
+// once none has come for 2 ms, so an idle rank (or a slave rendering between tile answers)
+// spends little CPU on wake-ups. A message larger than kMaxMessageBytes is an error naming its
+// sender (it is still drained, so the next one can be read).
 
 #include <atomic>
+#include <chrono>
 #include <list>
 #include <memory>
 #include <mutex>
@@ -62,6 +65,11 @@ class MpiTransport final : public transport::Transport {
   Status posted_error_;
   std::mutex receive_mu_;
   std::vector<Incoming> incoming_;
+  // Receive's longest sleep between probes: kBusyPause, or kQuietPause once no message has
+  // come for kQuietAfter.
+  static constexpr std::chrono::microseconds kBusyPause{100}, kQuietPause{1000};
+  static constexpr std::chrono::milliseconds kQuietAfter{2};
+  std::chrono::steady_clock::time_point last_message_{};
   int next_source_ = 0;
 };
 
