@@ -188,9 +188,10 @@ void PeerBlocks::Answer(int to, const wire::BlockRequest& r, std::vector<uint8_t
   const wire::BlockDataHeader h{r.request, r.first, r.count, st.ok() ? 0u : 1u};
   // Posted, never a blocking send: this may run on the receiving thread, and a receiver
   // waiting for a peer that is itself waiting to answer this one would never return.
-  const Status sent = net_->Post(
-      to, wire::EncodeBlockData(static_cast<uint32_t>(net_->rank()), h,
-                                st.ok() ? std::span<const uint8_t>(*bytes) : std::span<const uint8_t>()));
+  const std::span<const uint8_t> stored =
+      st.ok() ? std::span<const uint8_t>(*bytes) : std::span<const uint8_t>();
+  const Status sent =
+      net_->Post(to, wire::EncodeBlockData(static_cast<uint32_t>(net_->rank()), h, stored));
   if (!sent.ok()) LOG_ERROR("slave", "%s", sent.message().c_str());
   if (st.ok()) to_peers_.fetch_add(bytes->size());
 }

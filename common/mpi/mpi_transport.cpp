@@ -210,7 +210,8 @@ Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
       if (const int rc = MPI_Iprobe(MPI_ANY_SOURCE, kTag, MPI_COMM_WORLD, &anything,
                                     MPI_STATUS_IGNORE);
           rc != MPI_SUCCESS)
-        return Status::Error(StrFormat("rank %d: MPI_Iprobe failed: %s", rank_, MpiError(rc).c_str()));
+        return Status::Error(StrFormat("rank %d: MPI_Iprobe failed: %s", rank_,
+                                       MpiError(rc).c_str()));
     }
     for (int i = 0; i < size_ && (any_active || anything); ++i) {
       const int from = (next_source_ + i) % size_;
