@@ -627,18 +627,25 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
           std::printf("  rank %d: dropped (%s)\n", s.rank, s.failure.c_str());
           continue;
         }
+        // The peers' part only where there was one (--blocks rem).
+        const std::string peers =
+            s.done.fetches + s.done.bytes_to_peers == 0
+                ? std::string()
+                : StrFormat(" (%.1f MB from peers in %llu fetches, %.3f s waiting; %.1f MB to "
+                            "peers)",
+                            static_cast<double>(s.done.bytes_from_peers) / 1e6,
+                            static_cast<unsigned long long>(s.done.fetches),
+                            s.done.fetch_wait_seconds,
+                            static_cast<double>(s.done.bytes_to_peers) / 1e6);
         std::printf("  rank %d: %.3f s (ray threads busy %.3f s), %llu rays, %llu tiles, %llu "
-                    "blocks loaded (%llu distinct), %.1f MB of blocks (%.1f MB from peers in %llu "
-                    "fetches, %.3f s waiting, %.1f MB to peers), %.1f MB sent to the master\n",
+                    "blocks loaded (%llu distinct), %.1f MB of blocks%s, %.1f MB sent to the "
+                    "master\n",
                     s.rank, s.done.seconds, s.done.busy_seconds,
                     static_cast<unsigned long long>(s.done.rays),
                     static_cast<unsigned long long>(s.done.tiles),
                     static_cast<unsigned long long>(s.done.blocks_loaded),
                     static_cast<unsigned long long>(s.done.blocks_distinct),
-                    static_cast<double>(s.done.bytes_read) / 1e6,
-                    static_cast<double>(s.done.bytes_from_peers) / 1e6,
-                    static_cast<unsigned long long>(s.done.fetches), s.done.fetch_wait_seconds,
-                    static_cast<double>(s.done.bytes_to_peers) / 1e6,
+                    static_cast<double>(s.done.bytes_read) / 1e6, peers.c_str(),
                     static_cast<double>(s.bytes_received) / 1e6);
       }
       std::printf("  wrote %s\n", exr->c_str());
