@@ -25,6 +25,16 @@ double FrameFigures::imbalance() const {
   return max > 0 ? 1.0 - sum / static_cast<double>(counted) / max : 0.0;
 }
 
+double FrameFigures::utilisation() const {
+  double busy = 0, offered = 0;
+  for (const SlaveFigures& s : slaves) {
+    if (s.dropped) continue;
+    busy += s.done.busy_seconds;
+    offered += static_cast<double>(s.done.ray_threads) * seconds;
+  }
+  return offered > 0 ? busy / offered : 0.0;
+}
+
 struct MasterNode::Frame {
   uint32_t number;
   render::Film* film;

@@ -42,6 +42,12 @@ struct FrameFigures {
   double seconds = 0;                // the frame on the master's clock
   // Thesis definitions over the slaves' render times.
   double imbalance() const;  // 1 - mean / max
+  // The slaves' busy ray-thread time (FrameDone::busy_seconds: tracing, not waiting for blocks
+  // or tiles) over the ray-thread time the frame offered them (ray threads x `seconds`), over
+  // the slaves that finished. Online, unlike T_1 / (N x T_N), which needs a one-slave run: it
+  // says how much of the slaves' time the frame wasted waiting, not what extra work (reloads,
+  // a peer's blocks) cost. 0 if unknown.
+  double utilisation() const;
 };
 
 struct MasterOptions {

@@ -521,14 +521,16 @@ Status Run(const Args& args) {
 
 std::string FiguresJson(size_t frame, const FrameFigures& f) {
   std::string s = StrFormat("{\n  \"frame\": %zu,\n  \"seconds\": %g,\n  \"imbalance\": %g,"
-                            "\n  \"slaves\": [", frame, f.seconds, f.imbalance());
+                            "\n  \"utilisation\": %g,\n  \"slaves\": [",
+                            frame, f.seconds, f.imbalance(), f.utilisation());
   for (size_t i = 0; i < f.slaves.size(); ++i) {
     const SlaveFigures& x = f.slaves[i];
     s += StrFormat("%s\n    {\"rank\": %d, \"seconds\": %g, \"rays\": %llu, \"samples\": %llu, "
                    "\"tiles\": %llu, \"blocks_loaded\": %llu, \"blocks_distinct\": %llu, "
                    "\"bytes_read\": %llu, \"bytes_from_peers\": %llu, \"bytes_to_peers\": %llu, "
                    "\"bytes_to_master\": %llu, \"pixel_bytes\": %llu, "
-                   "\"bytes_from_master\": %llu}",
+                   "\"bytes_from_master\": %llu, \"ray_threads\": %u, \"busy_seconds\": %g, "
+                   "\"fetches\": %llu, \"fetch_wait_seconds\": %g}",
                    i ? "," : "", x.rank, x.done.seconds,
                    static_cast<unsigned long long>(x.done.rays),
                    static_cast<unsigned long long>(x.done.samples),
@@ -540,7 +542,9 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
                    static_cast<unsigned long long>(x.done.bytes_to_peers),
                    static_cast<unsigned long long>(x.bytes_received),
                    static_cast<unsigned long long>(x.pixel_bytes),
-                   static_cast<unsigned long long>(x.bytes_sent));
+                   static_cast<unsigned long long>(x.bytes_sent), x.done.ray_threads,
+                   x.done.busy_seconds, static_cast<unsigned long long>(x.done.fetches),
+                   x.done.fetch_wait_seconds);
   }
   return s + "\n  ]\n}";
 }
@@ -616,23 +620,32 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
       return exr.status();
     }
     if (!args.quiet) {
-      std::printf("frame %zu: %d slaves, %.3f s, imbalance %.3f\n", f, net->size() - 1,
-                  figures.seconds, figures.imbalance());
+      std::printf("frame %zu: %d slaves, %.3f s, imbalance %.3f, utilisation %.3f\n", f,
+                  net->size() - 1, figures.seconds, figures.imbalance(), figures.utilisation());
       for (const SlaveFigures& s : figures.slaves) {
         if (s.dropped) {
           std::printf("  rank %d: dropped (%s)\n", s.rank, s.failure.c_str());
           continue;
         }
-        std::printf("  rank %d: %.3f s, %llu rays, %llu tiles, %llu blocks loaded (%llu distinct), "
-                    "%.1f MB of blocks (%.1f MB from peers, %.1f MB to peers), %.1f MB sent to "
-                    "the master\n",
-                    s.rank, s.done.seconds, static_cast<unsigned long long>(s.done.rays),
+        // The peers' part only where there was one (--blocks rem).
+        const std::string peers =
+            s.done.fetches + s.done.bytes_to_peers == 0
+                ? std::string()
+                : StrFormat(" (%.1f MB from peers in %llu fetches, %.3f s waiting; %.1f MB to "
+                            "peers)",
+                            static_cast<double>(s.done.bytes_from_peers) / 1e6,
+                            static_cast<unsigned long long>(s.done.fetches),
+                            s.done.fetch_wait_seconds,
+                            static_cast<double>(s.done.bytes_to_peers) / 1e6);
+        std::printf("  rank %d: %.3f s (ray threads busy %.3f s), %llu rays, %llu tiles, %llu "
+                    "blocks loaded (%llu distinct), %.1f MB of blocks%s, %.1f MB sent to the "
+                    "master\n",
+                    s.rank, s.done.seconds, s.done.busy_seconds,
+                    static_cast<unsigned long long>(s.done.rays),
                     static_cast<unsigned long long>(s.done.tiles),
                     static_cast<unsigned long long>(s.done.blocks_loaded),
                     static_cast<unsigned long long>(s.done.blocks_distinct),
-                    static_cast<double>(s.done.bytes_read) / 1e6,
-                    static_cast<double>(s.done.bytes_from_peers) / 1e6,
-                    static_cast<double>(s.done.bytes_to_peers) / 1e6,
+                    static_cast<double>(s.done.bytes_read) / 1e6, peers.c_str(),
                     static_cast<double>(s.bytes_received) / 1e6);
       }
       std::printf("  wrote %s\n", exr->c_str());

@@ -32,7 +32,8 @@ PeerBlocks::~PeerBlocks() {
 void PeerBlocks::Stop() {
   std::lock_guard lock(mu_);
   stopped_ = true;
-  cv_.notify_all();
+  for (auto& [id, p] : pending_) p->cv.notify_all();
+  serve_cv_.notify_all();
 }
 
 void PeerBlocks::OwnerLost(int rank) {
@@ -40,8 +41,10 @@ void PeerBlocks::OwnerLost(int rank) {
   if (rank < 0 || rank >= static_cast<int>(lost_.size())) return;
   lost_[static_cast<size_t>(rank)] = true;
   for (auto& [id, p] : pending_)
-    if (p.owner == rank && !p.done) p.owner_lost = p.done = true;
-  cv_.notify_all();
+    if (p->owner == rank && !p->done) {
+      p->owner_lost = p->done = true;
+      p->cv.notify_all();
+    }
 }
 
 Status PeerBlocks::Own(uint32_t block, std::vector<uint8_t>* append) {
@@ -49,6 +52,7 @@ Status PeerBlocks::Own(uint32_t block, std::vector<uint8_t>* append) {
   std::call_once(o.loaded, [&] {
     const uint32_t ids[1] = {block};
     o.status = disk_.ReadRun(ids, &o.bytes);
+    o.ready.store(true, std::memory_order_release);
   });
   if (!o.status.ok()) return o.status;
   append->insert(append->end(), o.bytes.begin(), o.bytes.end());
@@ -76,26 +80,35 @@ Status PeerBlocks::Fetch(int owner, uint32_t first, uint32_t count, std::vector<
       return from_disk();
     }
     id = next_request_++;
-    Pending p;
-    p.owner = owner;
-    p.first = first;
-    p.count = count;
+    auto p = std::make_unique<Pending>();
+    p->owner = owner;
+    p->first = first;
+    p->count = count;
     pending_.emplace(id, std::move(p));
   }
-  RAYSTACK_RETURN_IF_ERROR(net_->Send(owner, wire::Encode(static_cast<uint32_t>(net_->rank()),
-                                                          wire::BlockRequest{id, first, count, 0})));
+  fetches_.fetch_add(1, std::memory_order_relaxed);
+  const auto asked = std::chrono::steady_clock::now();
+  const Status sent = net_->Send(owner, wire::Encode(static_cast<uint32_t>(net_->rank()),
+                                                     wire::BlockRequest{id, first, count, 0}));
   std::unique_lock lock(mu_);
+  Pending& waiting = *pending_.at(id);
   // A peer that never answers must not hang the job: a minute is far beyond any real fetch.
-  const bool answered = cv_.wait_for(lock, std::chrono::minutes(1), [&] {
-    return pending_.at(id).done || stopped_;
+  const bool answered = sent.ok() && waiting.cv.wait_for(lock, std::chrono::minutes(1), [&] {
+    return waiting.done || stopped_;
   });
-  Pending p = std::move(pending_.at(id));
+  std::unique_ptr<Pending> taken = std::move(pending_.at(id));
   pending_.erase(id);
   lock.unlock();
+  Pending& p = *taken;
+  const auto waited = std::chrono::steady_clock::now() - asked;
+  fetch_wait_ns_.fetch_add(
+      static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(waited).count()),
+      std::memory_order_relaxed);
+  if (p.owner_lost) return from_disk();
+  RAYSTACK_RETURN_IF_ERROR(sent);
   if (!answered || !p.done)
     return Status::Error(StrFormat("blocks %u-%u: rank %d did not answer", first,
                                    first + count - 1, owner));
-  if (p.owner_lost) return from_disk();
   if (!p.status.ok()) return p.status;
   from_peers_.fetch_add(p.bytes.size());
   append->insert(append->end(), p.bytes.begin(), p.bytes.end());
@@ -126,9 +139,16 @@ Status PeerBlocks::OnRequest(int from, const wire::BlockRequest& r) {
   if (r.count == 0 || r.first < own_first_ || r.first >= own_end_ || r.count > own_end_ - r.first)
     return Status::Error(StrFormat("rank %d asked rank %d for blocks %u+%u, which it does not own",
                                    from, net_->rank(), r.first, r.count));
+  bool in_memory = true;
+  for (uint32_t b = r.first; b < r.first + r.count && in_memory; ++b)
+    in_memory = owned_[b - own_first_].ready.load(std::memory_order_acquire);
+  if (in_memory) {  // the common case once warm: answered without waking another thread
+    Answer(from, r, &receive_scratch_);
+    return OkStatus();
+  }
   std::lock_guard lock(mu_);
   to_serve_.push_back({from, r});
-  cv_.notify_all();
+  serve_cv_.notify_one();
   return OkStatus();
 }
 
@@ -136,11 +156,11 @@ Status PeerBlocks::OnData(int from, const wire::Message& m) {
   const wire::BlockDataHeader d = m.block_data_header();
   std::lock_guard lock(mu_);
   auto it = pending_.find(d.request);
-  if (it == pending_.end() || it->second.owner != from || it->second.first != d.first ||
-      it->second.count != d.count)
+  if (it == pending_.end() || it->second->owner != from || it->second->first != d.first ||
+      it->second->count != d.count)
     return Status::Error(StrFormat("rank %d sent blocks %u+%u this rank did not ask it for",
                                    from, d.first, d.count));
-  Pending& p = it->second;
+  Pending& p = *it->second;
   if (d.failed) {
     p.status = Status::Error(StrFormat("blocks %u-%u: their owner, rank %d, could not read them",
                                        d.first, d.first + d.count - 1, from));
@@ -156,8 +176,24 @@ Status PeerBlocks::OnData(int from, const wire::Message& m) {
       p.bytes.assign(bytes.begin(), bytes.end());
   }
   p.done = true;
-  cv_.notify_all();
+  p.cv.notify_all();
   return OkStatus();
+}
+
+void PeerBlocks::Answer(int to, const wire::BlockRequest& r, std::vector<uint8_t>* bytes) {
+  bytes->clear();
+  Status st;
+  for (uint32_t b = r.first; b < r.first + r.count && st.ok(); ++b) st = Own(b, bytes);
+  if (!st.ok()) LOG_ERROR("slave", "serving rank %d: %s", to, st.message().c_str());
+  const wire::BlockDataHeader h{r.request, r.first, r.count, st.ok() ? 0u : 1u};
+  // Posted, never a blocking send: this may run on the receiving thread, and a receiver
+  // waiting for a peer that is itself waiting to answer this one would never return.
+  const std::span<const uint8_t> stored =
+      st.ok() ? std::span<const uint8_t>(*bytes) : std::span<const uint8_t>();
+  const Status sent =
+      net_->Post(to, wire::EncodeBlockData(static_cast<uint32_t>(net_->rank()), h, stored));
+  if (!sent.ok()) LOG_ERROR("slave", "%s", sent.message().c_str());
+  if (st.ok()) to_peers_.fetch_add(bytes->size());
 }
 
 void PeerBlocks::ServeLoop() {
@@ -166,23 +202,12 @@ void PeerBlocks::ServeLoop() {
     Served s;
     {
       std::unique_lock lock(mu_);
-      cv_.wait(lock, [&] { return stopped_ || !to_serve_.empty(); });
+      serve_cv_.wait(lock, [&] { return stopped_ || !to_serve_.empty(); });
       if (to_serve_.empty()) return;
       s = to_serve_.front();
       to_serve_.pop_front();
     }
-    bytes.clear();
-    Status st;
-    for (uint32_t b = s.request.first; b < s.request.first + s.request.count && st.ok(); ++b)
-      st = Own(b, &bytes);
-    if (!st.ok()) LOG_ERROR("slave", "serving rank %d: %s", s.to, st.message().c_str());
-    const wire::BlockDataHeader h{s.request.request, s.request.first, s.request.count,
-                                  st.ok() ? 0u : 1u};
-    const Status sent = net_->Send(
-        s.to, wire::EncodeBlockData(static_cast<uint32_t>(net_->rank()), h,
-                                    st.ok() ? std::span<const uint8_t>(bytes) : std::span<const uint8_t>()));
-    if (!sent.ok()) LOG_ERROR("slave", "%s", sent.message().c_str());
-    if (st.ok()) to_peers_.fetch_add(bytes.size());
+    Answer(s.to, s.request, &bytes);
   }
 }
 

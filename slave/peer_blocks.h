@@ -8,10 +8,13 @@
 //
 // PeerBlocks is the engine's BlockSource: a run of blocks comes from this slave's own share or
 // from the owners' (one request per owner per run; the loader's worker waits for the answer
-// while others go on). The owner side answers requests on a server thread of its own, so
-// serving peers never holds up the receiving thread. Requests and answers are plain wire
-// messages; an answer is checked against the index (sizes) before it is used, and every block
-// is checked again by its checksum when decoded.
+// while others go on). The owner answers a request for blocks it holds already right on the
+// receiving thread, with a posted (non-blocking) send: no thread hop, so a fetch costs the
+// owner one wake-up, which under a CPU cap may wait for the node's next slice. A request that
+// needs a disk read goes to a server thread, so a slow disk never holds up the receiving
+// thread. Each fetch waits on a condition variable of its own (an answer wakes its fetcher
+// only). Requests and answers are plain wire messages; an answer is checked against the index
+// (sizes) before it is used, and every block is checked again by its checksum when decoded.
 //
 // Thread-safe. The slave's receiving thread hands peer messages in with OnRequest / OnData.
 
@@ -19,6 +22,7 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <unordered_map>
@@ -50,8 +54,13 @@ class PeerBlocks final : public BlockSource {
   uint64_t disk_reads() const { return disk_.reads(); }  // blocks read from disk (own share)
   uint64_t bytes_from_peers() const { return from_peers_.load(); }
   uint64_t bytes_to_peers() const { return to_peers_.load(); }
+  // Requests sent to owners, and the time fetches spent waiting for their answers (summed over
+  // the loader's workers): where --blocks rem's time goes.
+  uint64_t fetches() const { return fetches_.load(); }
+  double fetch_wait_seconds() const { return static_cast<double>(fetch_wait_ns_.load()) * 1e-9; }
 
-  // From the receiving thread: a peer's request (answered on the server thread), an answer.
+  // From the receiving thread (only): a peer's request (answered at once when its blocks are
+  // in memory, else on the server thread), an answer.
   Status OnRequest(int from, const wire::BlockRequest& request);
   Status OnData(int from, const wire::Message& data);
   // Fails every wait for an answer (the job is ending).
@@ -68,6 +77,7 @@ class PeerBlocks final : public BlockSource {
     bool owner_lost = false;  // read them from disk instead
     Status status;
     std::vector<uint8_t> bytes;
+    std::condition_variable cv;  // its fetcher waits here
   };
   struct Served {
     int to;
@@ -76,6 +86,8 @@ class PeerBlocks final : public BlockSource {
   // This slave's own block, read from disk on first use.
   Status Own(uint32_t block, std::vector<uint8_t>* append);
   Status Fetch(int owner, uint32_t first, uint32_t count, std::vector<uint8_t>* append);
+  // Sends `to` the answer to `request`, its blocks read (from memory or disk) into `scratch`.
+  void Answer(int to, const wire::BlockRequest& request, std::vector<uint8_t>* scratch);
   void ServeLoop();
 
   transport::Transport* net_;
@@ -86,21 +98,24 @@ class PeerBlocks final : public BlockSource {
   uint64_t owned_bytes_ = 0;
   struct OwnedBlock {
     std::once_flag loaded;
+    std::atomic<bool> ready{false};  // loaded (or failed): Own will not read the disk
     Status status;
     std::vector<uint8_t> bytes;
   };
   std::vector<OwnedBlock> owned_;
 
   std::mutex mu_;
-  std::condition_variable cv_;
-  std::unordered_map<uint32_t, Pending> pending_;
+  std::condition_variable serve_cv_;  // the server thread waits here
+  std::unordered_map<uint32_t, std::unique_ptr<Pending>> pending_;
   uint32_t next_request_ = 0;
   bool stopped_ = false;
   std::vector<bool> lost_;  // by rank
   std::deque<Served> to_serve_;
+  std::vector<uint8_t> receive_scratch_;  // answers built on the receiving thread
   std::thread server_;
 
   std::atomic<uint64_t> reads_{0}, bytes_{0}, from_peers_{0}, to_peers_{0};
+  std::atomic<uint64_t> fetches_{0}, fetch_wait_ns_{0};
 };
 
 }  // namespace raystack::slave

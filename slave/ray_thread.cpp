@@ -81,7 +81,12 @@ bool RayThread::FeedNextTile(bool may_wait) {
     return false;
   }
   Tile tile;
-  if (!shared_->tiles->Next(index_, &tile)) {
+  const auto asked = std::chrono::steady_clock::now();
+  const bool got = shared_->tiles->Next(index_, &tile);
+  if (may_wait)  // (otherwise the tile was there: Next did not wait)
+    counters_.tile_wait_seconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - asked).count();
+  if (!got) {
     tiles_exhausted_ = true;
     return false;
   }
@@ -344,6 +349,7 @@ void RayThread::DrainInbox() {
 }
 
 void RayThread::RunStack() {
+  const auto began = std::chrono::steady_clock::now();
   while (!shared_->abort.load(std::memory_order_relaxed)) {
     DrainInbox();
     const uint32_t q = queues_.PopReady();
@@ -373,6 +379,8 @@ void RayThread::RunStack() {
   }
   FlushResults();
   counters_.peak_open_samples = slots_.peak_open();
+  counters_.run_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -446,6 +454,7 @@ void RayThread::TraceSync(RayRecord ray) {
 }
 
 void RayThread::RunSync() {
+  const auto began = std::chrono::steady_clock::now();
   while (!shared_->abort.load(std::memory_order_relaxed)) {
     if (pending_.empty() && !FeedNextTile(/*may_wait=*/true)) break;
     while (!pending_.empty() && !shared_->abort.load(std::memory_order_relaxed)) {
@@ -456,6 +465,8 @@ void RayThread::RunSync() {
   }
   FlushResults();
   counters_.peak_open_samples = slots_.peak_open();
+  counters_.run_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
 }
 
 }  // namespace raystack::slave

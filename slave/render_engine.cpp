@@ -1,5 +1,6 @@
 #include "slave/render_engine.h"
 
+#include <algorithm>
 #include <chrono>
 #include <thread>
 
@@ -166,6 +167,8 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
     s.peak_stack_rays += c.peak_stack_rays;
     s.peak_open_samples += c.peak_open_samples;
     s.ray_idle_seconds += c.idle_seconds;
+    s.ray_tile_wait_seconds += c.tile_wait_seconds;
+    s.ray_busy_seconds += std::max(0.0, c.run_seconds - c.idle_seconds - c.tile_wait_seconds);
   }
   for (uint64_t r : s.rays) s.rays_total += r;
   s.rays_per_second = s.seconds > 0 ? static_cast<double>(s.rays_total) / s.seconds : 0;

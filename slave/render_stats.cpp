@@ -27,6 +27,8 @@ std::string RenderStats::ToJson() const {
     << ",\n  \"block_visits\": " << block_visits << ",\n  \"cache_hit_rate\": " << cache_hit_rate
     << ",\n  \"loader_busy_seconds\": " << loader_busy_seconds
     << ",\n  \"ray_idle_seconds\": " << ray_idle_seconds
+    << ",\n  \"ray_tile_wait_seconds\": " << ray_tile_wait_seconds
+    << ",\n  \"ray_busy_seconds\": " << ray_busy_seconds
     << ",\n  \"cache_budget_bytes\": " << cache_budget_bytes
     << ",\n  \"cache_peak_bytes\": " << cache_peak_bytes << ",\n  \"evictions\": " << evictions
     << ",\n  \"peak_stack_bytes\": " << peak_stack_bytes
@@ -49,6 +51,8 @@ std::string RenderStats::ToText() const {
                  static_cast<unsigned long long>(blocks_distinct),
                  static_cast<unsigned long long>(block_count), static_cast<double>(bytes_read) / 1e6,
                  static_cast<unsigned long long>(reads), loader_busy_seconds, ray_idle_seconds);
+  s += StrFormat("\n  ray threads: busy %.3f s, waiting for a tile %.3f s", ray_busy_seconds,
+                 ray_tile_wait_seconds);
   s += StrFormat("\n  cache: hit rate %.4f, peak %.1f of %.1f MB, %llu evictions",
                  cache_hit_rate, static_cast<double>(cache_peak_bytes) / 1e6,
                  static_cast<double>(cache_budget_bytes) / 1e6,

@@ -18,6 +18,8 @@ struct ThreadCounters {
   uint64_t peak_stack_rays = 0;
   uint64_t peak_open_samples = 0;
   double idle_seconds = 0;  // asleep with every ray waiting for the loader (stack mode)
+  double tile_wait_seconds = 0;  // holding no rays, waiting for the tile source's next tile
+  double run_seconds = 0;        // from the thread's start in the frame to its end
 };
 
 struct RenderStats {
@@ -38,6 +40,10 @@ struct RenderStats {
   double cache_hit_rate = 0;     // visits whose block was resident when the ray got there
   double loader_busy_seconds = 0;  // T_io: time with at least one read in flight
   double ray_idle_seconds = 0;     // summed over ray threads: asleep, every ray waiting for a block
+  double ray_tile_wait_seconds = 0;  // summed over ray threads: no rays, waiting for a tile
+  // Summed over ray threads: run time minus the two waits above, i.e. tracing and shading (in
+  // sync mode a thread's own block reads count as busy). The master's utilisation.
+  double ray_busy_seconds = 0;
   uint64_t cache_budget_bytes = 0;
   uint64_t cache_peak_bytes = 0;
   uint64_t evictions = 0;

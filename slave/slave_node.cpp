@@ -265,6 +265,8 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   }
   const uint64_t from_peers = peers_ ? peers_->bytes_from_peers() : 0;
   const uint64_t to_peers = peers_ ? peers_->bytes_to_peers() : 0;
+  const uint64_t fetches = peers_ ? peers_->fetches() : 0;
+  const double fetch_wait = peers_ ? peers_->fetch_wait_seconds() : 0;
   Status status = engine_->RenderFrame(scene, materials, camera, tiles, sink, stats);
   bool shut_down;
   {
@@ -293,9 +295,12 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   d.blocks_distinct = stats->blocks_distinct;
   d.bytes_read = stats->bytes_read;
   d.seconds = stats->seconds;
+  d.busy_seconds = stats->ray_busy_seconds;
   if (peers_) {
     d.bytes_from_peers = peers_->bytes_from_peers() - from_peers;
     d.bytes_to_peers = peers_->bytes_to_peers() - to_peers;
+    d.fetches = peers_->fetches() - fetches;
+    d.fetch_wait_seconds = peers_->fetch_wait_seconds() - fetch_wait;
   }
   return net_->Send(0, wire::Encode(me, d));
 }

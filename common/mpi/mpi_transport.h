@@ -5,11 +5,15 @@
 // slave's ray threads send pixel batches while its receiver waits for tiles; Init refuses to
 // run with less.
 //
-// Receive probes for any sender and sleeps between probes (MPI has no wait-with-timeout), at
-// most 100 us: an idle rank costs ~1% of a core, and a peer's block request waits little. A message larger than kMaxMessageBytes is an error
-// naming its sender (it is still drained, so the next one can be read).
+// Receive probes for any sender and sleeps between probes (MPI has no wait-with-timeout): at
+// most 100 us while messages come, so a peer's block request waits little, and up to 1 ms
+// once none has come for 2 ms, so an idle rank (or a slave rendering between tile answers)
+// spends little CPU on wake-ups. A message larger than kMaxMessageBytes is an error naming its
+// sender (it is still drained, so the next one can be read).
 
 #include <atomic>
+#include <chrono>
+#include <list>
 #include <memory>
 #include <mutex>
 #include <vector>
@@ -31,6 +35,9 @@ class MpiTransport final : public transport::Transport {
   int rank() const override { return rank_; }
   int size() const override { return size_; }
   Status Send(int to, std::span<const uint8_t> bytes) override;
+  // MPI_Isend of bytes it keeps; Receive (and the next Post) test the sends in flight and drop
+  // the finished ones, and those to a rank known dead.
+  Status Post(int to, std::vector<uint8_t> bytes) override;
   Expected<std::optional<transport::Envelope>> Receive(std::chrono::milliseconds timeout) override;
   // Ends every rank of the job (MPI_Abort), for errors that one rank cannot recover from.
   [[noreturn]] void Abort(int code);
@@ -47,8 +54,22 @@ class MpiTransport final : public transport::Transport {
   std::unique_ptr<std::atomic<bool>[]> dead_;  // by rank
   // Receives in progress, by sender (Receive; defined where mpi.h is).
   struct Incoming;
+  // Posted sends in flight (defined where mpi.h is).
+  struct Posted;
+  // Tests the posted sends, drops the finished ones; the first failure. Holds posted_mu_.
+  Status ProgressPosted();
+  std::mutex posted_mu_;
+  std::list<Posted> posted_;
+  std::list<std::vector<uint8_t>> abandoned_;  // sends to dead ranks: MPI may still read them
+  std::atomic<size_t> posted_count_{0};
+  Status posted_error_;
   std::mutex receive_mu_;
   std::vector<Incoming> incoming_;
+  // Receive's longest sleep between probes: kBusyPause, or kQuietPause once no message has
+  // come for kQuietAfter.
+  static constexpr std::chrono::microseconds kBusyPause{100}, kQuietPause{1000};
+  static constexpr std::chrono::milliseconds kQuietAfter{2};
+  std::chrono::steady_clock::time_point last_message_{};
   int next_source_ = 0;
 };
 

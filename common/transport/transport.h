@@ -4,7 +4,8 @@
 // only code that includes mpi.h), and an in-process backend runs every rank as a thread of one
 // process, for one-process runs and for tests that need no mpirun.
 //
-// Send and Receive may be called from different threads; Receive from one thread at a time.
+// Send, Post and Receive may be called from different threads; Receive from one thread at a
+// time.
 // Failures (a peer gone, a message too large) are returned, never thrown.
 
 #include <chrono>
@@ -36,6 +37,13 @@ class Transport {
   virtual int size() const = 0;
   // Queues `bytes` for rank `to` (0 <= to < size()); returns once they may be reused.
   virtual Status Send(int to, std::span<const uint8_t> bytes) = 0;
+  // Queues `bytes` for rank `to` and returns at once, whether or not `to` has begun to receive
+  // them: the transport owns them until they are sent. For answers sent by a receiving thread,
+  // which must never wait for a peer (two receivers each sending the other a large answer with
+  // Send would wait for each other forever). Same order per pair as Send. A failure found later
+  // is returned by a later Receive or Post. The default, for transports whose Send never
+  // waits: Send.
+  virtual Status Post(int to, std::vector<uint8_t> bytes) { return Send(to, bytes); }
   // The next message for this rank, waiting up to `timeout`; nullopt if none came.
   virtual Expected<std::optional<Envelope>> Receive(std::chrono::milliseconds timeout) = 0;
   // Rank `rank` died (killed, its node gone; -1: some rank, which one this rank was not told):

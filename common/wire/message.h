@@ -26,7 +26,7 @@ inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
 // 2: tile assignments carry a sample range and a pixel-rank range (progressive passes);
 // pixel batches carry the rays traced for them. 3: heartbeats, rank-lost notices, shutdown
 // flags (a lost slave costs time, never pixels).
-inline constexpr uint16_t kProtocolVersion = 3;
+inline constexpr uint16_t kProtocolVersion = 4;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
 // How often a slave says it is alive (the master drops one it has not heard from for
@@ -90,6 +90,9 @@ struct FrameDone {
   double seconds;            // the frame's render time on this slave
   uint64_t bytes_from_peers;  // --blocks rem: block bytes fetched from other slaves
   uint64_t bytes_to_peers;    // --blocks rem: block bytes served to other slaves
+  double busy_seconds;        // summed over ray threads: tracing, not waiting (RenderStats)
+  uint64_t fetches;           // --blocks rem: requests for blocks sent to their owners
+  double fetch_wait_seconds;  // --blocks rem: summed over fetches, request to answer
 };
 struct Shutdown {
   uint32_t reason;  // 0: the job is done
@@ -122,7 +125,7 @@ struct PixelBatchHeader {
   uint64_t rays;   // rays the slave traced for these samples (progress figures)
 };
 static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
-              sizeof(FrameDone) == 80 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
+              sizeof(FrameDone) == 104 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
               sizeof(BlockRequest) == 16 && sizeof(BlockDataHeader) == 16 &&
               sizeof(Heartbeat) == 8 && sizeof(RankLost) == 8);
 

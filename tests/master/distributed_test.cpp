@@ -220,6 +220,25 @@ TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
       }
       EXPECT_GE(slaves_with_tiles, 1u);
       EXPECT_EQ(tiles, render::HilbertTiles(80, 60, 8).size());
+      // Utilisation is the slaves' own busy time over the thread time the frame offered.
+      double busy = 0, offered = 0;
+      for (const master::SlaveFigures& x : job.figures[f].slaves) {
+        if (x.done.tiles > 0) {
+          EXPECT_GT(x.done.busy_seconds, 0.0) << "rank " << x.rank;
+        }
+        EXPECT_EQ(x.done.ray_threads, 2u);
+        busy += x.done.busy_seconds;
+        offered += x.done.ray_threads * job.figures[f].seconds;
+      }
+      EXPECT_DOUBLE_EQ(job.figures[f].utilisation(), busy / offered);
+      EXPECT_GT(job.figures[f].utilisation(), 0.0);
+      if (rem && slaves > 1) {
+        uint64_t fetches = 0;
+        for (const master::SlaveFigures& x : job.figures[f].slaves) fetches += x.done.fetches;
+        if (f == 0) {
+          EXPECT_GT(fetches, 0u);
+        }
+      }
       // The master's record of who was given what (the preview's tiles in flight): each
       // slave's own count, and every tile of the frame once.
       ASSERT_EQ(job.assigned[f].size(), static_cast<size_t>(slaves));
@@ -309,6 +328,24 @@ TEST(DistributedProgressive, PassesGiveTheOneProcessImageAndAStopEndsCleanly) {
   uint64_t samples = 0;
   for (uint32_t n : stopped.frames[0].samples) samples += n;
   EXPECT_EQ(samples, 0u);  // asked before the first tile went out
+}
+
+TEST(FrameFigures, UtilisationIsTheSlavesBusyTimeOverTheThreadTimeOffered) {
+  master::FrameFigures f;
+  f.seconds = 2.0;
+  f.slaves.resize(3);
+  f.slaves[0].done.ray_threads = 1;
+  f.slaves[0].done.busy_seconds = 1.5;
+  f.slaves[1].done.ray_threads = 2;
+  f.slaves[1].done.busy_seconds = 3.0;
+  f.slaves[2].dropped = true;  // a lost slave's figures do not count
+  f.slaves[2].done.ray_threads = 4;
+  // (1.5 + 3.0) / ((1 + 2) x 2.0)
+  EXPECT_DOUBLE_EQ(f.utilisation(), 0.75);
+  f.slaves[0].done.busy_seconds = 0;
+  EXPECT_DOUBLE_EQ(f.utilisation(), 0.5);
+  master::FrameFigures none;
+  EXPECT_EQ(none.utilisation(), 0.0);  // no frame: unknown, not a division by zero
 }
 
 TEST(TileScheduler, EveryTileOnceEachSlaveStartsInItsOwnRegion) {

@@ -1,6 +1,7 @@
 // The transport contract over MPI, run by ctest under `mpirun -np 3`: every rank sends to every
 // other rank, messages arrive in order per pair, a hostile message (forged sender, another
-// protocol version) is refused naming the rank it came from, and receive times out when idle.
+// protocol version) is refused naming the rank it came from, receive times out when idle, and
+// two ranks posting each other large messages before either receives both get theirs.
 // Prints "N passed, N failed" on rank 0; exit code 0 only if every rank passed.
 
 #include <cstdio>
@@ -76,6 +77,33 @@ int main(int argc, char** argv) {
       passes += static_cast<int>(m->frame_done().samples);
     } else {
       Expect(false, "an expected message type", rank);
+    }
+  }
+  // 3. Ranks 1 and 2 each post the other large messages (beyond any eager limit, so MPI waits
+  //    for the receiver) before either receives: posting never waits for the peer (two slaves
+  //    answering each other's block requests on their receiving threads), and the bytes arrive
+  //    whole and in order.
+  if (rank == 1 || rank == 2) {
+    const int peer = 3 - rank;
+    constexpr int kPosts = 4;
+    constexpr size_t kBytes = 1 << 20;
+    auto pattern = [](int from, int i, size_t k) {
+      return static_cast<uint8_t>(from * 31 + i * 7 + static_cast<int>(k % 251));
+    };
+    for (int i = 0; i < kPosts; ++i) {
+      std::vector<uint8_t> bytes(kBytes);
+      for (size_t k = 0; k < kBytes; ++k) bytes[k] = pattern(rank, i, k);
+      Expect(net.Post(peer, std::move(bytes)).ok(), "post", rank);
+    }
+    for (int i = 0; i < kPosts; ++i) {
+      auto e = net.Receive(std::chrono::seconds(30));
+      if (!e.ok() || !e->has_value() || (*e)->from != peer || (*e)->bytes.size() != kBytes) {
+        Expect(false, "every posted message arrives from the peer, whole", rank);
+        break;
+      }
+      bool same = true;
+      for (size_t k = 0; k < kBytes && same; ++k) same = (*e)->bytes[k] == pattern(peer, i, k);
+      Expect(same, "posted bytes arrive intact and in order", rank);
     }
   }
   if (rank == 1) {

@@ -3,7 +3,9 @@
 # machine. N = 1, 2, 4, 8 slaves under mpirun, each capped to a CPU share (cgroup v1
 # cpu.cfs_quota_us, QUOTA percent of a core, through cpu_capped.sh), one ray thread each, a
 # block cache smaller than the model; two frames of the same view (first, then warm); block
-# modes loc and rem (loc also with LATENCY_US injected per read). Prints a Markdown table.
+# modes loc and rem (loc also with LATENCY_US injected per read). Prints a Markdown table, with
+# the master's utilisation (slaves' busy ray-thread time over N x frame time) and, for rem, the
+# fetches and their mean wait. SLAVES (default "1 2 4 8") picks the cluster sizes; rem skips 1.
 #
 #   tools/bench/cluster_bench.sh [SCENE] [CACHE_MB] [QUOTA] [LATENCY_US]
 set -euo pipefail
@@ -12,7 +14,9 @@ scene=${1:-tools/bench/scenes/default2.json}
 cache_mb=${2:-24}
 quota=${3:-20}
 latency=${4:-1000}
+slave_counts=${SLAVES:-1 2 4 8}
 work=$(mktemp -d)
+mkdir -p build/bench  # the scene's output folder
 trap 'rm -rf "$work"; rmdir /sys/fs/cgroup/cpu/raystack_bench_r* 2>/dev/null || true' EXIT
 run() {  # slaves blocks latency -> prints the stats file
   local n=$1 blocks=$2 lat=$3 out="$work/s-$1-$2-$3.json"
@@ -25,7 +29,7 @@ run() {  # slaves blocks latency -> prints the stats file
 results=()
 for blocks_lat in "loc 0" "loc $latency" "rem 0"; do
   set -- $blocks_lat
-  for n in 1 2 4 8; do
+  for n in $slave_counts; do
     if [ "$1" = rem ] && [ "$n" = 1 ]; then continue; fi  # one slave cannot hold the model
     results+=("$1 $2 $n $(run "$n" "$1" "$2")")
   done
@@ -39,18 +43,21 @@ for blocks, lat, n, path in rows:
     data[(blocks, lat, int(n))] = json.load(open(path))
 print(f"each slave: {quota}% of a core, 1 ray thread, {cache} MB block cache; seconds on the master's clock")
 print()
-print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN) | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers |")
-print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|")
+print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN) | utilisation | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers | peer fetches (mean wait ms) |")
+print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 for (blocks, lat, n), frames in sorted(data.items(), key=lambda kv: (kv[0][0], int(kv[0][1]), kv[0][2])):
     base = data.get(("loc", lat, 1)) or data.get(("loc", "0", 1))
     for f, fr in enumerate(frames):
-        t1 = base[f]["seconds"]
-        eff = t1 / (n * fr["seconds"])
+        eff = f"{base[f]['seconds'] / (n * fr['seconds']):.2f}" if base else "-"
+        fetches = sum(s["fetches"] for s in fr["slaves"])
+        wait = sum(s["fetch_wait_seconds"] for s in fr["slaves"])
+        fetch_text = f"{fetches} ({wait / fetches * 1e3:.1f})" if fetches else "-"
         to_master = sum(s["bytes_to_master"] + s["bytes_from_master"] for s in fr["slaves"])
         pixel = sum(s["pixel_bytes"] for s in fr["slaves"])
         peers = sum(s["bytes_from_peers"] for s in fr["slaves"])
         blocks_mb = sum(s["bytes_read"] for s in fr["slaves"]) / 1e6
         net = (to_master + peers) / 1e6
-        print(f"| {blocks} | {lat} | {n} | {'first' if f == 0 else 'warm'} | {fr['seconds']:.2f} | {eff:.2f} | "
-              f"{fr['imbalance']*100:.1f}% | {net:.1f} | {pixel/1e6/max(net,1e-9)*100:.0f}% | {blocks_mb:.1f} | {peers/1e6:.1f} |")
+        print(f"| {blocks} | {lat} | {n} | {'first' if f == 0 else 'warm'} | {fr['seconds']:.2f} | {eff} | "
+              f"{fr['utilisation']:.2f} | {fr['imbalance']*100:.1f}% | {net:.1f} | {pixel/1e6/max(net,1e-9)*100:.0f}% | "
+              f"{blocks_mb:.1f} | {peers/1e6:.1f} | {fetch_text} |")
 PY

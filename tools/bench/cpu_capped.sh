@@ -9,9 +9,11 @@ if [ "$rank" -gt 0 ] && [ -n "${RAYSTACK_CPU_QUOTA_PCT:-}" ]; then
   mkdir -p "$group"
   # A 10 ms period (not the default 100 ms): a group that used its share is frozen for the
   # rest of the period, and a node frozen for 80 ms cannot answer its peers (--blocks rem).
+  # RAYSTACK_CPU_PERIOD_US changes it (the quota follows: QUOTA_PCT of each period).
+  period=${RAYSTACK_CPU_PERIOD_US:-10000}
   echo -1 > "$group/cpu.cfs_quota_us"
-  echo 10000 > "$group/cpu.cfs_period_us"
-  echo $((RAYSTACK_CPU_QUOTA_PCT * 100)) > "$group/cpu.cfs_quota_us"
+  echo "$period" > "$group/cpu.cfs_period_us"
+  echo $((RAYSTACK_CPU_QUOTA_PCT * period / 100)) > "$group/cpu.cfs_quota_us"
   echo $$ > "$group/cgroup.procs"
 fi
 exec "$@"
