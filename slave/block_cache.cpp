@@ -125,8 +125,8 @@ Status BlockCache::FinishLoad(uint32_t id, std::span<const uint8_t> stored, int 
   e.last_use.store(clock_.fetch_add(1, std::memory_order_relaxed), std::memory_order_relaxed);
   e.resident_index = static_cast<uint32_t>(resident_.size());
   resident_.push_back(id);
-  if (!e.ever_loaded) {
-    e.ever_loaded = true;
+  if (e.counted_in != frame_) {
+    e.counted_in = frame_;
     distinct_.fetch_add(1, std::memory_order_relaxed);
   }
   e.state.store(kResidentState, std::memory_order_release);
@@ -138,6 +138,11 @@ void BlockCache::Shutdown() {
   std::lock_guard lock(mu_);
   shutdown_ = true;
   changed_.notify_all();
+}
+
+void BlockCache::StartFrame() {
+  std::lock_guard lock(mu_);
+  ++frame_;
 }
 
 void BlockCache::Reopen() {

@@ -69,7 +69,10 @@ class BlockCache {
   uint64_t used_bytes() const;
   uint64_t peak_bytes() const { return peak_.load(); }
   uint64_t loads() const { return loads_.load(); }         // #C, reloads included
-  uint64_t distinct_loaded() const { return distinct_.load(); }  // #U
+  // #U: blocks loaded, each counted once per frame (frames start with StartFrame), so a
+  // frame's figure is the difference across it, like loads().
+  uint64_t distinct_loaded() const { return distinct_.load(); }
+  void StartFrame();
   uint64_t evictions() const { return evictions_.load(); }
   uint64_t resident_count() const;
 
@@ -82,7 +85,7 @@ class BlockCache {
   struct Entry {
     std::atomic<int32_t> pins{0};
     std::atomic<uint8_t> state{kAbsent};
-    bool ever_loaded = false;
+    uint32_t counted_in = 0;  // the frame it was last counted in by distinct_ (under mu_)
     std::atomic<uint64_t> last_use{0};
     uint32_t resident_index = 0;  // position in resident_ (under mu_)
     std::unique_ptr<Resident> data;
@@ -103,6 +106,7 @@ class BlockCache {
   std::condition_variable changed_;     // a pin dropped to zero, or a load finished
   std::atomic<int> waiting_{0};         // threads waiting on changed_
   bool shutdown_ = false;               // (under mu_)
+  uint32_t frame_ = 1;                  // counts StartFrame calls (under mu_)
   uint64_t used_ = 0;                   // resident + reserved bytes (under mu_)
   std::vector<uint32_t> resident_;      // ids of resident blocks (under mu_)
   std::unordered_map<uint32_t, Status> failures_;  // (under mu_)

@@ -96,7 +96,9 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   s.mode = TraceModeName(options_.mode);
   s.threads = options_.threads;
   // Counted from here: in incore mode the preloading is part of the frame's reads.
+  cache_->StartFrame();
   const uint64_t loads_before = cache_->loads();
+  const uint64_t distinct_before = cache_->distinct_loaded();
   const uint64_t bytes_before = source_->bytes_read();
   const uint64_t reads_before = source_->reads();
   const uint64_t evictions_before = cache_->evictions();
@@ -175,7 +177,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   s.block_visits = visits;
   s.cache_hit_rate = visits ? 1.0 - static_cast<double>(waited) / static_cast<double>(visits) : 1.0;
   s.blocks_loaded = cache_->loads() - loads_before;
-  s.blocks_distinct = cache_->distinct_loaded();
+  s.blocks_distinct = cache_->distinct_loaded() - distinct_before;
   s.block_count = store_.blocks().size();
   s.bytes_read = source_->bytes_read() - bytes_before;
   s.reads = source_->reads() - reads_before;

@@ -220,8 +220,15 @@ TEST(RenderEngine, FramesInSequenceMatchAFreshEngineAndKeepTheCacheWarm) {
         const Status st = (*engine)->RenderFrame(scene, materials, camera, tiles, sink, &stats);
         ASSERT_TRUE(st.ok()) << "frame " << frame << ": " << st.message();
         EXPECT_TRUE(SameBits(film.Resolve().rgba, fresh.image.rgba)) << "frame " << frame;
+        // #U and #C count this frame's loads: a warm frame that loads nothing uses no
+        // distinct loaded block, and no frame has more distinct blocks than loads.
+        EXPECT_LE(stats.blocks_distinct, stats.blocks_loaded) << "frame " << frame;
         if (frame > 0 && budget_blocks == all_blocks) {
           EXPECT_EQ(stats.blocks_loaded, 0u) << "frame " << frame;
+          EXPECT_EQ(stats.blocks_distinct, 0u) << "frame " << frame;
+        }
+        if (frame > 0 && budget_blocks < all_blocks) {
+          EXPECT_GT(stats.blocks_distinct, 0u) << "frame " << frame << ": evicted blocks come back";
         }
       }
     }
