@@ -113,6 +113,7 @@ fault injection (for tests and drills):
   --fault-fail-read K       the slave's K-th block read (0-based) fails, as a disk error
   --fault-kill-after-checkpoints N  the one process, or the master, kills itself (SIGKILL)
                             right after its N-th checkpoint: the whole job dies (--resume)
+  --fault-fail-checkpoints N  the first N checkpoint writes fail, as on a full disk
 )";
 
 struct Args {
@@ -138,6 +139,7 @@ struct Args {
   int64_t kill_after_tiles = -1;
   int64_t fail_read = -1;
   int64_t kill_after_checkpoints = -1;
+  int64_t fail_checkpoints = 0;
   preview::LivePreviewOptions preview;
 };
 
@@ -247,6 +249,8 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->kill_after_tiles, 1, 1e12));
     } else if (arg == "--fault-kill-after-checkpoints") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->kill_after_checkpoints, 1, 1e12));
+    } else if (arg == "--fault-fail-checkpoints") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->fail_checkpoints, 0, 1e12));
     } else if (arg == "--fault-fail-read") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->fail_read, 0, 1e12));
     } else if (arg == "-q" || arg == "--quiet") {
@@ -385,16 +389,19 @@ Status ResumeInto(const Args& args, const render::Scene& scene, size_t f,
 // a reader never sees half a file and a crash leaves the last checkpoint).
 class Checkpoints {
  public:
-  // `kill_after` (fault injection, > 0): the process kills itself with SIGKILL right after
-  // its `kill_after`-th checkpoint, as a crash of the whole job would.
-  Checkpoints(double every_s, std::string path, int64_t kill_after = -1)
-      : every_s_(every_s), path_(std::move(path)), kill_after_(kill_after) {}
+  // Fault injection: `kill_after` (> 0): the process kills itself with SIGKILL right after
+  // its `kill_after`-th checkpoint, as a crash of the whole job would; the first `fail_first`
+  // writes fail as on a full disk.
+  Checkpoints(double every_s, std::string path, int64_t kill_after = -1, int64_t fail_first = 0)
+      : every_s_(every_s), path_(std::move(path)), kill_after_(kill_after), fail_first_(fail_first) {}
   void Maybe(const render::Film& film) {
     if (every_s_ <= 0) return;
     const auto now = std::chrono::steady_clock::now();
     if (std::chrono::duration<double>(now - last_).count() < every_s_) return;
     last_ = now;
-    const Status s = image::WriteExr(path_, film.Resolve());
+    const Status s = attempts_++ < fail_first_
+                         ? Status::Error(path_ + ": cannot write (--fault-fail-checkpoints)")
+                         : image::WriteExr(path_, film.Resolve());
     if (!s.ok()) {  // tried again at the next one
       LOG_WARNING("render", "checkpoint: %s", s.message().c_str());
       return;
@@ -409,7 +416,7 @@ class Checkpoints {
  private:
   double every_s_;
   std::string path_;
-  int64_t kill_after_, written_ = 0;
+  int64_t kill_after_, fail_first_, written_ = 0, attempts_ = 0;
   std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
@@ -481,7 +488,7 @@ Status Run(const Args& args) {
         finished.store(true);
       });
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
-                              args.kill_after_checkpoints);
+                              args.kill_after_checkpoints, args.fail_checkpoints);
       uint64_t shown = 0;
       // Polled at least as often as the convergence log asks for rows.
       const auto poll = std::chrono::microseconds(
@@ -590,7 +597,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                                 args.quiet);
       uint64_t shown = 0;
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
-                              args.kill_after_checkpoints);
+                              args.kill_after_checkpoints, args.fail_checkpoints);
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
                           scene.integrator.spp);
       status = master.RunFrame(static_cast<uint32_t>(f), plan, &film, [&] {

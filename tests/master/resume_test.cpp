@@ -99,6 +99,43 @@ TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
   }
 }
 
+// A checkpoint that cannot be written (here: the first two, as on a full disk) is logged and
+// tried again at the next interval; it never ends the job and costs no pixel. Killing the job
+// right after its first checkpoint that did get written proves a later one was tried.
+TEST_F(Resume, AFailedCheckpointIsLoggedAndTheNextOneIsWritten) {
+  const std::vector<std::string> whole_tiles = {"--spp", "48", "--pass-spp", "48",
+                                                "--checkpoint-s", "0.05"};
+  const ProcessResult full = Render(dir_->File("full.exr"), 0, whole_tiles);
+  ASSERT_EQ(full.exit_code, 0) << full.err;
+  const std::string expected = Slurp(dir_->File("full.exr"));
+  for (int np : {0, 3}) {
+    SCOPED_TRACE("np " + std::to_string(np));
+    auto failures = [](const std::string& err) {
+      size_t n = 0;
+      for (size_t at = err.find("--fault-fail-checkpoints"); at != std::string::npos;
+           at = err.find("--fault-fail-checkpoints", at + 1))
+        ++n;
+      return n;
+    };
+    std::vector<std::string> failing = whole_tiles;
+    failing.insert(failing.end(), {"--fault-fail-checkpoints", "2"});
+    const std::string out = dir_->File("failing" + std::to_string(np) + ".exr");
+    const ProcessResult r = Render(out, np, failing);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(failures(r.err), 2u) << r.err;
+    EXPECT_NE(r.err.find(out + ": cannot write"), std::string::npos) << "names the file: " << r.err;
+    EXPECT_TRUE(Slurp(out) == expected);
+
+    failing.insert(failing.end(), {"--fault-kill-after-checkpoints", "1"});
+    const std::string killed = dir_->File("failing-killed" + std::to_string(np) + ".exr");
+    const ProcessResult died = Render(killed, np, failing);
+    ASSERT_NE(died.exit_code, 0) << "the third checkpoint was never written: " << died.err;
+    EXPECT_EQ(failures(died.err), 2u) << died.err;
+    Expected<image::ImageLayers> checkpoint = image::ReadExr(killed);
+    ASSERT_TRUE(checkpoint.ok()) << checkpoint.status().message();
+  }
+}
+
 TEST_F(Resume, ACheckpointOfAnotherFrameIsRefusedNamingIt) {
   image::ImageLayers other;
   other.Resize(10, 10);
