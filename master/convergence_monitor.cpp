@@ -1,5 +1,6 @@
 #include "master/convergence_monitor.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -42,7 +43,17 @@ ConvergenceMonitor::ConvergenceMonitor(const render::Film& film, const render::F
       frame_(frame),
       log_(log),
       reference_(reference),
-      log_interval_s_(log_interval_s) {
+      log_interval_s_(log_interval_s),
+      pass_samples_(plan.passes.size(), 0) {
+  for (const render::Sweep& sweep : plan.sweeps)
+    for (const render::Tile& tile : sweep.tiles) {
+      const uint32_t tile_end = tile.sample_end == 0 ? plan.spp() : tile.sample_end;
+      for (size_t p = 0; p < plan.passes.size(); ++p) {
+        render::Tile below = tile;  // its samples below the pass's end
+        below.sample_end = std::min(tile_end, plan.passes[p].end);
+        if (below.sample_begin < below.sample_end) pass_samples_[p] += render::TileSamples(below, plan.spp());
+      }
+    }
   // Where every curve starts: nothing rendered yet (against a reference, a black image).
   if (log_) log_->Write(frame_, "start", 0, Measure());
 }
@@ -58,10 +69,9 @@ render::ConvergencePoint ConvergenceMonitor::Measure() const {
 }
 
 void ConvergenceMonitor::CheckPassEnds() {
-  const uint64_t pixels = static_cast<uint64_t>(plan_.width) * static_cast<uint64_t>(plan_.height);
   while (passes_ended_ < plan_.passes.size() && !stopped()) {
     const uint32_t end = plan_.passes[passes_ended_].end;
-    if (film_.samples_below(end) < pixels * end) return;
+    if (film_.samples_below(end) < pass_samples_[passes_ended_]) return;
     ++passes_ended_;
     last_ = Measure();
     if (log_) log_->Write(frame_, "pass", passes_ended_, last_);

@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "common/base/status.h"
 #include "common/image/image_layers.h"
@@ -76,6 +77,9 @@ class ConvergenceMonitor {
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
   double last_log_s_ = 0;
   uint32_t passes_ended_ = 0;
+  // Per pass: the samples below its end that the plan's tiles hand out. Every pixel's, except
+  // after --resume, whose checkpoint's finished pixels are restored, not rendered.
+  std::vector<uint64_t> pass_samples_;
   std::string stop_reason_;
   render::ConvergencePoint last_;
 };

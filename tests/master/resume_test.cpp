@@ -7,6 +7,7 @@
 
 #include <fstream>
 
+#include "common/base/log.h"
 #include "common/image/exr_io.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/store_dir_fixture.h"
@@ -39,6 +40,17 @@ class Resume : public StoreDirFixture {
     for (const std::string& a : extra) argv.push_back(a);
     return RunProcess(argv, dir_->path());
   }
+  // Flags of a render in whole tiles (one pass) with a checkpoint every 0.05 s: 48 samples per
+  // pixel, so it outlasts a few checkpoints, and a mid-render checkpoint holds finished pixels.
+  static std::vector<std::string> WholeTiles() {
+    return {"--spp", "48", "--pass-spp", "48", "--checkpoint-s", "0.05"};
+  }
+  // The EXR bytes of an uninterrupted whole-tile render.
+  std::string Uninterrupted() {
+    const ProcessResult full = Render(dir_->File("full.exr"), 0, WholeTiles());
+    EXPECT_EQ(full.exit_code, 0) << full.err;
+    return Slurp(dir_->File("full.exr"));
+  }
 };
 
 TEST_F(Resume, TheResumedImageEqualsAnUninterruptedRun) {
@@ -61,27 +73,29 @@ TEST_F(Resume, TheResumedImageEqualsAnUninterruptedRun) {
   for (int np : {0, 3}) {
     const std::string out = dir_->File("resumed" + std::to_string(np) + ".exr");
     ASSERT_TRUE(image::WriteExr(out, partial).ok());
-    const ProcessResult r = Render(out, np, {"--resume"});
+    const std::string log = dir_->File("resumed" + std::to_string(np) + ".csv");
+    const ProcessResult r = Render(out, np, {"--resume", "--convergence-log", log});
     ASSERT_EQ(r.exit_code, 0) << r.err;
     // 96x64: the left half (3072 pixels) kept.
     EXPECT_NE(r.out.find("3072 of 6144 pixels finished"), std::string::npos) << r.out;
     EXPECT_TRUE(Slurp(out) == expected) << "np " << np;
+    // The passes (3 samples per pixel: 1, 1, 1) still end, though the restored pixels are not
+    // rendered again: the log has a row for each (and --target-error could stop at one).
+    const std::string rows = Slurp(log);
+    for (int pass = 1; pass <= 3; ++pass)
+      EXPECT_NE(rows.find(StrFormat("0,pass,%d,", pass)), std::string::npos)
+          << "np " << np << ": no end of pass " << pass << " in\n" << rows;
   }
 }
 
 // The whole job really dies (SIGKILL right after its 2nd checkpoint; under mpirun the others
-// go with it), and --resume finishes from that checkpoint. 48 samples per pixel, so the render
-// outlasts two checkpoints, in whole tiles (one pass), so a mid-render checkpoint holds
-// finished pixels.
+// go with it), and --resume finishes from that checkpoint.
 TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
-  const std::vector<std::string> whole_tiles = {"--spp", "48", "--pass-spp", "48",
-                                                "--checkpoint-s", "0.05"};
-  const ProcessResult full = Render(dir_->File("full.exr"), 0, whole_tiles);
-  ASSERT_EQ(full.exit_code, 0) << full.err;
-  const std::string expected = Slurp(dir_->File("full.exr"));
+  const std::string expected = Uninterrupted();
+  ASSERT_FALSE(expected.empty());
   for (int np : {0, 3}) {
     const std::string out = dir_->File("killed" + std::to_string(np) + ".exr");
-    std::vector<std::string> killed = whole_tiles;
+    std::vector<std::string> killed = WholeTiles();
     killed.insert(killed.end(), {"--fault-kill-after-checkpoints", "2"});
     const ProcessResult died = Render(out, np, killed);
     ASSERT_NE(died.exit_code, 0) << "np " << np << ": the job was not killed " << died.out;
@@ -103,11 +117,8 @@ TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
 // tried again at the next interval; it never ends the job and costs no pixel. Killing the job
 // right after its first checkpoint that did get written proves a later one was tried.
 TEST_F(Resume, AFailedCheckpointIsLoggedAndTheNextOneIsWritten) {
-  const std::vector<std::string> whole_tiles = {"--spp", "48", "--pass-spp", "48",
-                                                "--checkpoint-s", "0.05"};
-  const ProcessResult full = Render(dir_->File("full.exr"), 0, whole_tiles);
-  ASSERT_EQ(full.exit_code, 0) << full.err;
-  const std::string expected = Slurp(dir_->File("full.exr"));
+  const std::string expected = Uninterrupted();
+  ASSERT_FALSE(expected.empty());
   for (int np : {0, 3}) {
     SCOPED_TRACE("np " + std::to_string(np));
     auto failures = [](const std::string& err) {
@@ -117,7 +128,7 @@ TEST_F(Resume, AFailedCheckpointIsLoggedAndTheNextOneIsWritten) {
         ++n;
       return n;
     };
-    std::vector<std::string> failing = whole_tiles;
+    std::vector<std::string> failing = WholeTiles();
     failing.insert(failing.end(), {"--fault-fail-checkpoints", "2"});
     const std::string out = dir_->File("failing" + std::to_string(np) + ".exr");
     const ProcessResult r = Render(out, np, failing);

@@ -9,6 +9,7 @@
 
 #include <array>
 #include <fstream>
+#include <functional>
 #include <set>
 
 #include "common/base/log.h"
@@ -290,26 +291,37 @@ TEST_F(OctreeBuilderTest, ReplicateStoresEveryCopy) {
   EXPECT_GE(grid.z, 2 * e.z);
 }
 
-TEST_F(OctreeBuilderTest, OutputIsDeterministicWhateverTheThreads) {
-  std::string files[2][3];
-  for (int run = 0; run < 2; ++run) {
-    ConvertOptions o = Options(StrFormat("run%d", run));
-    o.generate = "spheres:60000";
-    o.max_block_bytes = 32 * 1024;
-    o.target_block_bytes = 8 * 1024;
-    o.threads = run + 1;
+// Converts `base` with 1, 2, ... `max_threads` threads (each run checked by `check`) and
+// expects the same store files, byte for byte.
+void ExpectSameStoreWhateverTheThreads(const ConvertOptions& base, int max_threads,
+                                       const std::function<void(const ConvertReport&)>& check) {
+  const char* names[3] = {"blocks.bin", "index.bin", "octree.bin"};
+  std::string first[3];
+  for (int threads = 1; threads <= max_threads; ++threads) {
+    ConvertOptions o = base;
+    o.output = StrFormat("%s-threads%d", base.output.c_str(), threads);
+    o.threads = threads;
     Expected<ConvertReport> r = Convert(o);
     ASSERT_TRUE(r.ok()) << r.status().message();
-    ASSERT_GT(r->blocks, 20u);
-    files[run][0] = testing::Slurp(o.output + "/blocks.bin");
-    files[run][1] = testing::Slurp(o.output + "/index.bin");
-    files[run][2] = testing::Slurp(o.output + "/octree.bin");
+    check(*r);
+    for (int f = 0; f < 3; ++f) {
+      const std::string bytes = testing::Slurp(o.output + "/" + names[f]);
+      if (threads == 1) {
+        EXPECT_FALSE(bytes.empty()) << names[f];
+        first[f] = bytes;
+      } else {
+        EXPECT_TRUE(bytes == first[f]) << names[f] << " differs between 1 and " << threads << " threads";
+      }
+    }
   }
-  const char* names[3] = {"blocks.bin", "index.bin", "octree.bin"};
-  for (int f = 0; f < 3; ++f) {
-    EXPECT_FALSE(files[0][f].empty()) << names[f];
-    EXPECT_TRUE(files[0][f] == files[1][f]) << names[f] << " differs between 1 and 2 threads";
-  }
+}
+
+TEST_F(OctreeBuilderTest, OutputIsDeterministicWhateverTheThreads) {
+  ConvertOptions o = Options("in-memory");
+  o.generate = "spheres:60000";
+  o.max_block_bytes = 32 * 1024;
+  o.target_block_bytes = 8 * 1024;
+  ExpectSameStoreWhateverTheThreads(o, 2, [](const ConvertReport& r) { ASSERT_GT(r.blocks, 20u); });
 }
 
 // The partition pass reads the model in pieces, one per thread, each with its own bucket
@@ -322,29 +334,14 @@ TEST_F(OctreeBuilderTest, PartitionedOutputIsTheSameWhateverTheThreads) {
   } models[] = {{"spheres:150000", {1, 1, 1}}, {"spheres:30000", {3, 1, 2}}};
   for (const Model& model : models) {
     SCOPED_TRACE(model.generate);
-    std::string files[3][3];
-    for (int run = 0; run < 3; ++run) {
-      ConvertOptions o = Options(StrFormat("pieces%d-%d", run, model.replicate[0]));
-      o.generate = model.generate;
-      o.replicate = model.replicate;
-      o.max_block_bytes = 32 * 1024;
-      o.target_block_bytes = 8 * 1024;
-      o.memory_limit_bytes = 16ull << 20;  // buckets of ~25 k triangles: partitioned
-      o.threads = run + 1;
-      Expected<ConvertReport> r = Convert(o);
-      ASSERT_TRUE(r.ok()) << r.status().message();
-      ASSERT_GE(r->partition_passes, 1u);
-      files[run][0] = testing::Slurp(o.output + "/blocks.bin");
-      files[run][1] = testing::Slurp(o.output + "/index.bin");
-      files[run][2] = testing::Slurp(o.output + "/octree.bin");
-    }
-    const char* names[3] = {"blocks.bin", "index.bin", "octree.bin"};
-    for (int run = 1; run < 3; ++run)
-      for (int f = 0; f < 3; ++f) {
-        EXPECT_FALSE(files[0][f].empty()) << names[f];
-        EXPECT_TRUE(files[0][f] == files[run][f])
-            << names[f] << " differs between 1 and " << run + 1 << " threads";
-      }
+    ConvertOptions o = Options(StrFormat("pieces-x%d", model.replicate[0]));
+    o.generate = model.generate;
+    o.replicate = model.replicate;
+    o.max_block_bytes = 32 * 1024;
+    o.target_block_bytes = 8 * 1024;
+    o.memory_limit_bytes = 16ull << 20;  // buckets of ~25 k triangles: partitioned
+    ExpectSameStoreWhateverTheThreads(
+        o, 3, [](const ConvertReport& r) { ASSERT_GE(r.partition_passes, 1u); });
   }
 }
 

@@ -30,18 +30,11 @@ threads=2
 [ -d "$work/small-store" ] || "$prep" --generate spheres:200000 -o "$work/small-store" -q
 [ -d "$work/default-store" ] || "$prep" --generate spheres:2000000 -o "$work/default-store" --mem-limit 512 -q
 
+. tools/bench/bench_scene.sh
 scene() {  # name store width height integrator spp seed
-  cat > "$work/$1.json" <<JSON
-{ "store": "$2",
-  "camera": { "position": [0, 5.5, 10.5], "look_at": [0, 0.4, 0], "up": [0, 1, 0],
-              "fov_y_deg": 40, "width": $3, "height": $4 },
-  "lights": [ { "type": "point", "position": [4, 9, 6], "intensity": [160, 150, 140] },
-              { "type": "point", "position": [-6, 5, -2], "intensity": [20, 25, 40] } ],
-  "materials": { "default": { "type": "diffuse", "albedo": [0.75, 0.72, 0.68] } },
-  "background": [0.35, 0.4, 0.5],
-  "integrator": { "type": "$5", "max_depth": 4, "spp": $6, "seed": $7 },
-  "output": "$1.exr" }
-JSON
+  local name=$1
+  shift
+  bench_scene "$work/$name.json" "$@"
 }
 
 render() {  # scene log extra...

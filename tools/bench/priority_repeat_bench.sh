@@ -6,18 +6,8 @@ set -e
 cd "$(dirname "$0")/../.."; root=$PWD; w=${1:-$(mktemp -d)}; store=${2:?usage: priority_repeat_bench.sh WORK_DIR STORE (a store of --generate spheres:200000)}
 mkdir -p "$w"
 rs=$root/build/master/raystack; plot=$root/tools/plot/raystack-plot
-scene() { cat > $w/$1.json <<JSON
-{ "store": "$store",
-  "camera": { "position": [0, 5.5, 10.5], "look_at": [0, 0.4, 0], "up": [0, 1, 0],
-              "fov_y_deg": 40, "width": $2, "height": $3 },
-  "lights": [ { "type": "point", "position": [4, 9, 6], "intensity": [160, 150, 140] },
-              { "type": "point", "position": [-6, 5, -2], "intensity": [20, 25, 40] } ],
-  "materials": { "default": { "type": "diffuse", "albedo": [0.75, 0.72, 0.68] } },
-  "background": [0.35, 0.4, 0.5],
-  "integrator": { "type": "whitted", "max_depth": 4, "spp": $4, "seed": $5 },
-  "output": "$1.exr" }
-JSON
-}
+. tools/bench/bench_scene.sh
+scene() { local name=$1; shift; bench_scene "$w/$name.json" "$store" "$@"; }
 for size in "480 270" "960 540"; do
   set -- $size; tag=${1}x$2
   scene ref-$tag $1 $2 64 99; scene w-$tag $1 $2 1 1

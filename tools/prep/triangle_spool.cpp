@@ -128,8 +128,7 @@ Status TriangleSpool::Close() {
   return OkStatus();
 }
 
-Status TriangleSpool::ForEachPlain(uint64_t first, uint64_t count, bool whole,
-                                   const Visitor& visit) const {
+Status TriangleSpool::ForEachPlain(uint64_t first, uint64_t count, const Visitor& visit) const {
   std::vector<PackedTriangle> tris(kBatch);
   if (!spilled_) {
     const uint64_t end = first + count;
@@ -156,6 +155,8 @@ Status TriangleSpool::ForEachPlain(uint64_t first, uint64_t count, bool whole,
     status = visit(std::span<const PackedTriangle>(tris.data(), n), {});
     if (!status.ok()) break;
   }
+  // A range that ends where the spool does must end where the file does.
+  const bool whole = first + count == triangles_;
   const bool damaged = std::ferror(f) || (whole && std::fgetc(f) != EOF);
   std::fclose(f);
   if (!status.ok()) return status;
@@ -168,12 +169,12 @@ Status TriangleSpool::ForEachRange(uint64_t first, uint64_t count, const Visitor
     return Status::Error(path_ + ": records of different sizes cannot be read by range");
   if (first > triangles_ || count > triangles_ - first)
     return Status::Error(path_ + ": range beyond the spool's end");
-  return ForEachPlain(first, count, first + count == triangles_, visit);
+  return ForEachPlain(first, count, visit);
 }
 
 Status TriangleSpool::ForEach(const Visitor& visit) const {
   // Without attributes every record is one PackedTriangle: batches are read in one piece.
-  if (!has_attributes_) return ForEachPlain(0, triangles_, true, visit);
+  if (!has_attributes_) return ForEachPlain(0, triangles_, visit);
   std::vector<PackedTriangle> tris;
   std::vector<TriangleAttributes> attrs;
   tris.reserve(kBatch);

@@ -57,8 +57,8 @@ class TriangleSpool {
 
  private:
   Status Spill();
-  // Every record a bare PackedTriangle: triangles [first, first + count), or all of them.
-  Status ForEachPlain(uint64_t first, uint64_t count, bool whole, const Visitor& visit) const;
+  // Every record a bare PackedTriangle: triangles [first, first + count).
+  Status ForEachPlain(uint64_t first, uint64_t count, const Visitor& visit) const;
   Status AppendBehind(const PackedTriangle& t, const TriangleAttributes* attributes, bool with);
 
   std::string path_;
