@@ -55,7 +55,8 @@ struct MasterNode::Frame {
 
 MasterNode::MasterNode(transport::Transport* net, MasterOptions options)
     : net_(net), options_(options), slaves_(static_cast<size_t>(net->size())) {
-  for (SlaveState& s : slaves_) s.last_heard = Clock::now();
+  last_check_ = Clock::now();
+  for (SlaveState& s : slaves_) s.last_heard = last_check_;
 }
 
 Status MasterNode::Send(int to, const std::vector<uint8_t>& bytes, FrameFigures* figures) {
@@ -209,6 +210,15 @@ Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
 
 Status MasterNode::CheckHeartbeats(Frame* f) {
   const auto now = Clock::now();
+  // The master reads messages on this thread between checks; if it was away (writing the
+  // image between frames, a checkpoint, a convergence row), the heartbeats are still queued:
+  // that time counts as heard, and the queue is read before anyone is judged.
+  const auto away = now - last_check_;
+  last_check_ = now;
+  if (away > options_.lost_after / 2) {
+    for (SlaveState& s : slaves_) s.last_heard += away;
+    return OkStatus();
+  }
   for (int r = 1; r < net_->size(); ++r) {
     SlaveState& s = slaves_[static_cast<size_t>(r)];
     const auto allowed = s.heard ? options_.lost_after : options_.lost_after + options_.first_word_grace;
@@ -325,8 +335,6 @@ Status MasterNode::RunFrame(uint32_t frame, const render::FramePlan& plan, rende
     }
   }
   if (f.remaining == 0) return Status::Error("no slave is left to render the frame");
-  // Between frames the master was writing the image, not listening: silence then is no sign.
-  for (SlaveState& s : slaves_) s.last_heard = Clock::now();
   // A stop rule may hold from the start; once one holds, requests held back get their answer.
   auto check_stop = [&]() -> Status {
     if (f.stopped || keep_going()) return OkStatus();

@@ -106,6 +106,9 @@ class MasterNode {
   transport::Transport* net_;
   MasterOptions options_;
   std::vector<SlaveState> slaves_;  // by rank (0: unused)
+  // When CheckHeartbeats last looked (or the master last listened): a longer gap is time the
+  // master itself was busy, not the slaves' silence.
+  std::chrono::steady_clock::time_point last_check_;
   // Messages for a later frame that arrived early (a fast slave's first requests).
   std::deque<transport::Envelope> early_;
   mutable std::mutex assigned_mu_;

@@ -231,8 +231,10 @@ void SlaveNode::ReceiveLoop() {
         Failed(Status::Error(
             StrFormat("the master reports rank %u lost, which is not a slave", lost.rank)));
       } else {
-        if (lost.died) net_->NoteRankDied(static_cast<int>(lost.rank));
+        // Fetches from it first read from disk instead; only then do sends to it fail (a
+        // fetch whose request fails before its owner is marked lost would fail the load).
         if (peers_) peers_->OwnerLost(static_cast<int>(lost.rank));
+        if (lost.died) net_->NoteRankDied(static_cast<int>(lost.rank));
       }
     } else if (from > 0 && peers_ && type == wire::MessageType::kBlockRequest) {
       const Status s = peers_->OnRequest(from, m->block_request());

@@ -15,9 +15,8 @@
 
 #include <cmath>
 #include <cstdint>
-#include <cstring>
-#include <limits>
 
+#include "common/geometry/next_float.h"
 #include "common/geometry/vec.h"
 
 namespace raystack {
@@ -43,19 +42,6 @@ inline constexpr float kReconstruction = 0x1p-21f;
 // test's distance is correctly rounded, so the rest of the error is the reconstruction's.
 inline constexpr float kSurface = 0x1p-21f;
 
-inline float NextAway(float x, bool up) {
-  if (!std::isfinite(x)) return x;
-  if (x == 0.0f) {
-    const float tiny = std::numeric_limits<float>::denorm_min();
-    return up ? tiny : -tiny;
-  }
-  uint32_t bits;
-  std::memcpy(&bits, &x, sizeof(bits));
-  bits = (x > 0) == up ? bits + 1 : bits - 1;  // the magnitude grows towards `up`'s side
-  std::memcpy(&x, &bits, sizeof(bits));
-  return x;
-}
-
 }  // namespace offset_ray_internal
 
 inline Vec3f HitPointError(Vec3f origin, Vec3f direction, float t) {
@@ -75,9 +61,11 @@ inline Vec3f OffsetRayOrigin(Vec3f p, Vec3f n, Vec3f p_error) {
   Vec3f out;
   for (int a = 0; a < 3; ++a) {
     out[a] = p[a] + n[a] * d;
-    // Rounding the sum may have undone a step smaller than half an ulp: step once more.
-    if (n[a] > 0) out[a] = offset_ray_internal::NextAway(out[a], true);
-    if (n[a] < 0) out[a] = offset_ray_internal::NextAway(out[a], false);
+    // Rounding the sum may have undone a step smaller than half an ulp: step once more (an
+    // overflow to infinity stays there).
+    if (!std::isfinite(out[a])) continue;
+    if (n[a] > 0) out[a] = NextUp(out[a]);
+    if (n[a] < 0) out[a] = NextDown(out[a]);
   }
   return out;
 }

@@ -90,8 +90,7 @@ Status AtomicOutput::Commit() {
 }
 
 Status CheckRoom(const std::string& path, uint64_t bytes) {
-  const size_t slash = path.rfind('/');
-  const std::string folder = slash == std::string::npos ? "." : path.substr(0, slash + 1);
+  const std::string folder = Folder(path);
   struct statvfs vfs;
   if (statvfs(folder.c_str(), &vfs) != 0)
     return Status::Error(path + ": cannot check the free space of its folder: " +

@@ -64,6 +64,10 @@ void Film::Unmerge(std::span<const SampleResult> batch) {
     p.hits -= s.hit ? 1 : 0;
     --samples_merged_;
     if (s.sample < by_sample_.size() && by_sample_[s.sample] > 0) --by_sample_[s.sample];
+    if (s.sample == 0) {  // its primary-hit layers go too, until the sample is merged again
+      z_[s.pixel] = std::numeric_limits<float>::infinity();
+      for (int c = 0; c < 3; ++c) normal_[3 * s.pixel + c] = albedo_[3 * s.pixel + c] = 0.0f;
+    }
   }
 }
 

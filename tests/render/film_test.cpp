@@ -65,5 +65,26 @@ TEST(Film, UnmergingEverythingLeavesAnEmptyFilm) {
   ExpectSameImage(film.Resolve(), empty.Resolve());
 }
 
+// A sample 0 taken back takes its pixel's primary-hit layers (Z, normal, albedo) with it: a
+// frame stopped before the tile comes back must not show a lost slave's hit.
+TEST(Film, UnmergingSampleZeroClearsThePrimaryHitLayers) {
+  SampleResult s{};
+  s.pixel = 3;
+  s.sample = 0;
+  s.rgb[0] = s.rgb[1] = s.rgb[2] = 0.5f;
+  s.hit = true;
+  s.z = 2.5f;
+  s.normal[1] = 1.0f;
+  s.albedo[0] = s.albedo[1] = s.albedo[2] = 0.7f;
+  Film film(3, 2), empty(3, 2);
+  film.Merge(std::span(&s, 1));
+  EXPECT_EQ(film.Resolve().z[3], 2.5f);
+  film.Unmerge(std::span(&s, 1));
+  const image::ImageLayers back = film.Resolve(), none = empty.Resolve();
+  EXPECT_EQ(back.z, none.z);
+  EXPECT_EQ(back.normal, none.normal);
+  EXPECT_EQ(back.albedo, none.albedo);
+}
+
 }  // namespace
 }  // namespace raystack::render
