@@ -71,7 +71,7 @@ void Shader::Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f di
   out->children.push_back(r);
 }
 
-void Shader::DirectLight(const RayRecord& ray, Vec3f p, Vec3f p_error, Vec3f n, Vec3f albedo,
+void Shader::DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albedo,
                          uint32_t pixel, uint32_t sample, ShadeOutput* out) const {
   const auto& lights = scene_.lights;
   if (lights.empty() || !NonZero(albedo)) return;
@@ -84,7 +84,6 @@ void Shader::DirectLight(const RayRecord& ray, Vec3f p, Vec3f p_error, Vec3f n, 
     last = first + 1;
     scale = static_cast<float>(lights.size());
   }
-  const Vec3f origin = OffsetRayOrigin(p, n, p_error);
   for (size_t i = first; i < last; ++i) {
     const Vec3f to_light = lights[i].position - origin;
     const float d2 = Dot(to_light, to_light);
@@ -130,7 +129,8 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
   const SampleRandom rng(seed_, pixel, sample);
   switch (m.type) {
     case MaterialType::kDiffuse: {
-      DirectLight(ray, p, p_error, n, m.albedo, pixel, sample, out);
+      const Vec3f above = OffsetRayOrigin(p, n, p_error);  // shadow rays and the bounce
+      DirectLight(ray, above, n, m.albedo, pixel, sample, out);
       if (!path_ || !can_bounce || !NonZero(m.albedo)) break;
       Vec3f weight = ray.weight * m.albedo;  // cosine sampling: cos/pdf cancels the 1/pi
       if (ray.depth >= 3) {                  // Russian roulette keeps the estimate unbiased
@@ -145,7 +145,7 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
       Basis(n, &t, &b);
       const Vec3f dir = Normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) +
                                   n * std::sqrt(std::max(0.0f, 1.0f - u1)));
-      Spawn(ray, RayType::kDiffuse, OffsetRayOrigin(p, n, p_error), dir, weight, out);
+      Spawn(ray, RayType::kDiffuse, above, dir, weight, out);
       break;
     }
     case MaterialType::kMirror: {

@@ -35,8 +35,8 @@ class Shader {
   bool path() const { return path_; }
 
  private:
-  // `p_error`: HitPointError of p, how far the shadow rays' origin moves off the surface.
-  void DirectLight(const RayRecord& ray, Vec3f p, Vec3f p_error, Vec3f n, Vec3f albedo,
+  // `origin`: the hit point moved off the surface (OffsetRayOrigin), where shadow rays start.
+  void DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albedo,
                    uint32_t pixel, uint32_t sample, ShadeOutput* out) const;
   void Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f direction, Vec3f weight,
              ShadeOutput* out) const;
