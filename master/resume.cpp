@@ -4,7 +4,6 @@
 
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
-#include "common/render/pixel_priority.h"
 
 namespace raystack::master {
 
@@ -12,8 +11,7 @@ bool ResumePlan::Needs(const render::Tile& t) const {
   if (finished.empty()) return true;
   for (int y = t.y0; y < t.y1; ++y)
     for (int x = t.x0; x < t.x1; ++x) {
-      const uint16_t rank = render::PixelRank(x, y);
-      if (rank >= t.rank_begin && rank < t.rank_end &&
+      if (t.HasRank(x, y) &&
           !finished[static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x)])
         return true;
     }

@@ -2,7 +2,6 @@
 
 #include "common/base/log.h"
 #include "common/render/frame_plan.h"
-#include "common/render/pixel_priority.h"
 
 namespace raystack::master {
 
@@ -15,9 +14,8 @@ bool TileLedger::Holds(const render::Tile& t, const render::SampleResult& s) con
   const int x = static_cast<int>(s.pixel % static_cast<uint32_t>(width_));
   const int y = static_cast<int>(s.pixel / static_cast<uint32_t>(width_));
   const uint32_t end = t.sample_end == 0 ? spp_ : t.sample_end;
-  const uint16_t rank = render::PixelRank(x, y);
   return x >= t.x0 && x < t.x1 && y >= t.y0 && y < t.y1 && s.sample >= t.sample_begin &&
-         s.sample < end && rank >= t.rank_begin && rank < t.rank_end;
+         s.sample < end && t.HasRank(x, y);
 }
 
 Status TileLedger::Record(int rank, std::span<const render::SampleResult> samples) {

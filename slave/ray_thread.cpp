@@ -98,8 +98,7 @@ bool RayThread::FeedNextTile(bool may_wait) {
   feed_pixels_.clear();
   for (int y = tile.y0; y < tile.y1; ++y)
     for (int x = tile.x0; x < tile.x1; ++x) {
-      const uint16_t rank = render::PixelRank(x, y);
-      if (rank < tile.rank_begin || rank >= tile.rank_end) continue;
+      if (!tile.HasRank(x, y)) continue;
       feed_pixels_.push_back({by_priority ? render::PixelPriority(x, y) : uint16_t{0}, x, y});
     }
   if (by_priority)

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 
-#include "common/render/pixel_priority.h"
 
 namespace raystack::render {
 
@@ -82,14 +81,11 @@ uint64_t TileSamples(const Tile& tile, uint32_t spp) {
   const uint32_t end = tile.sample_end == 0 ? spp : tile.sample_end;
   if (end <= tile.sample_begin) return 0;
   uint64_t pixels = 0;
-  if (tile.rank_begin == 0 && tile.rank_end >= kPriorityPeriod * kPriorityPeriod) {
+  if (tile.all_ranks()) {
     pixels = static_cast<uint64_t>(std::max(0, tile.pixels()));
   } else {
     for (int y = tile.y0; y < tile.y1; ++y)
-      for (int x = tile.x0; x < tile.x1; ++x) {
-        const uint16_t rank = PixelRank(x, y);
-        pixels += rank >= tile.rank_begin && rank < tile.rank_end ? 1 : 0;
-      }
+      for (int x = tile.x0; x < tile.x1; ++x) pixels += tile.HasRank(x, y) ? 1 : 0;
   }
   return pixels * (end - tile.sample_begin);
 }

@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/render/pixel_priority.h"
+
 namespace raystack::render {
 
 // A piece of work: a rectangle of pixels, the samples [sample_begin, sample_end) of each, and
@@ -18,6 +20,14 @@ struct Tile {
   uint32_t sample_begin = 0, sample_end = 0;  // sample_end 0: every sample of the frame's spp
   uint16_t rank_begin = 0, rank_end = 256;     // every pixel by default
   int pixels() const { return (x1 - x0) * (y1 - y0); }
+  // Every pixel of the rectangle is the tile's, whatever its rank.
+  bool all_ranks() const { return rank_begin == 0 && rank_end >= kPriorityPeriod * kPriorityPeriod; }
+  // Pixel (x, y) of the rectangle is the tile's: its rank is in the tile's range.
+  bool HasRank(int x, int y) const {
+    if (all_ranks()) return true;
+    const uint16_t rank = PixelRank(x, y);
+    return rank >= rank_begin && rank < rank_end;
+  }
   bool operator==(const Tile&) const = default;
 };
 
