@@ -7,6 +7,10 @@
 // hit. The walk is a pure function of the ray, so the modes, threads and ranks that trace a
 // ray in pieces all visit the same blocks in the same order.
 //
+// Blocks whose bounds (the index's copy of their BVH root box) the ray misses are left out,
+// and so are octree nodes whose blocks' bounds it misses all together (store::MayHit): such a
+// block could not change the ray's hit, so it is neither waited for nor loaded.
+//
 // A waiting ray keeps no walk state: the queue it waits in names its block, and the next block
 // is that block's successor in the walk, found by climbing from the block's leaf only as far
 // as a later sibling exists (usually a level or two), never from the root again. Children are
@@ -32,6 +36,7 @@ namespace raystack::slave {
 class BlockWalk {
  public:
   BlockWalk(const store::OctreeView& octree, std::span<const store::BlockEntry> blocks);
+  // (The octree's node bounds are used, so `octree` must come from the same store as `blocks`.)
 
   // The first block along `ray` within [ray.tmin, ray.tmax], or kInvalidId.
   uint32_t First(const Ray& ray) const;
@@ -64,12 +69,15 @@ class BlockWalk {
   // the ray meets before t1 (non-empty ones only).
   uint32_t Children(const Slabs& s, uint32_t first_child, const Cell& cell, float mid[3],
                     float enter[8], float exit[8]) const;
+  // The first block of `leaf` from `from` on whose bounds the ray may meet, or kInvalidId.
+  uint32_t FirstMet(const Slabs& s, const store::OctreeNode& leaf, uint32_t from) const;
   // Pushes the children in `keep` onto a new frame, in visiting order.
   static void Push(Frame* f, uint32_t keep, const float enter[8], const float exit[8]);
   // Continues the walk on `frames`; returns the first block of the next leaf, or kInvalidId.
   uint32_t Descend(const Slabs& s, Frame* frames, int depth) const;
 
   std::span<const store::OctreeNode> nodes_;
+  std::span<const store::BoxBounds> node_bounds_;
   std::span<const store::BlockEntry> blocks_;
   Cell root_;
   std::vector<uint32_t> parent_;  // by node; the root's is itself
@@ -79,9 +87,10 @@ class BlockWalk {
 
 struct BlockWalk::Slabs {
   explicit Slabs(const Ray& ray)
-      : box(ray), tmin(ray.tmin), t1(ray.tmax * bvh_internal::kFarScale) {}
+      : box(ray), tmin(ray.tmin), t1(ray.tmax * bvh_internal::kFarScale), t_best(ray.tmax) {}
   RayBoxSetup box;
   float tmin, t1;
+  float t_best;  // the closest hit so far, for store::MayHit
 };
 
 // Visiting order of two children of one node (a before b), for keys (enter, exit, child).
@@ -94,8 +103,16 @@ inline bool VisitsBefore(float enter_a, float exit_a, int child_a, float enter_b
 
 inline uint32_t BlockWalk::Children(const Slabs& s, uint32_t first_child, const Cell& cell,
                                     float mid[3], float enter[8], float exit[8]) const {
-  return store::OctreeChildHits(s.box, s.tmin, s.t1, cell.lower, cell.upper,
-                                &nodes_[first_child], mid, enter, exit);
+  const uint32_t keep = store::OctreeChildHits(s.box, s.tmin, s.t1, cell.lower, cell.upper,
+                                               &nodes_[first_child], mid, enter, exit);
+  return store::KeepMayHit(s.box, node_bounds_, first_child, keep, s.tmin, s.t_best);
+}
+
+inline uint32_t BlockWalk::FirstMet(const Slabs& s, const store::OctreeNode& leaf,
+                                    uint32_t from) const {
+  for (uint32_t b = from; b < leaf.first + leaf.count; ++b)
+    if (store::MayHit(s.box, store::BoundsOf(blocks_[b]), s.tmin, s.t_best)) return b;
+  return kInvalidId;
 }
 
 inline void BlockWalk::Push(Frame* f, uint32_t keep, const float enter[8], const float exit[8]) {
@@ -128,7 +145,11 @@ inline uint32_t BlockWalk::Descend(const Slabs& s, Frame* frames, int depth) con
     const int i = f.child[k];
     const uint32_t index = f.first + static_cast<uint32_t>(i);
     const store::OctreeNode& node = nodes_[index];
-    if (node.kind == store::kOctreeLeaf) return node.first;
+    if (node.kind == store::kOctreeLeaf) {
+      const uint32_t block = FirstMet(s, node, node.first);
+      if (block != kInvalidId) return block;
+      continue;
+    }
     // An inner child (empty ones were never pushed): its children become the next frame.
     CHECK(depth < kMaxDepth);
     Frame& c = frames[depth++];
@@ -156,8 +177,9 @@ inline uint32_t BlockWalk::First(const Ray& ray) const {
     exit = tf < exit ? tf : exit;
   }
   if (enter > (exit < s.t1 ? exit : s.t1)) return kInvalidId;
+  if (!store::MayHit(s.box, node_bounds_[0], s.tmin, s.t_best)) return kInvalidId;
   const store::OctreeNode& root = nodes_[0];
-  if (root.kind == store::kOctreeLeaf) return root.first;
+  if (root.kind == store::kOctreeLeaf) return FirstMet(s, root, root.first);
   if (root.kind != store::kOctreeInner) return kInvalidId;
   Frame frames[kMaxDepth];
   float e[8], x[8];
@@ -169,7 +191,9 @@ inline uint32_t BlockWalk::First(const Ray& ray) const {
 
 inline uint32_t BlockWalk::Next(const Ray& ray, uint32_t block) const {
   const uint32_t leaf = blocks_[block].octree_leaf;
-  if (block + 1 < nodes_[leaf].first + nodes_[leaf].count) return block + 1;  // a leaf-mate
+  const Slabs s(ray);
+  const uint32_t mate = FirstMet(s, nodes_[leaf], block + 1);
+  if (mate != kInvalidId) return mate;
   if (leaf == 0) return kInvalidId;  // the root is the only leaf
   // The leaf's ancestors, and their cells from the root down (ChildCell's arithmetic).
   uint32_t path[kMaxDepth + 1];
@@ -192,7 +216,6 @@ inline uint32_t BlockWalk::Next(const Ray& ray, uint32_t block) const {
     }
   }
   // Climb: at each ancestor, the children visited after the one we come from, in order.
-  const Slabs s(ray);
   Frame frames[kMaxDepth];
   float enter[8], exit[8];
   for (int k = 1; k <= levels; ++k) {

@@ -83,6 +83,11 @@ uint32_t BlockEncoder::Encode(const EncodeInput& in, std::vector<uint8_t>* raw) 
   prims_.resize(n);
   for (uint32_t i = 0; i < n; ++i) prims_[i].bounds = in.ref_bounds[i];
   std::vector<BvhNode> nodes = BuildBvh(prims_, bvh_, &order_);
+  bounds_ = Bounds3f{};
+  if (!nodes.empty()) {
+    bounds_.lower = {nodes[0].lower[0], nodes[0].lower[1], nodes[0].lower[2]};
+    bounds_.upper = {nodes[0].upper[0], nodes[0].upper[1], nodes[0].upper[2]};
+  }
 
   // Which optional parts this block needs.
   bool normals = false, uvs = false, per_triangle_material = false;

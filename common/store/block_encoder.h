@@ -51,11 +51,15 @@ class BlockEncoder {
 
   // Writes the raw block into `raw` (resized). Returns its vertex count.
   uint32_t Encode(const EncodeInput& input, std::vector<uint8_t>* raw);
+  // The last encoded block's bounds: its BVH root node's box (empty without triangles), which
+  // the index repeats (BlockEntry::bounds_lower/upper).
+  const Bounds3f& bounds() const { return bounds_; }
 
  private:
   uint32_t VertexOf(const EncodeInput& in, uint32_t tri, int corner, bool attributes);
 
   BvhBuildOptions bvh_;
+  Bounds3f bounds_;
   std::vector<BvhBuildPrimitive> prims_;
   std::vector<uint32_t> order_;
   std::vector<uint32_t> slots_;  // open-addressing vertex table: vertex index + 1, 0 = free

@@ -1,5 +1,5 @@
 #pragma once
-// The on-disk block store, version 1. FORMAT.md beside this file is the prose spec; this header
+// The on-disk block store, version 2. FORMAT.md beside this file is the prose spec; this header
 // is its exact layout. All integers and floats are little-endian; every struct is a POD whose
 // size is pinned by a static_assert so a change of layout is a compile error.
 //
@@ -14,7 +14,7 @@
 
 namespace raystack::store {
 
-inline constexpr uint32_t kFormatVersion = 1;
+inline constexpr uint32_t kFormatVersion = 2;  // 2: BlockEntry holds the block's bounds
 inline constexpr char kIndexMagic[8] = {'R', 'S', 'T', 'K', 'I', 'D', 'X', '\0'};
 inline constexpr char kOctreeMagic[8] = {'R', 'S', 'T', 'K', 'O', 'C', 'T', '\0'};
 inline constexpr char kBlocksMagic[8] = {'R', 'S', 'T', 'K', 'B', 'L', 'K', '\0'};
@@ -73,11 +73,15 @@ struct BlockEntry {
   uint32_t stored_bytes;  // compressed size on disk
   uint32_t raw_bytes;     // size after decompression
   float cell_lower[3], cell_upper[3];  // the octree leaf cell the block's triangles are clipped to
+  // The box of the block's BVH root node (its triangles' bounds clipped to the cell), bit for
+  // bit: a ray that misses it within its interval meets nothing in the block, so the walks skip
+  // the block without loading it. Checked against the BVH when the block is decoded.
+  float bounds_lower[3], bounds_upper[3];
   uint32_t triangle_count;
   uint32_t octree_leaf;  // node index of its leaf in octree.bin
   uint64_t checksum;     // XXH3-64 of the stored bytes
 };
-static_assert(sizeof(BlockEntry) == 56);
+static_assert(sizeof(BlockEntry) == 80);
 
 // Level-1 octree node. Children of an inner node are 8 consecutive nodes starting at `first`,
 // in Morton order (bit 0 = +x half, bit 1 = +y, bit 2 = +z). A leaf's blocks are

@@ -10,6 +10,7 @@
 
 #include "common/geometry/bounds.h"
 #include "common/geometry/bvh.h"
+#include "common/geometry/next_float.h"
 #include "common/geometry/ray.h"
 #include "common/store/format.h"
 
@@ -18,6 +19,39 @@
 #endif
 
 namespace raystack::store {
+
+// A box as plain floats (no member initialisers, so arrays of them cost nothing to declare).
+// An empty box has lower = +inf and upper = -inf: no ray meets it.
+struct BoxBounds {
+  float lower[3], upper[3];
+};
+
+// Whether a ray may meet anything inside `box` before its best hit so far `t_best` (or the end
+// of a shadow ray): exactly the test a block's BVH makes of its root box, IntersectBox over
+// [tmin, NextUp(t_best)] (BlockView::Intersect's interval). When it fails for a block's
+// bounds the block cannot change the ray's result, so walks skip it; when it fails for the
+// union of a node's blocks' bounds, for every block below the node.
+inline bool MayHit(const RayBoxSetup& s, const BoxBounds& box, float tmin, float t_best) {
+  float t_enter;
+  return IntersectBox(s, box.lower, box.upper, tmin, NextUp(t_best), &t_enter);
+}
+
+inline BoxBounds BoundsOf(const BlockEntry& e) {
+  return {{e.bounds_lower[0], e.bounds_lower[1], e.bounds_lower[2]},
+          {e.bounds_upper[0], e.bounds_upper[1], e.bounds_upper[2]}};
+}
+
+// Drops from `keep` (bit i: child i of a node whose children start at `first_child`) the
+// children whose blocks' bounds the ray cannot meet.
+inline uint32_t KeepMayHit(const RayBoxSetup& s, std::span<const BoxBounds> node_bounds,
+                           uint32_t first_child, uint32_t keep, float tmin, float t_best) {
+  for (uint32_t m = keep; m; m &= m - 1) {
+    const int i = std::countr_zero(m);
+    if (!MayHit(s, node_bounds[first_child + static_cast<uint32_t>(i)], tmin, t_best))
+      keep &= ~(1u << i);
+  }
+  return keep;
+}
 
 // Cell of child `i` (Morton order: bit 0 = +x, bit 1 = +y, bit 2 = +z). The converter and
 // every reader split cells with this one function, so cell bounds agree bit for bit.
@@ -98,20 +132,25 @@ inline uint32_t OctreeChildHits(const RayBoxSetup& s, float tmin, float t1, cons
 class OctreeView {
  public:
   OctreeView() = default;
-  OctreeView(std::span<const OctreeNode> nodes, Bounds3f root) : nodes_(nodes), root_(root) {}
+  // `bounds`: per node, the union of its blocks' bounds (StoreReader computes it at open).
+  OctreeView(std::span<const OctreeNode> nodes, std::span<const BoxBounds> bounds, Bounds3f root)
+      : nodes_(nodes), bounds_(bounds), root_(root) {}
 
   std::span<const OctreeNode> nodes() const { return nodes_; }
+  std::span<const BoxBounds> bounds() const { return bounds_; }
   const Bounds3f& root_cell() const { return root_; }
 
   // Calls visit(node_index, node, t_enter, t_exit) for every non-empty leaf the ray crosses
-  // within [ray.tmin, *tmax], nearest first. The interval is widened by a few ulps so no hit
-  // on a cell boundary is lost. visit returns false to stop; it may lower *tmax (closest hit):
-  // leaves entered after *tmax are skipped.
+  // within [ray.tmin, *tmax] whose blocks' bounds it may meet (MayHit), nearest cell first.
+  // The interval is widened by a few ulps so no hit on a cell boundary is lost. visit returns
+  // false to stop; it may lower *tmax (closest hit): leaves entered after *tmax are skipped.
+  // The visitor still tests each block of a leaf with several (MayHit on its own bounds).
   template <typename Visit>
   void VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const;
 
  private:
   std::span<const OctreeNode> nodes_;
+  std::span<const BoxBounds> bounds_;
   Bounds3f root_;
 };
 
@@ -134,6 +173,7 @@ void OctreeView::VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const {
   const float lo[3] = {root_.lower.x, root_.lower.y, root_.lower.z};
   const float hi[3] = {root_.upper.x, root_.upper.y, root_.upper.z};
   if (!IntersectBox(setup, lo, hi, ray.tmin, *tmax, &t0)) return;
+  if (!MayHit(setup, bounds_[0], ray.tmin, *tmax)) return;
   stack[top++] = {0, t0, {lo[0], lo[1], lo[2]}, {hi[0], hi[1], hi[2]}};
   while (top > 0) {
     const Item item = stack[--top];
@@ -150,6 +190,7 @@ void OctreeView::VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const {
     float mid[3], enter[8], exit[8];
     uint32_t keep = OctreeChildHits(setup, ray.tmin, *tmax * bvh_internal::kFarScale, item.lower,
                                     item.upper, &nodes_[node.first], mid, enter, exit);
+    keep = KeepMayHit(setup, bounds_, node.first, keep, ray.tmin, *tmax);
     // Children the ray meets, sorted far to near so the nearest is popped first.
     Item hits[8];
     int n = 0;

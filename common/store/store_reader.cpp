@@ -4,9 +4,11 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <limits>
 
 #include "common/base/log.h"
 
@@ -42,6 +44,8 @@ Status ReadChecked(const std::string& path, const char (&magic)[8], std::vector<
   ::close(fd);
   return status;
 }
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
 
 bool FiniteBox(const float lo[3], const float hi[3]) {
   for (int a = 0; a < 3; ++a)
@@ -97,6 +101,12 @@ Status StoreReader::ReadIndex() {
   std::memcpy(blocks_.data(), body.data() + sizeof s + materials_.size() * sizeof(MaterialRecord),
               blocks_.size() * sizeof(BlockEntry));
   for (MaterialRecord& m : materials_) m.name[sizeof m.name - 1] = '\0';
+  for (uint32_t i = 0; i < blocks_.size(); ++i) {
+    const BlockEntry& e = blocks_[i];
+    for (int a = 0; a < 3; ++a)
+      if (std::isnan(e.bounds_lower[a]) || std::isnan(e.bounds_upper[a]))
+        return Status::Error(StrFormat("%s: block %u has NaN bounds", path.c_str(), i));
+  }
   return OkStatus();
 }
 
@@ -143,7 +153,30 @@ Status StoreReader::ReadOctree() {
   }
   if (blocks_seen != blocks_.size())
     return Status::Error(path + ": leaves do not cover every block once");
+  ComputeNodeBounds();
   return OkStatus();
+}
+
+void StoreReader::ComputeNodeBounds() {
+  node_bounds_.assign(nodes_.size(), BoxBounds{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}});
+  const auto extend = [](BoxBounds* to, const float lower[3], const float upper[3]) {
+    for (int a = 0; a < 3; ++a) {
+      to->lower[a] = std::min(to->lower[a], lower[a]);
+      to->upper[a] = std::max(to->upper[a], upper[a]);
+    }
+  };
+  // Children come after their parent (checked above), so a backward sweep sees them first.
+  for (uint32_t n = static_cast<uint32_t>(nodes_.size()); n-- > 0;) {
+    const OctreeNode& node = nodes_[n];
+    BoxBounds& b = node_bounds_[n];
+    if (node.kind == kOctreeLeaf) {
+      for (uint32_t k = node.first; k < node.first + node.count; ++k)
+        extend(&b, blocks_[k].bounds_lower, blocks_[k].bounds_upper);
+    } else if (node.kind == kOctreeInner) {
+      for (uint32_t c = node.first; c < node.first + 8; ++c)
+        extend(&b, node_bounds_[c].lower, node_bounds_[c].upper);
+    }
+  }
 }
 
 Status StoreReader::OpenBlocks() {
@@ -225,6 +258,15 @@ Expected<BlockView> StoreReader::Decode(uint32_t id, std::span<const uint8_t> st
   if (!view.ok()) return Status::Error(BlockError(id, view.status().message()));
   if (view->triangle_count() != e.triangle_count)
     return Status::Error(BlockError(id, "triangle count differs from the index"));
+  // The walks skip this block for rays that miss these bounds: they must be its BVH's.
+  BoxBounds root{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}};  // empty, as the encoder's
+  if (!view->nodes().empty()) {
+    std::memcpy(root.lower, view->nodes()[0].lower, sizeof root.lower);
+    std::memcpy(root.upper, view->nodes()[0].upper, sizeof root.upper);
+  }
+  if (std::memcmp(root.lower, e.bounds_lower, sizeof root.lower) != 0 ||
+      std::memcmp(root.upper, e.bounds_upper, sizeof root.upper) != 0)
+    return Status::Error(BlockError(id, "its BVH's box differs from its bounds in index.bin"));
   return view;
 }
 

@@ -75,6 +75,8 @@ Status StoreWriter::Add(const EncodedBlock& b) {
   for (int a = 0; a < 3; ++a) {
     e.cell_lower[a] = b.cell.lower[a];
     e.cell_upper[a] = b.cell.upper[a];
+    e.bounds_lower[a] = b.bounds.lower[a];
+    e.bounds_upper[a] = b.bounds.upper[a];
   }
   e.triangle_count = b.triangles;
   e.octree_leaf = b.octree_leaf;

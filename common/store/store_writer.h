@@ -24,6 +24,7 @@ struct EncodedBlock {
   uint32_t triangles = 0;
   uint32_t octree_leaf = 0;
   Bounds3f cell;
+  Bounds3f bounds;  // the block's BVH root box (BlockEncoder::bounds())
 };
 
 class StoreWriter {

@@ -22,12 +22,19 @@ namespace {
 
 using slave::BlockWalk;
 
-// Every block of every leaf VisitLeaves reports before `tmax` (the store's own walk).
-std::vector<uint32_t> BlocksByVisitLeaves(const store::OctreeView& octree, const Ray& ray) {
+// Whether the ray may meet block b's bounds (the index's copy of its BVH root box).
+bool MayHitBlock(const store::StoreReader& store, const Ray& ray, uint32_t b) {
+  return store::MayHit(RayBoxSetup(ray), store::BoundsOf(store.blocks()[b]), ray.tmin, ray.tmax);
+}
+
+// Every block of every leaf VisitLeaves reports before `tmax` (the store's own walk) whose
+// bounds the ray may meet.
+std::vector<uint32_t> BlocksByVisitLeaves(const store::StoreReader& store, const Ray& ray) {
   std::vector<uint32_t> blocks;
   float bound = ray.tmax;
-  octree.VisitLeaves(ray, &bound, [&](uint32_t, const store::OctreeNode& leaf, float, float) {
-    for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b) blocks.push_back(b);
+  store.octree().VisitLeaves(ray, &bound, [&](uint32_t, const store::OctreeNode& leaf, float, float) {
+    for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b)
+      if (MayHitBlock(store, ray, b)) blocks.push_back(b);
     return true;
   });
   return blocks;
@@ -42,8 +49,10 @@ std::vector<uint32_t> BlocksByWalk(const BlockWalk& walk, const Ray& ray) {
   return blocks;
 }
 
-// The walk's order spelt out plainly: a recursive depth-first walk, each node's children the
-// ray meets sorted by (entry, exit, higher child first), slab distances as IntersectBox has them.
+// The walk's order spelt out plainly: a recursive depth-first walk over the cells alone, each
+// node's children the ray meets sorted by (entry, exit, higher child first), slab distances as
+// IntersectBox has them; every block of a leaf it reaches (the caller leaves out those whose
+// bounds the ray misses: the walk's pruning of whole nodes must come to the same).
 void ReferenceWalk(const store::OctreeView& octree, const Ray& ray, uint32_t node,
                    const Bounds3f& cell, std::vector<uint32_t>* out) {
   const store::OctreeNode& n = octree.nodes()[node];
@@ -132,20 +141,24 @@ TEST(BlockWalk, VisitsEveryBlockTheRayCrossesOnceNearestFirst) {
   const store::OctreeView octree = s.reader->octree();
   const BlockWalk walk(octree, s.reader->blocks());
   ASSERT_GT(s.reader->blocks().size(), 50u);
-  size_t visited = 0;
+  size_t visited = 0, skipped = 0;
   for (Ray ray : TestRays(*s.reader, 4000)) {
     for (const float tmax : {std::numeric_limits<float>::infinity(), 0.4f}) {
       ray.tmax = tmax;
       const std::vector<uint32_t> walked = BlocksByWalk(walk, ray);
-      std::vector<uint32_t> reference;
-      ReferenceWalk(octree, ray, 0, octree.root_cell(), &reference);
+      std::vector<uint32_t> crossed, reference;
+      ReferenceWalk(octree, ray, 0, octree.root_cell(), &crossed);
+      for (uint32_t b : crossed) {
+        if (MayHitBlock(*s.reader, ray, b)) reference.push_back(b);
+        else ++skipped;
+      }
       ASSERT_EQ(walked, reference);
       // Nearest first: entries never decrease.
       for (size_t i = 1; i < walked.size(); ++i)
         ASSERT_LE(CellEntry(s.reader->blocks()[walked[i - 1]], ray),
                   CellEntry(s.reader->blocks()[walked[i]], ray));
       // The same blocks as the store's own front-to-back walk (which orders ties otherwise).
-      std::vector<uint32_t> sorted = walked, expected = BlocksByVisitLeaves(octree, ray);
+      std::vector<uint32_t> sorted = walked, expected = BlocksByVisitLeaves(*s.reader, ray);
       std::sort(sorted.begin(), sorted.end());
       std::sort(expected.begin(), expected.end());
       ASSERT_EQ(sorted, expected);
@@ -153,6 +166,38 @@ TEST(BlockWalk, VisitsEveryBlockTheRayCrossesOnceNearestFirst) {
     }
   }
   EXPECT_GT(visited, 4000u);  // the rays do cross the model
+  EXPECT_GT(skipped, visited / 10);  // and their cells hold blocks they miss
+}
+
+// A block the walk leaves out (its bounds missed) is one whose triangles the ray does not hit:
+// for every block of the crossed cells, MayHit false implies no hit from the block itself.
+TEST(BlockWalk, ABlockLeftOutIsOneTheRayDoesNotHit) {
+  TestStore s = BuildGenerated("spheres:60000", 4);
+  const store::OctreeView octree = s.reader->octree();
+  std::vector<uint8_t> stored;
+  store::AlignedBuffer scratch;
+  std::vector<store::AlignedBuffer> raws(s.reader->blocks().size());
+  std::vector<store::BlockView> views(raws.size());
+  for (uint32_t b = 0; b < raws.size(); ++b) {
+    Expected<store::BlockView> v = s.reader->Load(b, &stored, &scratch, &raws[b]);
+    ASSERT_TRUE(v.ok()) << v.status().message();
+    views[b] = *v;
+  }
+  size_t left_out = 0;
+  for (Ray ray : TestRays(*s.reader, 2000)) {
+    ray.tmax = std::numeric_limits<float>::infinity();
+    std::vector<uint32_t> crossed;
+    ReferenceWalk(octree, ray, 0, octree.root_cell(), &crossed);
+    for (uint32_t b : crossed) {
+      if (MayHitBlock(*s.reader, ray, b)) continue;
+      ++left_out;
+      Hit hit;
+      hit.t = ray.tmax;
+      ASSERT_FALSE(views[b].Intersect(ray, &hit)) << "block " << b;
+      ASSERT_FALSE(views[b].Occluded(ray)) << "block " << b;
+    }
+  }
+  EXPECT_GT(left_out, 1000u);
 }
 
 TEST(BlockWalk, ARayWhoseHitShrinksStopsAtTheSameBlockAsOneThatKnewIt) {

@@ -5,8 +5,13 @@
 
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <limits>
+#include <span>
+#include <vector>
 
 #include "common/base/temp_dir.h"
 #include "common/store/store_tracer.h"
@@ -39,6 +44,30 @@ class StoreReaderTest : public ::testing::Test {
     c = static_cast<char>(c ^ 0x10);
     f.seekp(static_cast<std::streamoff>(offset));
     f.write(&c, 1);
+  }
+
+  // Lets `edit` change block `id`'s index entry, then re-seals index.bin's checksum: the
+  // damage a checksum cannot see (a hostile or buggy writer).
+  template <typename Edit>
+  void EditIndexEntry(uint32_t id, Edit&& edit) {
+    const std::string file = path_ + "/" + kIndexFile;
+    std::ifstream in(file, std::ios::binary);
+    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), {});
+    in.close();
+    FileHeader h;
+    std::memcpy(&h, bytes.data(), sizeof h);
+    StoreSummary summary;
+    std::memcpy(&summary, bytes.data() + sizeof h, sizeof summary);
+    const size_t at = sizeof h + sizeof summary + summary.material_count * sizeof(MaterialRecord) +
+                      id * sizeof(BlockEntry);
+    BlockEntry e;
+    std::memcpy(&e, bytes.data() + at, sizeof e);
+    edit(&e);
+    std::memcpy(bytes.data() + at, &e, sizeof e);
+    h.body_checksum = Checksum(std::span<const uint8_t>(bytes).subspan(sizeof h));
+    std::memcpy(bytes.data(), &h, sizeof h);
+    std::ofstream(file, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
+                                                static_cast<std::streamsize>(bytes.size()));
   }
 
   std::unique_ptr<TempDir> dir_;
@@ -99,6 +128,30 @@ TEST_F(StoreReaderTest, DamagedIndexOrOctreeIsRefusedAtOpen) {
   s = StoreReader::Open(path_);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.status().message().find("octree.bin"), std::string::npos) << s.status().message();
+}
+
+// The walks skip a block for rays that miss its bounds in the index, so bounds that are not its
+// BVH's would lose hits silently: the block is refused when decoded, naming it.
+TEST_F(StoreReaderTest, BoundsThatAreNotTheBlocksBvhAreRefusedNamingTheBlock) {
+  const uint32_t victim = 3;
+  EditIndexEntry(victim, [](BlockEntry* e) { e->bounds_upper[1] -= 0.25f * (e->bounds_upper[1] - e->bounds_lower[1]); });
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_TRUE(s.ok()) << s.status().message();
+  std::vector<uint8_t> stored;
+  AlignedBuffer scratch, raw;
+  Expected<BlockView> v = (*s)->Load(victim, &stored, &scratch, &raw);
+  ASSERT_FALSE(v.ok());
+  EXPECT_NE(v.status().message().find("block 3 "), std::string::npos) << v.status().message();
+  EXPECT_NE(v.status().message().find("bounds"), std::string::npos) << v.status().message();
+  EXPECT_TRUE((*s)->Load(victim + 1, &stored, &scratch, &raw).ok());
+}
+
+TEST_F(StoreReaderTest, NanBoundsAreRefusedAtOpen) {
+  EditIndexEntry(2, [](BlockEntry* e) { e->bounds_lower[0] = std::numeric_limits<float>::quiet_NaN(); });
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("index.bin: block 2 has NaN bounds"), std::string::npos)
+      << s.status().message();
 }
 
 TEST_F(StoreReaderTest, WrongVersionIsNamed) {

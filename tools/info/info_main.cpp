@@ -17,7 +17,7 @@ constexpr const char* kUsage = R"(usage: raystack-info STORE [--verify] [--block
 Prints what a raystack block store holds: format version, triangle and reference counts,
 blocks and their size histogram, bytes per triangle, compression ratio, bounds, materials.
   --verify   read, checksum, decompress and validate every block (exit 1 on the first bad one)
-  --blocks   list every block (offset, sizes, triangles, cell)
+  --blocks   list every block (offset, sizes, triangles, cell, bounds)
 )";
 
 void PrintHistogram(std::span<const store::BlockEntry> blocks) {
@@ -76,10 +76,13 @@ int Run(const std::string& dir, bool verify, bool list) {
   if (list) {
     for (uint32_t i = 0; i < s.blocks().size(); ++i) {
       const store::BlockEntry& b = s.blocks()[i];
-      std::printf("block %u offset %llu stored %u raw %u triangles %u cell (%g %g %g)-(%g %g %g)\n", i,
+      std::printf("block %u offset %llu stored %u raw %u triangles %u cell (%g %g %g)-(%g %g %g) "
+                  "bounds (%g %g %g)-(%g %g %g)\n", i,
                   static_cast<unsigned long long>(b.offset), b.stored_bytes, b.raw_bytes,
                   b.triangle_count, double{b.cell_lower[0]}, double{b.cell_lower[1]}, double{b.cell_lower[2]},
-                  double{b.cell_upper[0]}, double{b.cell_upper[1]}, double{b.cell_upper[2]});
+                  double{b.cell_upper[0]}, double{b.cell_upper[1]}, double{b.cell_upper[2]},
+                  double{b.bounds_lower[0]}, double{b.bounds_lower[1]}, double{b.bounds_lower[2]},
+                  double{b.bounds_upper[0]}, double{b.bounds_upper[1]}, double{b.bounds_upper[2]});
     }
   }
   if (verify) {

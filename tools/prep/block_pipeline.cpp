@@ -90,6 +90,7 @@ void BlockPipeline::Encode(const LeafJob& job, std::span<const uint32_t> refs,
   block.triangles = static_cast<uint32_t>(refs.size());
   block.octree_leaf = job.octree_leaf;
   block.cell = job.cell;
+  block.bounds = encoder->bounds();  // this block's: the split branch above returned
   store::EncodeBlock(raw, &block.stored, shuffle_);
   out->blocks.push_back(std::move(block));
 }
