@@ -29,7 +29,7 @@ std::vector<SampleRange> PassRanges(uint32_t spp, uint32_t pass_spp) {
 }
 
 FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint32_t pass_spp,
-                        PixelOrder order) {
+                        PixelOrder order, bool coarse_rounds) {
   FramePlan plan;
   plan.width = width;
   plan.height = height;
@@ -52,7 +52,7 @@ FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint
   const uint32_t tile_pixels = static_cast<uint32_t>(std::max(1, tile_size * tile_size));
   const uint32_t chunk = std::max(1u, kMaxTileSamples / tile_pixels);
   for (uint32_t p = 0; p < plan.passes.size(); ++p) {
-    const bool split = order == PixelOrder::kPriority && p == 0;
+    const bool split = order == PixelOrder::kPriority && coarse_rounds && p == 0;
     const int rounds = split ? 5 : 1;
     for (uint32_t begin = plan.passes[p].begin; begin < plan.passes[p].end; begin += chunk) {
       const uint32_t end = std::min(plan.passes[p].end, begin + chunk);

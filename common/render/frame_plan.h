@@ -50,10 +50,13 @@ struct FramePlan {
 // The most samples one tile of a plan holds (pixels x samples per pixel).
 inline constexpr uint32_t kMaxTileSamples = 16384;
 
-// Priority: Hilbert-ordered tiles, first pass in priority-matrix rounds, pixels within a tile
-// by priority. Scanline: tiles and pixels in scanline order, every pass one sweep.
+// Priority: Hilbert-ordered tiles, first pass in priority-matrix rounds (unless
+// `coarse_rounds` is false: then one sweep), pixels within a tile by priority. Scanline: tiles
+// and pixels in scanline order, every pass one sweep. Each round sweeps the whole frame, so
+// with a block cache smaller than the blocks the frame needs every round loads them again:
+// the caller turns the rounds off out of core (render_command.cpp, --coarse-rounds).
 FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint32_t pass_spp,
-                        PixelOrder order);
+                        PixelOrder order, bool coarse_rounds = true);
 
 // Samples a tile stands for (its pixels in its rank range times its samples); `spp` resolves a
 // tile whose sample_end is 0 (the whole frame's samples).

@@ -87,6 +87,41 @@ TEST_F(RenderCli, ModesWriteTheSameImage) {
   }
 }
 
+// The first pass's coarse rounds sweep the frame five times: with every block in the cache
+// that is free, out of core it loads the frame's blocks again on each sweep. --coarse-rounds
+// auto keeps them only when the decoded store fits the cache, and says which it chose.
+TEST_F(RenderCli, CoarseRoundsOnlyWhenTheStoreFitsTheCache) {
+  const std::string scene = WriteScene(R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 256, "height": 160 },
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "output": "out.exr" })");
+  const auto loads = [&](const std::vector<std::string>& extra, std::string* out) {
+    std::vector<std::string> args = {kRaystack, "render", scene, "--threads", "1", "--no-png",
+                                     "--tile-size", "16", "--stats", dir_->File("s.json")};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const ProcessResult r = RunProcess(args, dir_->path());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    *out = r.out;
+    const std::string stats = Slurp(dir_->File("s.json"));
+    const size_t at = stats.find("\"blocks_loaded\": ");
+    return at == std::string::npos ? -1L : std::stol(stats.substr(at + 17));
+  };
+  std::string out;
+  // 0.25 MB holds a few of the store's blocks, not all of them.
+  const long auto_small = loads({"--cache-mb", "0.25"}, &out);
+  EXPECT_NE(out.find("first pass: one sweep (decoded blocks"), std::string::npos) << out;
+  const long rounds_small = loads({"--cache-mb", "0.25", "--coarse-rounds", "on"}, &out);
+  EXPECT_NE(out.find("first pass: 5 coarse rounds (--coarse-rounds on)"), std::string::npos) << out;
+  ASSERT_GT(auto_small, 0);
+  EXPECT_LT(auto_small * 3, rounds_small * 2) << "one sweep should load far fewer blocks";
+  loads({"--cache-mb", "64"}, &out);
+  EXPECT_NE(out.find("first pass: 5 coarse rounds (decoded blocks"), std::string::npos) << out;
+  const ProcessResult bad = RunProcess({kRaystack, "render", scene, "--coarse-rounds", "maybe"},
+                                       dir_->path());
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--coarse-rounds must be auto, on or off"), std::string::npos) << bad.err;
+}
+
 TEST_F(RenderCli, BadInputIsAClearError) {
   struct Case {
     std::vector<std::string> args;

@@ -15,7 +15,7 @@ scene=$1 cache_mb=$2 repeats=${3:-3}
 shift $(( $# >= 3 ? 3 : $# ))
 [ "${1:-}" = "--" ] && shift
 extra=("$@")
-raystack=build/master/raystack
+raystack=${RAYSTACK_BIN:-build/master/raystack}  # RAYSTACK_BIN: another build, for before/after pairs
 store=$(python3 -c "import json,os,sys; s=sys.argv[1]; print(os.path.join(os.path.dirname(os.path.abspath(s)), json.load(open(s))['store']))" "$scene")
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
