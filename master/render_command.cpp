@@ -59,7 +59,7 @@ options:
   --resume                  continue from the output EXR a killed run left (its last
                             checkpoint): tiles it holds finished are kept, the others are
                             rendered again; the image equals an uninterrupted run's
-  --io-threads N            block reads kept in flight by the loader (default 16)
+  --io-threads N            block reads kept in flight by the loader (default 32)
   --blocks loc|rem|auto     under mpirun, where a slave gets a missing block: loc, the store
                             itself (local disk or shared filesystem); rem, the memory of the
                             block's owner among the slaves (each block is read from disk once,

@@ -29,7 +29,7 @@
 namespace raystack::slave {
 
 struct LoaderOptions {
-  int io_threads = 16;                 // reads in flight (16: measured best at 1 ms latency)
+  int io_threads = 32;  // reads in flight: dragon x36 at 1 ms per read, 16 -> 32: 2.47 -> 1.69 s; local disk the same
   uint32_t max_run_bytes = 256 << 10;  // neighbouring blocks merged into one read, up to this
 };
 
