@@ -29,7 +29,8 @@ Status ReadChecked(const std::string& path, const char (&magic)[8], std::vector<
   } else if (std::memcmp(h.magic, magic, 8) != 0) {
     status = Status::Error(path + ": wrong magic (not a raystack store file of this kind)");
   } else if (h.version != kFormatVersion) {
-    status = Status::Error(StrFormat("%s: format version %u, this build reads version %u",
+    status = Status::Error(StrFormat("%s: format version %u, this build reads version %u "
+                                     "(convert the model again with raystack-prep)",
                                      path.c_str(), h.version, kFormatVersion));
   } else if (h.header_bytes != sizeof h || h.body_bytes != size - sizeof h) {
     status = Status::Error(path + ": size does not match its header (truncated?)");
