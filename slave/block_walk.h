@@ -77,7 +77,7 @@ class BlockWalk {
   uint32_t Descend(const Slabs& s, Frame* frames, int depth) const;
 
   std::span<const store::OctreeNode> nodes_;
-  std::span<const store::BoxBounds> node_bounds_;
+  store::NodeBounds node_bounds_;
   std::span<const store::BlockEntry> blocks_;
   Cell root_;
   std::vector<uint32_t> parent_;  // by node; the root's is itself

@@ -159,25 +159,43 @@ Status StoreReader::ReadOctree() {
 }
 
 void StoreReader::ComputeNodeBounds() {
-  node_bounds_.assign(nodes_.size(), BoxBounds{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}});
-  const auto extend = [](BoxBounds* to, const float lower[3], const float upper[3]) {
+  const size_t n = nodes_.size();
+  node_bounds_.assign(6 * n, kInf);
+  for (size_t i = 3 * n; i < 6 * n; ++i) node_bounds_[i] = -kInf;  // every box empty
+  float* lower = node_bounds_.data();
+  float* upper = node_bounds_.data() + 3 * n;
+  const auto extend = [&](uint32_t node, const float lo[3], const float hi[3]) {
     for (int a = 0; a < 3; ++a) {
-      to->lower[a] = std::min(to->lower[a], lower[a]);
-      to->upper[a] = std::max(to->upper[a], upper[a]);
+      float& l = lower[a * n + node];
+      float& u = upper[a * n + node];
+      l = std::min(l, lo[a]);
+      u = std::max(u, hi[a]);
     }
   };
   // Children come after their parent (checked above), so a backward sweep sees them first.
-  for (uint32_t n = static_cast<uint32_t>(nodes_.size()); n-- > 0;) {
-    const OctreeNode& node = nodes_[n];
-    BoxBounds& b = node_bounds_[n];
-    if (node.kind == kOctreeLeaf) {
-      for (uint32_t k = node.first; k < node.first + node.count; ++k)
-        extend(&b, blocks_[k].bounds_lower, blocks_[k].bounds_upper);
-    } else if (node.kind == kOctreeInner) {
-      for (uint32_t c = node.first; c < node.first + 8; ++c)
-        extend(&b, node_bounds_[c].lower, node_bounds_[c].upper);
+  for (uint32_t node = static_cast<uint32_t>(n); node-- > 0;) {
+    const OctreeNode& o = nodes_[node];
+    if (o.kind == kOctreeLeaf) {
+      for (uint32_t k = o.first; k < o.first + o.count; ++k)
+        extend(node, blocks_[k].bounds_lower, blocks_[k].bounds_upper);
+    } else if (o.kind == kOctreeInner) {
+      for (uint32_t c = o.first; c < o.first + 8; ++c) {
+        const float lo[3] = {lower[c], lower[n + c], lower[2 * n + c]};
+        const float hi[3] = {upper[c], upper[n + c], upper[2 * n + c]};
+        extend(node, lo, hi);
+      }
     }
   }
+}
+
+NodeBounds StoreReader::NodeBoundsView() const {
+  const size_t n = nodes_.size();
+  NodeBounds b;
+  for (int a = 0; a < 3; ++a) {
+    b.lower[a] = node_bounds_.data() + a * n;
+    b.upper[a] = node_bounds_.data() + (3 + a) * n;
+  }
+  return b;
 }
 
 Status StoreReader::OpenBlocks() {

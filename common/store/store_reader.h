@@ -29,7 +29,7 @@ class StoreReader {
   const StoreSummary& summary() const { return summary_; }
   std::span<const BlockEntry> blocks() const { return blocks_; }
   std::span<const MaterialRecord> materials() const { return materials_; }
-  OctreeView octree() const { return OctreeView(nodes_, node_bounds_, root_cell()); }
+  OctreeView octree() const { return OctreeView(nodes_, NodeBoundsView(), root_cell()); }
   Bounds3f root_cell() const;
   Bounds3f model_bounds() const;
   uint64_t blocks_file_bytes() const { return blocks_file_bytes_; }
@@ -59,7 +59,10 @@ class StoreReader {
   std::vector<MaterialRecord> materials_;
   std::vector<BlockEntry> blocks_;
   std::vector<OctreeNode> nodes_;
-  std::vector<BoxBounds> node_bounds_;  // per node: the union of its blocks' bounds
+  // Per node, the union of its blocks' bounds: lower x, y, z then upper x, y, z, each an array
+  // of node_count floats (NodeBounds).
+  std::vector<float> node_bounds_;
+  NodeBounds NodeBoundsView() const;
   int blocks_fd_ = -1;
   uint64_t blocks_file_bytes_ = 0;
 };
