@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <limits>
 #include <random>
 
 #include "common/store/block_codec.h"
@@ -73,6 +74,56 @@ TEST(BlockView, EncodedBlockParsesAndKeepsEveryTriangle) {
   for (int s : seen) EXPECT_EQ(s, 1);
   EXPECT_FALSE(v->has_normals());  // the source had none: none stored
   EXPECT_FALSE(v->has_uvs());
+}
+
+// The traversal tests 4 triangles' edges at once and only the survivors one by one; the hits
+// must be the ones every triangle tested alone gives (the closest, ties to the smaller id),
+// also for rays aimed at vertices and edge midpoints, where an edge value is zero and the
+// triangle test decides in double.
+TEST(BlockView, IntersectAndOccludedEqualEveryTriangleTestedAlone) {
+  Fixture f(400);
+  AlignedBuffer buffer;
+  Expected<BlockView> v = ParseCopy(f.raw, &buffer, 4);
+  ASSERT_TRUE(v.ok()) << v.status().message();
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.0f, 2.0f);
+  std::uniform_int_distribution<uint32_t> pick(0, 399);
+  int hits = 0, aimed = 0;
+  for (int k = 0; k < 20000; ++k) {
+    Ray ray;
+    ray.origin = {u(rng), u(rng), u(rng)};
+    const PackedTriangle& target = f.tris[pick(rng)];
+    const Vec3f aim = k % 3 == 0 ? target.p[k % 2] : (target.p[0] + target.p[1]) * 0.5f;
+    ray.direction = k % 5 == 4 ? Vec3f{u(rng), u(rng), u(rng)} : aim - ray.origin;
+    ray.tmin = 0;
+    ray.tmax = k % 7 == 0 ? 0.5f : std::numeric_limits<float>::infinity();
+    aimed += k % 5 != 4;
+    Hit expected;
+    expected.t = ray.tmax;
+    bool any = false;
+    const RayTriangleSetup setup(ray);
+    for (uint32_t t = 0; t < v->triangle_count(); ++t) {
+      Vec3f p0, p1, p2;
+      v->TriangleVertices(t, &p0, &p1, &p2);
+      float th, bu, bv;
+      if (!IntersectTriangle(setup, p0, p1, p2, ray.tmin, NextUp(expected.t), &th, &bu, &bv)) continue;
+      if (th < ray.tmax) any = true;
+      if (CloserThan(th, v->TriangleId(t), expected)) {
+        expected.t = th;
+        expected.triangle_id = v->TriangleId(t);
+        expected.local_triangle = t;
+      }
+    }
+    Hit got;
+    got.t = ray.tmax;
+    v->Intersect(ray, &got);
+    ASSERT_EQ(got.triangle_id, expected.triangle_id) << "ray " << k;
+    ASSERT_EQ(got.t, expected.t) << "ray " << k;
+    ASSERT_EQ(v->Occluded(ray), any) << "ray " << k;
+    hits += got.Valid();
+  }
+  EXPECT_GT(hits, 5000);
+  EXPECT_GT(aimed, 10000);
 }
 
 TEST(BlockView, ConstantMaterialIsNotStoredPerTriangle) {
