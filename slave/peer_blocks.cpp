@@ -284,10 +284,14 @@ void PeerBlocks::Answer(int to, uint32_t request, std::span<const wire::BlockRun
   // waiting for a peer that is itself waiting to answer this one would never return.
   const std::span<const uint8_t> stored =
       st.ok() ? std::span<const uint8_t>(*bytes) : std::span<const uint8_t>();
+  // Counted before the answer goes: once it is out, the asker may report before this returns.
+  to_peers_.fetch_add(stored.size());
   const Status sent =
       net_->Post(to, wire::EncodeBlockData(static_cast<uint32_t>(net_->rank()), h, stored));
-  if (!sent.ok()) LOG_ERROR("slave", "%s", sent.message().c_str());
-  if (st.ok()) to_peers_.fetch_add(bytes->size());
+  if (!sent.ok()) {
+    LOG_ERROR("slave", "%s", sent.message().c_str());
+    to_peers_.fetch_sub(stored.size());
+  }
 }
 
 void PeerBlocks::ServeLoop() {

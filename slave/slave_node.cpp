@@ -275,6 +275,7 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   const uint64_t to_peers = peers_ ? peers_->bytes_to_peers() : 0;
   const uint64_t fetches = peers_ ? peers_->fetches() : 0;
   const double fetch_wait = peers_ ? peers_->fetch_wait_seconds() : 0;
+  const uint64_t fetch_runs = peers_ ? peers_->runs_fetched() : 0;
   Status status = engine_->RenderFrame(scene, materials, camera, tiles, sink, stats);
   const auto rendered = std::chrono::steady_clock::now();
   bool shut_down;
@@ -315,6 +316,7 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
     d.bytes_to_peers = peers_->bytes_to_peers() - to_peers;
     d.fetches = peers_->fetches() - fetches;
     d.fetch_wait_seconds = peers_->fetch_wait_seconds() - fetch_wait;
+    d.fetch_runs = peers_->runs_fetched() - fetch_runs;
   }
   return net_->Send(0, wire::Encode(me, d));
 }

@@ -26,7 +26,8 @@ inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
 // 2: tile assignments carry a sample range and a pixel-rank range (progressive passes);
 // pixel batches carry the rays traced for them. 3: heartbeats, rank-lost notices, shutdown
 // flags (a lost slave costs time, never pixels). 5: a block request carries several runs of
-// the owner's blocks (the fetches that queued for the same owner), its answer their bytes.
+// the owner's blocks (the fetches that queued for the same owner), its answer their bytes;
+// frame figures count the runs fetched.
 inline constexpr uint16_t kProtocolVersion = 5;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
@@ -94,6 +95,7 @@ struct FrameDone {
   double busy_seconds;        // summed over ray threads: tracing, not waiting (RenderStats)
   uint64_t fetches;           // --blocks rem: requests for blocks sent to their owners
   double fetch_wait_seconds;  // --blocks rem: summed over fetches, request to answer
+  uint64_t fetch_runs;        // --blocks rem: the loader's runs those requests carried
 };
 struct Shutdown {
   uint32_t reason;  // 0: the job is done
@@ -132,7 +134,7 @@ struct PixelBatchHeader {
   uint64_t rays;   // rays the slave traced for these samples (progress figures)
 };
 static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
-              sizeof(FrameDone) == 104 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
+              sizeof(FrameDone) == 112 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
               sizeof(BlockRequest) == 16 && sizeof(BlockRun) == 8 && sizeof(BlockDataHeader) == 16 &&
               sizeof(Heartbeat) == 8 && sizeof(RankLost) == 8);
 
