@@ -76,6 +76,11 @@ Status PeerBlocks::Own(uint32_t block, std::vector<uint8_t>* append) {
   return OkStatus();
 }
 
+void PeerBlocks::Answered(OwnerQueue* q) {
+  --q->in_flight;
+  if (q->open) q->open->cv.notify_all();  // its leader may send it now
+}
+
 uint64_t PeerBlocks::RunBytes(uint32_t first, uint32_t count) const {
   uint64_t bytes = 0;
   for (uint32_t b = first; b < first + count; ++b) bytes += store_.blocks()[b].stored_bytes;
@@ -103,7 +108,7 @@ void PeerBlocks::SendBatch(const std::shared_ptr<Batch>& b, std::unique_lock<std
     b->status = sent;
     b->done = true;
     sent_.erase(b->request);
-    --q.in_flight;
+    Answered(&q);
   }
   // The leader measures its request's round trip; the members wait for the same answer.
   b->cv.wait_for(*lock, std::chrono::minutes(1), [&] { return b->done || stopped_; });
@@ -159,19 +164,19 @@ Status PeerBlocks::Fetch(int owner, uint32_t first, uint32_t count, std::vector<
     if (leader) {
       // Sent once fewer than kMaxInFlightPerOwner requests are out (at once, usually); the
       // runs wanted meanwhile join it.
-      b->cv.wait(lock, [&] {
+      const bool may_send = b->cv.wait_for(lock, std::chrono::minutes(1), [&] {
         return q.in_flight < kMaxInFlightPerOwner || b->full || b->done || stopped_;
       });
-      if (!b->done && !stopped_) SendBatch(b, &lock);
+      if (may_send && !b->done && !stopped_) SendBatch(b, &lock);
     } else {
       b->cv.wait_for(lock, std::chrono::minutes(1), [&] { return b->done || stopped_; });
     }
     --b->members;
     if (!b->done && b->members == 0 && b->sent) {  // no answer in time, and nobody waits
       sent_.erase(b->request);
-      --q.in_flight;
+      Answered(&q);
     }
-    if (!b->done && !b->sent && q.open == b) {  // stopped before it was sent
+    if (!b->done && !b->sent && q.open == b) {  // stopped (or timed out) before it was sent
       q.open = nullptr;
       runs_waiting_ -= b->runs.size();
     }
@@ -248,9 +253,7 @@ Status PeerBlocks::OnData(int from, const wire::Message& m) {
                                    "not ask it for", from, d.request, d.runs));
   const std::shared_ptr<Batch> b = it->second;
   sent_.erase(it);
-  OwnerQueue& q = owners_[static_cast<size_t>(from)];
-  --q.in_flight;
-  if (q.open) q.open->cv.notify_all();  // its leader may send it now
+  Answered(&owners_[static_cast<size_t>(from)]);
   const wire::BlockRun& head = b->runs.front();
   if (d.failed) {
     b->status = Status::Error(StrFormat("blocks %u-%u (and %zu more runs): their owner, rank %d, "

@@ -120,6 +120,9 @@ class PeerBlocks final : public BlockSource {
   // Sends the open batch `b` (holds mu_ through `lock`, which it releases while sending).
   void SendBatch(const std::shared_ptr<Batch>& b, std::unique_lock<std::mutex>* lock);
   uint64_t RunBytes(uint32_t first, uint32_t count) const;
+  // A request to `q`'s owner is no longer out (answered, failed or given up): the open batch
+  // may go. Holds mu_.
+  void Answered(OwnerQueue* q);
   // Sends `to` the answer to request `request` for `runs`, their blocks read (from memory or
   // disk) into `scratch`.
   void Answer(int to, uint32_t request, std::span<const wire::BlockRun> runs,

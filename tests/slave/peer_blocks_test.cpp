@@ -127,6 +127,39 @@ TEST(PeerBlocks, QueuedFetchesGoAsOneRequestAndEachGetsItsOwnBlocks) {
   EXPECT_EQ(job.peers2.bytes_to_peers(), bytes);
 }
 
+// An owner lost while fetches wait for it, sent or still queued in a batch: every one of them
+// reads its blocks from disk instead, and gets them right.
+TEST(PeerBlocks, FetchesWaitingForALostOwnerReadFromDisk) {
+  TestStore s = BuildGenerated("sphere:20000", 4);
+  const store::StoreReader& store = *s.reader;
+  TwoSlaves job(store);
+  const uint32_t base = FirstOwnedBy(store, 2);
+  constexpr int kInFlight = slave::PeerBlocks::kMaxInFlightPerOwner;
+  constexpr int kQueued = 3;
+  std::vector<std::vector<uint8_t>> got(kInFlight + kQueued);
+  std::vector<Status> status(kInFlight + kQueued);
+  std::vector<std::thread> fetchers;
+  auto fetch = [&](int i) {
+    fetchers.emplace_back([&, i] {
+      const uint32_t ids[1] = {base + 2 * static_cast<uint32_t>(i)};
+      status[static_cast<size_t>(i)] = job.peers1.ReadRun(ids, &got[static_cast<size_t>(i)]);
+    });
+  };
+  for (int i = 0; i < kInFlight; ++i) fetch(i);
+  WaitFor([&] { return job.peers1.fetches() == static_cast<uint64_t>(kInFlight); });
+  for (int i = kInFlight; i < kInFlight + kQueued; ++i) fetch(i);
+  WaitFor([&] { return job.peers1.runs_waiting() == static_cast<uint64_t>(kQueued); });
+  job.peers1.OwnerLost(2);  // rank 2 never answers
+  for (std::thread& t : fetchers) t.join();
+  for (int i = 0; i < kInFlight + kQueued; ++i) {
+    ASSERT_TRUE(status[static_cast<size_t>(i)].ok()) << status[static_cast<size_t>(i)].message();
+    EXPECT_EQ(got[static_cast<size_t>(i)], FromDisk(store, base + 2 * static_cast<uint32_t>(i), 1));
+  }
+  EXPECT_EQ(job.peers1.runs_waiting(), 0u);
+  EXPECT_EQ(job.peers1.fetches(), static_cast<uint64_t>(kInFlight));  // the batch never went
+  EXPECT_EQ(job.peers1.bytes_from_peers(), 0u);
+}
+
 // The loader over PeerBlocks with a budget of a few blocks, many blocks wanted at once: every
 // block arrives intact and the cache never holds more than its budget.
 TEST(PeerBlocks, TheCacheBudgetHoldsWithBatchedAnswers) {
