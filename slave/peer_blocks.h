@@ -11,9 +11,10 @@
 // are out to an owner at a time, and the runs the loader's workers want from it meanwhile
 // queue in one open batch, sent as a single request (several runs) when an answer comes back.
 // Under a CPU cap every message costs both ends wake-ups that may wait for the node's next
-// slice, so fewer, larger messages are what a fetch costs. Each batch's fetches wait on a
-// condition variable of the batch (an answer wakes its fetchers only) and take their own run's
-// bytes out of the answer: the loader's cache budget sees exactly the blocks it asked for.
+// slice; batched, N = 8 slaves send 40% fewer (tools/bench/RESULTS.md). Each batch's fetches
+// wait on a condition variable of the batch (an answer wakes its fetchers only) and take their
+// own run's bytes out of the answer: the loader's cache budget sees exactly the blocks it
+// asked for.
 // The owner answers a request for blocks it holds already right on the receiving thread, with
 // a posted (non-blocking) send: no thread hop. A request that needs a disk read goes to a
 // server thread, so a slow disk never holds up the receiving thread. Requests and answers are
