@@ -41,7 +41,7 @@ struct FrameFigures {
   std::vector<SlaveFigures> slaves;  // by slave, rank 1 first
   double seconds = 0;                // the frame on the master's clock
   // Thesis definitions over the slaves' render times.
-  double imbalance() const;  // 1 - mean / max
+  double imbalance() const;  // 1 - mean / max of the slaves' times (each from its first tile)
   // The slaves' busy ray-thread time (FrameDone::busy_seconds: tracing, not waiting for blocks
   // or tiles) over the ray-thread time the frame offered them (ray threads x `seconds`), over
   // the slaves that finished. Online, unlike T_1 / (N x T_N), which needs a one-slave run: it

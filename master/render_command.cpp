@@ -577,7 +577,7 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
                    "\"bytes_read\": %llu, \"bytes_from_peers\": %llu, \"bytes_to_peers\": %llu, "
                    "\"bytes_to_master\": %llu, \"pixel_bytes\": %llu, "
                    "\"bytes_from_master\": %llu, \"ray_threads\": %u, \"busy_seconds\": %g, "
-                   "\"fetches\": %llu, \"fetch_wait_seconds\": %g}",
+                   "\"fetches\": %llu, \"fetch_wait_seconds\": %g, \"fetch_runs\": %llu}",
                    i ? "," : "", x.rank, x.done.seconds,
                    static_cast<unsigned long long>(x.done.rays),
                    static_cast<unsigned long long>(x.done.samples),
@@ -591,7 +591,7 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
                    static_cast<unsigned long long>(x.pixel_bytes),
                    static_cast<unsigned long long>(x.bytes_sent), x.done.ray_threads,
                    x.done.busy_seconds, static_cast<unsigned long long>(x.done.fetches),
-                   x.done.fetch_wait_seconds);
+                   x.done.fetch_wait_seconds, static_cast<unsigned long long>(x.done.fetch_runs));
   }
   return s + "\n  ]\n}";
 }
@@ -678,9 +678,10 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
         const std::string peers =
             s.done.fetches + s.done.bytes_to_peers == 0
                 ? std::string()
-                : StrFormat(" (%.1f MB from peers in %llu fetches, %.3f s waiting; %.1f MB to "
-                            "peers)",
+                : StrFormat(" (%.1f MB from peers in %llu runs, %llu requests, %.3f s waiting; "
+                            "%.1f MB to peers)",
                             static_cast<double>(s.done.bytes_from_peers) / 1e6,
+                            static_cast<unsigned long long>(s.done.fetch_runs),
                             static_cast<unsigned long long>(s.done.fetches),
                             s.done.fetch_wait_seconds,
                             static_cast<double>(s.done.bytes_to_peers) / 1e6);

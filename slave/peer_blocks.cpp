@@ -10,6 +10,7 @@ namespace raystack::slave {
 PeerBlocks::PeerBlocks(transport::Transport* net, const store::StoreReader& store,
                        FaultOptions faults)
     : net_(net), store_(store), disk_(store, faults), slaves_(net->size() - 1),
+      owners_(static_cast<size_t>(net->size())),
       lost_(static_cast<size_t>(net->size()), false) {
   const uint32_t count = static_cast<uint32_t>(store.blocks().size());
   const int me = net->rank();
@@ -32,7 +33,9 @@ PeerBlocks::~PeerBlocks() {
 void PeerBlocks::Stop() {
   std::lock_guard lock(mu_);
   stopped_ = true;
-  for (auto& [id, p] : pending_) p->cv.notify_all();
+  for (auto& [id, b] : sent_) b->cv.notify_all();
+  for (OwnerQueue& q : owners_)
+    if (q.open) q.open->cv.notify_all();
   serve_cv_.notify_all();
 }
 
@@ -40,11 +43,25 @@ void PeerBlocks::OwnerLost(int rank) {
   std::lock_guard lock(mu_);
   if (rank < 0 || rank >= static_cast<int>(lost_.size())) return;
   lost_[static_cast<size_t>(rank)] = true;
-  for (auto& [id, p] : pending_)
-    if (p->owner == rank && !p->done) {
-      p->owner_lost = p->done = true;
-      p->cv.notify_all();
+  auto lose = [](Batch* b) {
+    b->owner_lost = b->done = true;
+    b->cv.notify_all();
+  };
+  for (auto it = sent_.begin(); it != sent_.end();) {
+    if (it->second->owner == rank) {
+      lose(it->second.get());
+      it = sent_.erase(it);
+    } else {
+      ++it;
     }
+  }
+  OwnerQueue& q = owners_[static_cast<size_t>(rank)];
+  if (q.open) {
+    runs_waiting_ -= q.open->runs.size();
+    lose(q.open.get());
+  }
+  q.open = nullptr;
+  q.in_flight = 0;
 }
 
 Status PeerBlocks::Own(uint32_t block, std::vector<uint8_t>* append) {
@@ -59,8 +76,50 @@ Status PeerBlocks::Own(uint32_t block, std::vector<uint8_t>* append) {
   return OkStatus();
 }
 
+void PeerBlocks::Answered(OwnerQueue* q) {
+  --q->in_flight;
+  if (q->open) q->open->cv.notify_all();  // its leader may send it now
+}
+
+uint64_t PeerBlocks::RunBytes(uint32_t first, uint32_t count) const {
+  uint64_t bytes = 0;
+  for (uint32_t b = first; b < first + count; ++b) bytes += store_.blocks()[b].stored_bytes;
+  return bytes;
+}
+
+void PeerBlocks::SendBatch(const std::shared_ptr<Batch>& b, std::unique_lock<std::mutex>* lock) {
+  OwnerQueue& q = owners_[static_cast<size_t>(b->owner)];
+  if (q.open == b) q.open = nullptr;
+  runs_waiting_ -= b->runs.size();
+  b->sent = true;
+  b->request = next_request_++;
+  sent_.emplace(b->request, b);
+  ++q.in_flight;
+  // The runs are final once the batch leaves the open slot: no fetch joins it any more.
+  const std::vector<uint8_t> message =
+      wire::EncodeBlockRequest(static_cast<uint32_t>(net_->rank()), b->request, b->runs);
+  lock->unlock();
+  fetches_.fetch_add(1, std::memory_order_relaxed);
+  runs_fetched_.fetch_add(b->runs.size(), std::memory_order_relaxed);
+  const auto asked = std::chrono::steady_clock::now();
+  const Status sent = net_->Send(b->owner, message);
+  lock->lock();
+  if (!sent.ok() && !b->done) {
+    b->status = sent;
+    b->done = true;
+    sent_.erase(b->request);
+    Answered(&q);
+  }
+  // The leader measures its request's round trip; the members wait for the same answer.
+  b->cv.wait_for(*lock, std::chrono::minutes(1), [&] { return b->done || stopped_; });
+  fetch_wait_ns_.fetch_add(static_cast<uint64_t>(
+                               std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                   std::chrono::steady_clock::now() - asked)
+                                   .count()),
+                           std::memory_order_relaxed);
+}
+
 Status PeerBlocks::Fetch(int owner, uint32_t first, uint32_t count, std::vector<uint8_t>* append) {
-  uint32_t id;
   // Once its owner is lost, a block comes from disk, as with --blocks loc.
   auto from_disk = [&]() -> Status {
     std::vector<uint32_t> ids(count);
@@ -70,48 +129,68 @@ Status PeerBlocks::Fetch(int owner, uint32_t first, uint32_t count, std::vector<
     append->insert(append->end(), bytes.begin(), bytes.end());
     return OkStatus();
   };
+  const uint64_t run_bytes = RunBytes(first, count);
+  std::shared_ptr<Batch> b;
+  uint64_t offset = 0;  // this run's bytes in the answer
+  bool stopped = false;
   {
-    // One critical section: an OwnerLost between a check and the request would leave the
-    // request waiting for an answer that never comes.
+    // One critical section from the lost check to joining a batch: an OwnerLost in between
+    // would leave the batch waiting for an answer that never comes.
     std::unique_lock lock(mu_);
     if (stopped_) return Status::Error("the job is ending");
     if (lost_[static_cast<size_t>(owner)]) {
       lock.unlock();
       return from_disk();
     }
-    id = next_request_++;
-    auto p = std::make_unique<Pending>();
-    p->owner = owner;
-    p->first = first;
-    p->count = count;
-    pending_.emplace(id, std::move(p));
+    OwnerQueue& q = owners_[static_cast<size_t>(owner)];
+    if (q.open && (q.open->runs.size() >= kMaxBatchRuns ||
+                   q.open->expected_bytes + run_bytes > kMaxBatchBytes)) {
+      q.open->full = true;  // its leader sends it now; this run starts the next one
+      q.open->cv.notify_all();
+      q.open = nullptr;
+    }
+    bool leader = false;
+    if (!q.open) {
+      q.open = std::make_shared<Batch>();
+      q.open->owner = owner;
+      leader = true;
+    }
+    b = q.open;
+    offset = b->expected_bytes;
+    b->runs.push_back({first, count});
+    ++runs_waiting_;
+    b->expected_bytes += run_bytes;
+    ++b->members;
+    if (leader) {
+      // Sent once fewer than kMaxInFlightPerOwner requests are out (at once, usually); the
+      // runs wanted meanwhile join it.
+      const bool may_send = b->cv.wait_for(lock, std::chrono::minutes(1), [&] {
+        return q.in_flight < kMaxInFlightPerOwner || b->full || b->done || stopped_;
+      });
+      if (may_send && !b->done && !stopped_) SendBatch(b, &lock);
+    } else {
+      b->cv.wait_for(lock, std::chrono::minutes(1), [&] { return b->done || stopped_; });
+    }
+    --b->members;
+    if (!b->done && b->members == 0 && b->sent) {  // no answer in time, and nobody waits
+      sent_.erase(b->request);
+      Answered(&q);
+    }
+    if (!b->done && !b->sent && q.open == b) {  // stopped (or timed out) before it was sent
+      q.open = nullptr;
+      runs_waiting_ -= b->runs.size();
+    }
+    stopped = stopped_;
   }
-  fetches_.fetch_add(1, std::memory_order_relaxed);
-  const auto asked = std::chrono::steady_clock::now();
-  const Status sent = net_->Send(owner, wire::Encode(static_cast<uint32_t>(net_->rank()),
-                                                     wire::BlockRequest{id, first, count, 0}));
-  std::unique_lock lock(mu_);
-  Pending& waiting = *pending_.at(id);
-  // A peer that never answers must not hang the job: a minute is far beyond any real fetch.
-  const bool answered = sent.ok() && waiting.cv.wait_for(lock, std::chrono::minutes(1), [&] {
-    return waiting.done || stopped_;
-  });
-  std::unique_ptr<Pending> taken = std::move(pending_.at(id));
-  pending_.erase(id);
-  lock.unlock();
-  Pending& p = *taken;
-  const auto waited = std::chrono::steady_clock::now() - asked;
-  fetch_wait_ns_.fetch_add(
-      static_cast<uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(waited).count()),
-      std::memory_order_relaxed);
-  if (p.owner_lost) return from_disk();
-  RAYSTACK_RETURN_IF_ERROR(sent);
-  if (!answered || !p.done)
-    return Status::Error(StrFormat("blocks %u-%u: rank %d did not answer", first,
-                                   first + count - 1, owner));
-  if (!p.status.ok()) return p.status;
-  from_peers_.fetch_add(p.bytes.size());
-  append->insert(append->end(), p.bytes.begin(), p.bytes.end());
+  if (b->owner_lost) return from_disk();
+  if (!b->done)
+    return stopped ? Status::Error("the job is ending")
+                   : Status::Error(StrFormat("blocks %u-%u: rank %d did not answer", first,
+                                             first + count - 1, owner));
+  if (!b->status.ok()) return b->status;
+  from_peers_.fetch_add(run_bytes);
+  append->insert(append->end(), b->bytes.begin() + static_cast<ptrdiff_t>(offset),
+                 b->bytes.begin() + static_cast<ptrdiff_t>(offset + run_bytes));
   return OkStatus();
 }
 
@@ -135,19 +214,32 @@ Status PeerBlocks::ReadRun(std::span<const uint32_t> ids, std::vector<uint8_t>* 
   return OkStatus();
 }
 
-Status PeerBlocks::OnRequest(int from, const wire::BlockRequest& r) {
-  if (r.count == 0 || r.first < own_first_ || r.first >= own_end_ || r.count > own_end_ - r.first)
-    return Status::Error(StrFormat("rank %d asked rank %d for blocks %u+%u, which it does not own",
-                                   from, net_->rank(), r.first, r.count));
+Status PeerBlocks::OnRequest(int from, const wire::Message& m) {
+  const wire::BlockRequest r = m.block_request();
+  m.block_runs(&receive_runs_);
+  uint64_t bytes = 0;
+  for (const wire::BlockRun& run : receive_runs_) {
+    if (run.count == 0 || run.first < own_first_ || run.first >= own_end_ ||
+        run.count > own_end_ - run.first)
+      return Status::Error(StrFormat("rank %d asked rank %d for blocks %u+%u, which it does not own",
+                                     from, net_->rank(), run.first, run.count));
+    bytes += RunBytes(run.first, run.count);
+  }
+  if (bytes > kMaxAnswerBytes)
+    return Status::Error(StrFormat("rank %d asked rank %d for %u runs of %llu bytes in one request "
+                                   "(at most %llu)", from, net_->rank(), r.runs,
+                                   static_cast<unsigned long long>(bytes),
+                                   static_cast<unsigned long long>(kMaxAnswerBytes)));
   bool in_memory = true;
-  for (uint32_t b = r.first; b < r.first + r.count && in_memory; ++b)
-    in_memory = owned_[b - own_first_].ready.load(std::memory_order_acquire);
+  for (const wire::BlockRun& run : receive_runs_)
+    for (uint32_t b = run.first; b < run.first + run.count && in_memory; ++b)
+      in_memory = owned_[b - own_first_].ready.load(std::memory_order_acquire);
   if (in_memory) {  // the common case once warm: answered without waking another thread
-    Answer(from, r, &receive_scratch_);
+    Answer(from, r.request, receive_runs_, &receive_scratch_);
     return OkStatus();
   }
   std::lock_guard lock(mu_);
-  to_serve_.push_back({from, r});
+  to_serve_.push_back({from, r.request, receive_runs_});
   serve_cv_.notify_one();
   return OkStatus();
 }
@@ -155,45 +247,54 @@ Status PeerBlocks::OnRequest(int from, const wire::BlockRequest& r) {
 Status PeerBlocks::OnData(int from, const wire::Message& m) {
   const wire::BlockDataHeader d = m.block_data_header();
   std::lock_guard lock(mu_);
-  auto it = pending_.find(d.request);
-  if (it == pending_.end() || it->second->owner != from || it->second->first != d.first ||
-      it->second->count != d.count)
-    return Status::Error(StrFormat("rank %d sent blocks %u+%u this rank did not ask it for",
-                                   from, d.first, d.count));
-  Pending& p = *it->second;
+  auto it = sent_.find(d.request);
+  if (it == sent_.end() || it->second->owner != from || it->second->runs.size() != d.runs)
+    return Status::Error(StrFormat("rank %d sent an answer (request %u, %u runs) this rank did "
+                                   "not ask it for", from, d.request, d.runs));
+  const std::shared_ptr<Batch> b = it->second;
+  sent_.erase(it);
+  Answered(&owners_[static_cast<size_t>(from)]);
+  const wire::BlockRun& head = b->runs.front();
   if (d.failed) {
-    p.status = Status::Error(StrFormat("blocks %u-%u: their owner, rank %d, could not read them",
-                                       d.first, d.first + d.count - 1, from));
+    b->status = Status::Error(StrFormat("blocks %u-%u (and %zu more runs): their owner, rank %d, "
+                                        "could not read them", head.first,
+                                        head.first + head.count - 1, b->runs.size() - 1, from));
   } else {
-    uint64_t expected = 0;
-    for (uint32_t b = d.first; b < d.first + d.count; ++b) expected += store_.blocks()[b].stored_bytes;
     const std::span<const uint8_t> bytes = m.block_data();
-    if (bytes.size() != expected)
-      p.status = Status::Error(StrFormat("blocks %u-%u from rank %d: %zu bytes, the index says %llu",
-                                         d.first, d.first + d.count - 1, from, bytes.size(),
-                                         static_cast<unsigned long long>(expected)));
+    if (bytes.size() != b->expected_bytes)
+      b->status = Status::Error(StrFormat("blocks %u-%u (and %zu more runs) from rank %d: %zu "
+                                          "bytes, the index says %llu", head.first,
+                                          head.first + head.count - 1, b->runs.size() - 1, from,
+                                          bytes.size(),
+                                          static_cast<unsigned long long>(b->expected_bytes)));
     else
-      p.bytes.assign(bytes.begin(), bytes.end());
+      b->bytes.assign(bytes.begin(), bytes.end());
   }
-  p.done = true;
-  p.cv.notify_all();
+  b->done = true;
+  b->cv.notify_all();
   return OkStatus();
 }
 
-void PeerBlocks::Answer(int to, const wire::BlockRequest& r, std::vector<uint8_t>* bytes) {
+void PeerBlocks::Answer(int to, uint32_t request, std::span<const wire::BlockRun> runs,
+                        std::vector<uint8_t>* bytes) {
   bytes->clear();
   Status st;
-  for (uint32_t b = r.first; b < r.first + r.count && st.ok(); ++b) st = Own(b, bytes);
+  for (const wire::BlockRun& run : runs)
+    for (uint32_t b = run.first; b < run.first + run.count && st.ok(); ++b) st = Own(b, bytes);
   if (!st.ok()) LOG_ERROR("slave", "serving rank %d: %s", to, st.message().c_str());
-  const wire::BlockDataHeader h{r.request, r.first, r.count, st.ok() ? 0u : 1u};
+  const wire::BlockDataHeader h{request, static_cast<uint32_t>(runs.size()), st.ok() ? 0u : 1u, 0};
   // Posted, never a blocking send: this may run on the receiving thread, and a receiver
   // waiting for a peer that is itself waiting to answer this one would never return.
   const std::span<const uint8_t> stored =
       st.ok() ? std::span<const uint8_t>(*bytes) : std::span<const uint8_t>();
+  // Counted before the answer goes: once it is out, the asker may report before this returns.
+  to_peers_.fetch_add(stored.size());
   const Status sent =
       net_->Post(to, wire::EncodeBlockData(static_cast<uint32_t>(net_->rank()), h, stored));
-  if (!sent.ok()) LOG_ERROR("slave", "%s", sent.message().c_str());
-  if (st.ok()) to_peers_.fetch_add(bytes->size());
+  if (!sent.ok()) {
+    LOG_ERROR("slave", "%s", sent.message().c_str());
+    to_peers_.fetch_sub(stored.size());
+  }
 }
 
 void PeerBlocks::ServeLoop() {
@@ -207,7 +308,7 @@ void PeerBlocks::ServeLoop() {
       s = to_serve_.front();
       to_serve_.pop_front();
     }
-    Answer(s.to, s.request, &bytes);
+    Answer(s.to, s.request, s.runs, &bytes);
   }
 }
 

@@ -32,7 +32,7 @@ class RemoteTiles final : public TileSource {
     if (!s.has_tile) return false;
     *tile = s.tile;
     s.has_tile = false;
-    ++tiles_;
+    if (tiles_++ == 0) first_tile_ = std::chrono::steady_clock::now();
     if (given_->fetch_add(1) + 1 == kill_after_) {  // fault injection: die as kill -9 does
       LOG_WARNING("slave", "rank %d: killing itself at its tile %lld (--fault-kill-after-tiles)",
                   net_->rank(), static_cast<long long>(kill_after_));
@@ -95,6 +95,11 @@ class RemoteTiles final : public TileSource {
   }
 
   uint64_t tiles() const { return tiles_.load(); }
+  // When the first tile was handed to a ray thread (none: the epoch).
+  std::chrono::steady_clock::time_point first_tile() const {
+    std::lock_guard lock(mu_);
+    return first_tile_;
+  }
 
  private:
   static constexpr uint32_t kMaxTileSamples = 1 << 20;
@@ -120,6 +125,7 @@ class RemoteTiles final : public TileSource {
   std::vector<Slot> slots_;
   bool failed_ = false;
   std::atomic<uint64_t> tiles_{0};
+  std::chrono::steady_clock::time_point first_tile_{};  // (under mu_)
   std::atomic<int64_t>* given_;  // tiles given to this node in the job
   const int64_t kill_after_;
 };
@@ -237,7 +243,7 @@ void SlaveNode::ReceiveLoop() {
         if (lost.died) net_->NoteRankDied(static_cast<int>(lost.rank));
       }
     } else if (from > 0 && peers_ && type == wire::MessageType::kBlockRequest) {
-      const Status s = peers_->OnRequest(from, m->block_request());
+      const Status s = peers_->OnRequest(from, m.value());
       if (!s.ok()) Failed(s);
     } else if (from > 0 && peers_ && type == wire::MessageType::kBlockData) {
       const Status s = peers_->OnData(from, m.value());
@@ -269,7 +275,9 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   const uint64_t to_peers = peers_ ? peers_->bytes_to_peers() : 0;
   const uint64_t fetches = peers_ ? peers_->fetches() : 0;
   const double fetch_wait = peers_ ? peers_->fetch_wait_seconds() : 0;
+  const uint64_t fetch_runs = peers_ ? peers_->runs_fetched() : 0;
   Status status = engine_->RenderFrame(scene, materials, camera, tiles, sink, stats);
+  const auto rendered = std::chrono::steady_clock::now();
   bool shut_down;
   {
     std::lock_guard lock(mu_);
@@ -296,13 +304,19 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   d.blocks_loaded = stats->blocks_loaded;
   d.blocks_distinct = stats->blocks_distinct;
   d.bytes_read = stats->bytes_read;
-  d.seconds = stats->seconds;
+  // From its first tile, not from the frame's start: the wait for the first tile is the
+  // master's (it hands tiles out one at a time), and counting it would make every slave's time
+  // look like the longest, hiding imbalance. No tile: it worked 0 s.
+  d.seconds = tiles.tiles() == 0
+                  ? 0.0
+                  : std::chrono::duration<double>(rendered - tiles.first_tile()).count();
   d.busy_seconds = stats->ray_busy_seconds;
   if (peers_) {
     d.bytes_from_peers = peers_->bytes_from_peers() - from_peers;
     d.bytes_to_peers = peers_->bytes_to_peers() - to_peers;
     d.fetches = peers_->fetches() - fetches;
     d.fetch_wait_seconds = peers_->fetch_wait_seconds() - fetch_wait;
+    d.fetch_runs = peers_->runs_fetched() - fetch_runs;
   }
   return net_->Send(0, wire::Encode(me, d));
 }

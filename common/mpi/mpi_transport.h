@@ -6,7 +6,7 @@
 // run with less.
 //
 // Receive probes for any sender and sleeps between probes (MPI has no wait-with-timeout): at
-// most 100 us while messages come, so a peer's block request waits little, and up to 1 ms
+// most 500 us while messages come, so a peer's block request waits little, and up to 1 ms
 // once none has come for 2 ms, so an idle rank (or a slave rendering between tile answers)
 // spends little CPU on wake-ups. A message larger than kMaxMessageBytes is an error naming its
 // sender (it is still drained, so the next one can be read).
@@ -66,8 +66,10 @@ class MpiTransport final : public transport::Transport {
   std::mutex receive_mu_;
   std::vector<Incoming> incoming_;
   // Receive's longest sleep between probes: kBusyPause, or kQuietPause once no message has
-  // come for kQuietAfter.
-  static constexpr std::chrono::microseconds kBusyPause{100}, kQuietPause{1000};
+  // come for kQuietAfter. (kBusyPause was 100 us: with --blocks rem's requests batched, a
+  // capped slave's receiving thread woke ~10^4 times a second for little; 500 us measured
+  // faster in interleaved runs, tools/bench/RESULTS.md.)
+  static constexpr std::chrono::microseconds kBusyPause{500}, kQuietPause{1000};
   static constexpr std::chrono::milliseconds kQuietAfter{2};
   std::chrono::steady_clock::time_point last_message_{};
   int next_source_ = 0;

@@ -42,10 +42,10 @@ uint64_t FixedPayloadBytes(MessageType type) {
     case MessageType::kTileAssign: return sizeof(TileAssign);
     case MessageType::kFrameDone: return sizeof(FrameDone);
     case MessageType::kShutdown: return sizeof(Shutdown);
-    case MessageType::kBlockRequest: return sizeof(BlockRequest);
     case MessageType::kHeartbeat: return sizeof(Heartbeat);
     case MessageType::kRankLost: return sizeof(RankLost);
     case MessageType::kPixelBatch:
+    case MessageType::kBlockRequest:
     case MessageType::kBlockData:
     case MessageType::kError: return 0;
   }
@@ -95,8 +95,12 @@ std::vector<uint8_t> Encode(uint32_t sender, const Shutdown& m) {
   return Build(sender, MessageType::kShutdown, m);
 }
 
-std::vector<uint8_t> Encode(uint32_t sender, const BlockRequest& m) {
-  return Build(sender, MessageType::kBlockRequest, m);
+std::vector<uint8_t> EncodeBlockRequest(uint32_t sender, uint32_t request,
+                                        std::span<const BlockRun> runs) {
+  CHECK(!runs.empty() && runs.size() <= kMaxRequestRuns);
+  const BlockRequest r{request, static_cast<uint32_t>(runs.size()), {0, 0}};
+  return Assemble(sender, MessageType::kBlockRequest, BytesOf(r),
+                  {reinterpret_cast<const uint8_t*>(runs.data()), runs.size_bytes()});
 }
 
 std::vector<uint8_t> Encode(uint32_t sender, const Heartbeat& m) {
@@ -156,12 +160,22 @@ Expected<Message> Decode(std::span<const uint8_t> bytes, int from) {
       return bad(StrFormat("pixel batch of %u samples (at most %u)", b.count, kMaxBatchSamples));
     if (m.payload.size() != sizeof b + uint64_t{b.count} * sizeof(render::SampleResult))
       return bad(StrFormat("pixel batch of %u samples in %zu bytes", b.count, m.payload.size()));
+  } else if (m.type() == MessageType::kBlockRequest) {
+    if (m.payload.size() < sizeof(BlockRequest)) return bad("block request without its count");
+    BlockRequest r;
+    std::memcpy(&r, m.payload.data(), sizeof r);
+    if (r.runs == 0 || r.runs > kMaxRequestRuns)
+      return bad(StrFormat("block request of %u runs (1 to %u)", r.runs, kMaxRequestRuns));
+    if (m.payload.size() != sizeof r + uint64_t{r.runs} * sizeof(BlockRun))
+      return bad(StrFormat("block request of %u runs in %zu bytes", r.runs, m.payload.size()));
   } else if (m.type() == MessageType::kBlockData) {
     if (m.payload.size() < sizeof(BlockDataHeader)) return bad("block data without its header");
     BlockDataHeader d;
     std::memcpy(&d, m.payload.data(), sizeof d);
     if (d.failed > 1 || (d.failed && m.payload.size() != sizeof d))
       return bad("block data with a bad failure flag");
+    if (d.runs == 0 || d.runs > kMaxRequestRuns)
+      return bad(StrFormat("block data of %u runs (1 to %u)", d.runs, kMaxRequestRuns));
   } else if (m.type() == MessageType::kError) {
     if (m.payload.size() > kMaxErrorText)
       return bad(StrFormat("error text of %zu bytes (at most %u)", m.payload.size(), kMaxErrorText));
@@ -201,7 +215,16 @@ std::string Message::error_text() const {
 }
 
 BlockRequest Message::block_request() const {
-  return PayloadAs<BlockRequest>(*this, MessageType::kBlockRequest);
+  CHECK(type() == MessageType::kBlockRequest && payload.size() >= sizeof(BlockRequest));
+  BlockRequest r;
+  std::memcpy(&r, payload.data(), sizeof r);
+  return r;
+}
+
+void Message::block_runs(std::vector<BlockRun>* out) const {
+  const BlockRequest r = block_request();
+  out->resize(r.runs);
+  std::memcpy(out->data(), payload.data() + sizeof r, uint64_t{r.runs} * sizeof(BlockRun));
 }
 Heartbeat Message::heartbeat() const { return PayloadAs<Heartbeat>(*this, MessageType::kHeartbeat); }
 RankLost Message::rank_lost() const { return PayloadAs<RankLost>(*this, MessageType::kRankLost); }

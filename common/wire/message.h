@@ -25,8 +25,10 @@ static_assert(std::endian::native == std::endian::little, "the wire format is li
 inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
 // 2: tile assignments carry a sample range and a pixel-rank range (progressive passes);
 // pixel batches carry the rays traced for them. 3: heartbeats, rank-lost notices, shutdown
-// flags (a lost slave costs time, never pixels).
-inline constexpr uint16_t kProtocolVersion = 4;
+// flags (a lost slave costs time, never pixels). 5: a block request carries several runs of
+// the owner's blocks (the fetches that queued for the same owner), its answer their bytes;
+// frame figures count the runs fetched.
+inline constexpr uint16_t kProtocolVersion = 5;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
 // How often a slave says it is alive (the master drops one it has not heard from for
@@ -41,8 +43,8 @@ enum class MessageType : uint16_t {
   kFrameDone,    // a slave has finished its part of a frame
   kShutdown,     // the master ends the job
   kError,        // a rank failed: why (text naming the block, file or peer)
-  kBlockRequest, // a slave asks a block's owner for a run of blocks (--blocks rem)
-  kBlockData,    // the owner's answer: the run's stored bytes, or that it failed
+  kBlockRequest, // a slave asks a block's owner for runs of its blocks (--blocks rem)
+  kBlockData,    // the owner's answer: the runs' stored bytes, or that it failed
   kHeartbeat,    // a slave is alive (every kHeartbeatInterval, whatever else it sends)
   kRankLost,     // the master tells the slaves a rank is gone (its blocks: read from disk)
 };
@@ -87,12 +89,13 @@ struct FrameDone {
   uint64_t blocks_loaded;    // #C, reloads included
   uint64_t blocks_distinct;  // #U
   uint64_t bytes_read;       // from the block source (disk or peers)
-  double seconds;            // the frame's render time on this slave
+  double seconds;            // this slave's render time, from its first tile to its end
   uint64_t bytes_from_peers;  // --blocks rem: block bytes fetched from other slaves
   uint64_t bytes_to_peers;    // --blocks rem: block bytes served to other slaves
   double busy_seconds;        // summed over ray threads: tracing, not waiting (RenderStats)
   uint64_t fetches;           // --blocks rem: requests for blocks sent to their owners
   double fetch_wait_seconds;  // --blocks rem: summed over fetches, request to answer
+  uint64_t fetch_runs;        // --blocks rem: the loader's runs those requests carried
 };
 struct Shutdown {
   uint32_t reason;  // 0: the job is done
@@ -107,17 +110,23 @@ struct RankLost {
   uint32_t rank;
   uint32_t died;  // 1: it went silent (dead: send it nothing more); 0: it failed, alive
 };
+// A block request is this header and `runs` BlockRun records: the owner answers with the
+// runs' stored bytes back to back, in the request's order.
 struct BlockRequest {
   uint32_t request;  // the asker's number for it, echoed in the answer
-  uint32_t first;    // blocks [first, first + count), consecutive in blocks.bin
-  uint32_t count;
-  uint32_t reserved;
+  uint32_t runs;     // BlockRun records that follow, 1..kMaxRequestRuns
+  uint32_t reserved[2];
 };
-struct BlockDataHeader {  // followed by the run's stored bytes (none when failed)
-  uint32_t request;
-  uint32_t first;
+struct BlockRun {
+  uint32_t first;  // blocks [first, first + count), consecutive in blocks.bin
   uint32_t count;
+};
+inline constexpr uint32_t kMaxRequestRuns = 256;
+struct BlockDataHeader {  // followed by the runs' stored bytes (none when failed)
+  uint32_t request;
+  uint32_t runs;    // as many as the request had
   uint32_t failed;  // 1: the owner could not read them (its own log says why)
+  uint32_t reserved;
 };
 struct PixelBatchHeader {
   uint32_t frame;
@@ -125,8 +134,8 @@ struct PixelBatchHeader {
   uint64_t rays;   // rays the slave traced for these samples (progress figures)
 };
 static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
-              sizeof(FrameDone) == 104 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
-              sizeof(BlockRequest) == 16 && sizeof(BlockDataHeader) == 16 &&
+              sizeof(FrameDone) == 112 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
+              sizeof(BlockRequest) == 16 && sizeof(BlockRun) == 8 && sizeof(BlockDataHeader) == 16 &&
               sizeof(Heartbeat) == 8 && sizeof(RankLost) == 8);
 
 // Builders: the whole message (header + payload) as bytes.
@@ -135,7 +144,8 @@ std::vector<uint8_t> Encode(uint32_t sender, const TileRequest& m);
 std::vector<uint8_t> Encode(uint32_t sender, const TileAssign& m);
 std::vector<uint8_t> Encode(uint32_t sender, const FrameDone& m);
 std::vector<uint8_t> Encode(uint32_t sender, const Shutdown& m);
-std::vector<uint8_t> Encode(uint32_t sender, const BlockRequest& m);
+std::vector<uint8_t> EncodeBlockRequest(uint32_t sender, uint32_t request,
+                                        std::span<const BlockRun> runs);  // 1..kMaxRequestRuns
 std::vector<uint8_t> Encode(uint32_t sender, const Heartbeat& m);
 std::vector<uint8_t> Encode(uint32_t sender, const RankLost& m);
 std::vector<uint8_t> EncodeBlockData(uint32_t sender, const BlockDataHeader& h,
@@ -159,6 +169,8 @@ struct Message {
   PixelBatchHeader batch_header() const;
   std::string error_text() const;
   BlockRequest block_request() const;
+  // The request's runs, copied out (the payload need not be aligned for BlockRun).
+  void block_runs(std::vector<BlockRun>* out) const;
   Heartbeat heartbeat() const;
   RankLost rank_lost() const;
   BlockDataHeader block_data_header() const;

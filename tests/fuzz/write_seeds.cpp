@@ -98,10 +98,11 @@ int main(int argc, char** argv) {
   done.seconds = 1.5;
   Write(dir + "/wire/frame_done", wire::Encode(1, done));
   Write(dir + "/wire/shutdown", wire::Encode(1, wire::Shutdown{0, 0}));
-  Write(dir + "/wire/block_request", wire::Encode(1, wire::BlockRequest{3, 10, 2, 0}));
+  const std::vector<wire::BlockRun> runs = {{10, 2}, {17, 1}};
+  Write(dir + "/wire/block_request", wire::EncodeBlockRequest(1, 3, runs));
   const std::vector<uint8_t> stored_bytes(40, 0xab);
   Write(dir + "/wire/block_data",
-        wire::EncodeBlockData(1, wire::BlockDataHeader{3, 10, 2, 0}, stored_bytes));
+        wire::EncodeBlockData(1, wire::BlockDataHeader{3, 2, 0, 0}, stored_bytes));
   Write(dir + "/wire/error", wire::EncodeError(1, "block 12 is malformed: bad magic"));
   std::vector<render::SampleResult> samples(3);
   Write(dir + "/wire/pixel_batch", wire::EncodePixelBatch(1, 0, samples));

@@ -153,11 +153,55 @@ TEST(Message, HostilePixelBatchesAreRefused) {
   ExpectError(b, 1, "without its count");
 }
 
+// A block request carries several runs (the fetches that queued for one owner); its answer
+// says how many runs it answers.
+TEST(Message, BlockRequestsCarryTheirRuns) {
+  const std::vector<BlockRun> runs = {{10, 2}, {40, 1}, {7, 3}};
+  const std::vector<uint8_t> bytes = EncodeBlockRequest(3, 42, runs);
+  const Expected<Message> m = Decode(bytes, 3);
+  ASSERT_TRUE(m.ok()) << m.status().message();
+  EXPECT_EQ(m->block_request().request, 42u);
+  EXPECT_EQ(m->block_request().runs, 3u);
+  std::vector<BlockRun> got;
+  m->block_runs(&got);
+  ASSERT_EQ(got.size(), runs.size());
+  for (size_t i = 0; i < runs.size(); ++i) {
+    EXPECT_EQ(got[i].first, runs[i].first);
+    EXPECT_EQ(got[i].count, runs[i].count);
+  }
+  const std::vector<uint8_t> stored(100, 0x5a);
+  const Expected<Message> d = Decode(EncodeBlockData(2, BlockDataHeader{42, 3, 0, 0}, stored), 2);
+  ASSERT_TRUE(d.ok()) << d.status().message();
+  EXPECT_EQ(d->block_data_header().runs, 3u);
+  EXPECT_EQ(d->block_data().size(), stored.size());
+}
+
+TEST(Message, HostileBlockRequestsAndAnswersAreRefused) {
+  const std::vector<BlockRun> runs = {{10, 2}, {40, 1}};
+  std::vector<uint8_t> b = EncodeBlockRequest(1, 0, runs);
+  Poke<uint32_t>(&b, sizeof(MessageHeader) + 4, 0);  // no runs
+  ExpectError(b, 1, "block request of 0 runs");
+  b = EncodeBlockRequest(1, 0, runs);
+  Poke<uint32_t>(&b, sizeof(MessageHeader) + 4, kMaxRequestRuns + 1);
+  ExpectError(b, 1, "block request of " + std::to_string(kMaxRequestRuns + 1) + " runs");
+  b = EncodeBlockRequest(1, 0, runs);
+  Poke<uint32_t>(&b, sizeof(MessageHeader) + 4, 3);  // one more than sent
+  ExpectError(b, 1, "block request of 3 runs in");
+  b = EncodeBlockRequest(1, 0, runs);
+  b.resize(sizeof(MessageHeader) + 8);
+  Poke<uint32_t>(&b, 12, 8);
+  ExpectError(b, 1, "block request without its count");
+  b = EncodeBlockData(1, BlockDataHeader{0, 0, 0, 0}, std::vector<uint8_t>(8));
+  ExpectError(b, 1, "block data of 0 runs");
+  b = EncodeBlockData(1, BlockDataHeader{0, 1, 1, 0}, std::vector<uint8_t>(8));
+  ExpectError(b, 1, "bad failure flag");  // failed, yet with bytes
+}
+
 TEST(Message, NoTruncationOrFlippedByteCrashesOrMisreads) {
   std::vector<render::SampleResult> samples(3, Sample(5));
   const std::vector<std::vector<uint8_t>> messages = {
       Encode(2, TileAssign{1, 0, 0, 0, 32, 32, 0, 0, 1, 0, 256}), EncodePixelBatch(2, 1, samples),
-      Encode(2, FrameDone{1, 2, 9, 0, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0})};
+      Encode(2, FrameDone{1, 2, 9, 0, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0, 0})};
   for (const auto& good : messages) {
     for (size_t n = 0; n < good.size(); ++n)  // every truncation
       EXPECT_FALSE(Decode(std::span(good).first(n), 2).ok()) << n;

@@ -5,7 +5,8 @@
 # block cache smaller than the model; two frames of the same view (first, then warm); block
 # modes loc and rem (loc also with LATENCY_US injected per read). Prints a Markdown table, with
 # the master's utilisation (slaves' busy ray-thread time over N x frame time) and, for rem, the
-# fetches and their mean wait. SLAVES (default "1 2 4 8") picks the cluster sizes; rem skips 1.
+# requests to owners, the loader's runs they carried, and a request's mean round trip. SLAVES
+# (default "1 2 4 8") picks the cluster sizes; rem skips 1.
 #
 #   tools/bench/cluster_bench.sh [SCENE] [CACHE_MB] [QUOTA] [LATENCY_US]
 set -euo pipefail
@@ -43,7 +44,7 @@ for blocks, lat, n, path in rows:
     data[(blocks, lat, int(n))] = json.load(open(path))
 print(f"each slave: {quota}% of a core, 1 ray thread, {cache} MB block cache; seconds on the master's clock")
 print()
-print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN) | utilisation | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers | peer fetches (mean wait ms) |")
+print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN) | utilisation | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers | peer requests / runs (mean wait ms) |")
 print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 for (blocks, lat, n), frames in sorted(data.items(), key=lambda kv: (kv[0][0], int(kv[0][1]), kv[0][2])):
     base = data.get(("loc", lat, 1)) or data.get(("loc", "0", 1))
@@ -51,7 +52,8 @@ for (blocks, lat, n), frames in sorted(data.items(), key=lambda kv: (kv[0][0], i
         eff = f"{base[f]['seconds'] / (n * fr['seconds']):.2f}" if base else "-"
         fetches = sum(s["fetches"] for s in fr["slaves"])
         wait = sum(s["fetch_wait_seconds"] for s in fr["slaves"])
-        fetch_text = f"{fetches} ({wait / fetches * 1e3:.1f})" if fetches else "-"
+        runs = sum(s.get("fetch_runs", s["fetches"]) for s in fr["slaves"])
+        fetch_text = f"{fetches} / {runs} ({wait / fetches * 1e3:.1f})" if fetches else "-"
         to_master = sum(s["bytes_to_master"] + s["bytes_from_master"] for s in fr["slaves"])
         pixel = sum(s["pixel_bytes"] for s in fr["slaves"])
         peers = sum(s["bytes_from_peers"] for s in fr["slaves"])
