@@ -10,7 +10,7 @@ rs=$root/build/master/raystack; plot=$root/tools/plot/raystack-plot
 scene() { local name=$1; shift; bench_scene "$w/$name.json" "$store" "$@"; }
 for size in "480 270" "960 540"; do
   set -- $size; tag=${1}x$2
-  scene ref-$tag $1 $2 64 99; scene w-$tag $1 $2 1 1
+  scene ref-$tag $1 $2 whitted 64 99; scene w-$tag $1 $2 whitted 1 1
   [ -f $w/ref-$tag.exr ] || $rs render $w/ref-$tag.json --threads 2 --no-png -q --output $w/ref-$tag.exr
   for run in 1 2 3; do
     for order in priority scanline; do
