@@ -2,7 +2,7 @@
 // The loader (thesis Fig. VI.3's loading thread): ray threads request blocks they are missing;
 // the loader takes all pending requests as one batch, sorts it by file offset, merges blocks
 // that are neighbours on disk into one read, reserves their room in the cache and hands the
-// reads to a few I/O workers so 8-16 reads are in flight (a disk, and even more a network
+// reads to its I/O workers so up to 32 reads are in flight (a disk, and even more a network
 // filesystem, is fastest with a deep queue). Each loaded block is announced to every thread
 // that asked for it, with one cache pin per asker already taken, so it cannot be evicted
 // before they use it.
