@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstring>
 #include <iterator>
+#include <limits>
 #include <vector>
 
 #include "common/base/check.h"
@@ -125,6 +126,16 @@ Expected<BlockView> BlockView::Parse(const uint8_t* raw, uint64_t size, uint32_t
   if (carry & 0x80000000u) return Bad(block_id, "non-finite vertex coordinate");
   RAYSTACK_RETURN_IF_ERROR(CheckBvh(v.nodes(), h.triangle_count, block_id));
   return v;
+}
+
+BoxBounds BlockView::bounds() const {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  BoxBounds b{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}};  // empty, as the encoder's
+  if (header_->node_count > 0) {
+    std::memcpy(b.lower, nodes_[0].lower, sizeof b.lower);
+    std::memcpy(b.upper, nodes_[0].upper, sizeof b.upper);
+  }
+  return b;
 }
 
 Bounds3f BlockView::cell() const {

@@ -18,6 +18,7 @@
 #include "common/geometry/triangle.h"
 #include "common/store/block_layout.h"
 #include "common/store/format.h"
+#include "common/store/octree.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -39,6 +40,8 @@ class BlockView {
   uint32_t vertex_count() const { return header_->vertex_count; }
   Bounds3f cell() const;
   std::span<const BvhNode> nodes() const { return {nodes_, header_->node_count}; }
+  // Its BVH root's box (empty without triangles): what the index repeats as the block's bounds.
+  BoxBounds bounds() const;
 
   Vec3f Vertex(uint32_t i) const { return {x_[i], y_[i], z_[i]}; }
   void TriangleVertices(uint32_t t, Vec3f* p0, Vec3f* p1, Vec3f* p2) const;
@@ -69,6 +72,11 @@ class BlockView {
   // (the same float operations; a zero edge value, for which IntersectTriangle decides in
   // double, is never dropped), so the leaves test only the rest, in order, with the same results.
   uint32_t EdgeCandidates(const RayTriangleSetup& setup, uint32_t first, uint32_t n) const;
+  // Calls test(i, p0, p1, p2) for each triangle of [first, first + count) EdgeCandidates keeps,
+  // in order, until it returns true; returns whether it did.
+  template <typename Test>
+  bool ForEachCandidate(const RayTriangleSetup& setup, uint32_t first, uint32_t count,
+                        Test&& test) const;
   // Tests triangles [first, first + count) for one ray: the shared body of the single-ray
   // and packet traversals, so both make the same operations in the same order.
   bool IntersectLeaf(const RayTriangleSetup& setup, const Ray& ray, uint32_t first,
@@ -126,46 +134,49 @@ inline uint32_t BlockView::EdgeCandidates(const RayTriangleSetup& s, uint32_t fi
 #endif
 }
 
-inline bool BlockView::IntersectLeaf(const RayTriangleSetup& setup, const Ray& ray,
-                                     uint32_t first, uint32_t count, float* tmax,
-                                     Hit* hit) const {
-  bool found = false;
+template <typename Test>
+bool BlockView::ForEachCandidate(const RayTriangleSetup& setup, uint32_t first, uint32_t count,
+                                 Test&& test) const {
   for (uint32_t group = first; group < first + count; group += 4) {
     const uint32_t n = first + count - group < 4 ? first + count - group : 4;
     for (uint32_t keep = EdgeCandidates(setup, group, n); keep; keep &= keep - 1) {
       const uint32_t i = group + static_cast<uint32_t>(std::countr_zero(keep));
       Vec3f p0, p1, p2;
       TriangleVertices(i, &p0, &p1, &p2);
-      float t, u, w;
-      if (IntersectTriangle(setup, p0, p1, p2, ray.tmin, *tmax, &t, &u, &w) &&
-          CloserThan(t, ids_[i], *hit)) {
-        hit->t = t;
-        hit->u = u;
-        hit->v = w;
-        hit->triangle_id = ids_[i];
-        hit->local_triangle = i;
-        hit->block_id = id_;
-        *tmax = NextUp(t);
-        found = true;
-      }
+      if (test(i, p0, p1, p2)) return true;
     }
   }
+  return false;
+}
+
+inline bool BlockView::IntersectLeaf(const RayTriangleSetup& setup, const Ray& ray,
+                                     uint32_t first, uint32_t count, float* tmax,
+                                     Hit* hit) const {
+  bool found = false;
+  ForEachCandidate(setup, first, count, [&](uint32_t i, Vec3f p0, Vec3f p1, Vec3f p2) {
+    float t, u, w;
+    if (IntersectTriangle(setup, p0, p1, p2, ray.tmin, *tmax, &t, &u, &w) &&
+        CloserThan(t, ids_[i], *hit)) {
+      hit->t = t;
+      hit->u = u;
+      hit->v = w;
+      hit->triangle_id = ids_[i];
+      hit->local_triangle = i;
+      hit->block_id = id_;
+      *tmax = NextUp(t);
+      found = true;
+    }
+    return false;  // every candidate: a later one may be closer
+  });
   return found;
 }
 
 inline bool BlockView::OccludedLeaf(const RayTriangleSetup& setup, const Ray& ray,
                                     uint32_t first, uint32_t count) const {
-  for (uint32_t group = first; group < first + count; group += 4) {
-    const uint32_t n = first + count - group < 4 ? first + count - group : 4;
-    for (uint32_t keep = EdgeCandidates(setup, group, n); keep; keep &= keep - 1) {
-      const uint32_t i = group + static_cast<uint32_t>(std::countr_zero(keep));
-      Vec3f p0, p1, p2;
-      TriangleVertices(i, &p0, &p1, &p2);
-      float t, u, w;
-      if (IntersectTriangle(setup, p0, p1, p2, ray.tmin, ray.tmax, &t, &u, &w)) return true;
-    }
-  }
-  return false;
+  return ForEachCandidate(setup, first, count, [&](uint32_t, Vec3f p0, Vec3f p1, Vec3f p2) {
+    float t, u, w;
+    return IntersectTriangle(setup, p0, p1, p2, ray.tmin, ray.tmax, &t, &u, &w);
+  });
 }
 
 inline uint32_t BlockView::VertexIndex(uint32_t t, int corner) const {

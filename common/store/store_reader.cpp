@@ -278,13 +278,8 @@ Expected<BlockView> StoreReader::Decode(uint32_t id, std::span<const uint8_t> st
   if (view->triangle_count() != e.triangle_count)
     return Status::Error(BlockError(id, "triangle count differs from the index"));
   // The walks skip this block for rays that miss these bounds: they must be its BVH's.
-  BoxBounds root{{kInf, kInf, kInf}, {-kInf, -kInf, -kInf}};  // empty, as the encoder's
-  if (!view->nodes().empty()) {
-    std::memcpy(root.lower, view->nodes()[0].lower, sizeof root.lower);
-    std::memcpy(root.upper, view->nodes()[0].upper, sizeof root.upper);
-  }
-  if (std::memcmp(root.lower, e.bounds_lower, sizeof root.lower) != 0 ||
-      std::memcmp(root.upper, e.bounds_upper, sizeof root.upper) != 0)
+  const BoxBounds root = view->bounds(), index = BoundsOf(e);
+  if (std::memcmp(&root, &index, sizeof root) != 0)
     return Status::Error(BlockError(id, "its BVH's box differs from its bounds in index.bin"));
   return view;
 }

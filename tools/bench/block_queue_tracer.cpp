@@ -26,14 +26,9 @@ void BlockQueueTracer::BuildPaths(std::span<const Ray> rays) {
                           // out, as the store's walks leave them out; the leaf's first step
                           // counts the steps the leaf got.
                           const size_t first = steps_.size();
-                          for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b) {
-                            if (blocks_[b].nodes().empty()) continue;
-                            const BvhNode& root = blocks_[b].nodes()[0];
-                            const store::BoxBounds box{{root.lower[0], root.lower[1], root.lower[2]},
-                                                       {root.upper[0], root.upper[1], root.upper[2]}};
-                            if (store::MayHit(setup, box, rays[i].tmin, tmax))
+                          for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b)
+                            if (store::MayHit(setup, blocks_[b].bounds(), rays[i].tmin, tmax))
                               steps_.push_back({b, 0u, t_enter});
-                          }
                           if (steps_.size() > first)
                             steps_[first].leaf_blocks = static_cast<uint32_t>(steps_.size() - first);
                           return true;
