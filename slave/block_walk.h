@@ -146,6 +146,9 @@ inline uint32_t BlockWalk::Descend(const Slabs& s, Frame* frames, int depth) con
     const uint32_t index = f.first + static_cast<uint32_t>(i);
     const store::OctreeNode& node = nodes_[index];
     if (node.kind == store::kOctreeLeaf) {
+      // Children() kept this leaf by its bounds, the union of its blocks': one block's own
+      // test would repeat it.
+      if (node.count == 1) return node.first;
       const uint32_t block = FirstMet(s, node, node.first);
       if (block != kInvalidId) return block;
       continue;
