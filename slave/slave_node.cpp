@@ -132,15 +132,20 @@ class RemoteTiles final : public TileSource {
 
 namespace {
 
-// Samples to the master, a batch per call (ray threads call it concurrently; Send is
-// thread-safe).
+// Samples to the master, a batch per call (ray threads call it concurrently; Post is
+// thread-safe). Posted, not sent: with Send a ray thread waited for the master to take each
+// batch (a batch is larger than MPI's eager limit), which was half of a slave's frame time
+// under mpirun even with one slave. The backlog is bounded: past kMaxBacklogBytes not yet
+// taken, a ray thread waits for the master as it did before.
 class RemoteSink final : public render::SampleSink {
  public:
   RemoteSink(transport::Transport* net, uint32_t frame) : net_(net), frame_(frame) {}
   void Consume(std::span<const render::SampleResult> batch, uint64_t rays) override {
     for (size_t i = 0; i < batch.size(); i += wire::kMaxBatchSamples) {
       const size_t n = std::min<size_t>(wire::kMaxBatchSamples, batch.size() - i);
-      const Status s = net_->Send(0, wire::EncodePixelBatch(static_cast<uint32_t>(net_->rank()),
+      while (net_->posted_bytes() > kMaxBacklogBytes)
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+      const Status s = net_->Post(0, wire::EncodePixelBatch(static_cast<uint32_t>(net_->rank()),
                                                             frame_, batch.subspan(i, n),
                                                             i == 0 ? rays : 0));
       if (!s.ok()) {
@@ -157,6 +162,7 @@ class RemoteSink final : public render::SampleSink {
  private:
   transport::Transport* net_;
   const uint32_t frame_;
+  static constexpr uint64_t kMaxBacklogBytes = 16 << 20;
   mutable std::mutex mu_;
   Status error_;
 };

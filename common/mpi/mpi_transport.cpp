@@ -164,6 +164,7 @@ Status MpiTransport::ProgressPosted() {
                                               MpiError(rc).c_str()));
   }
   size_t i = 0;
+  uint64_t bytes = 0;
   for (auto it = posted_.begin(); it != posted_.end(); ++i) {
     if (requests[i] == MPI_REQUEST_NULL) {  // done (Testsome frees finished requests)
       it = posted_.erase(it);
@@ -172,10 +173,12 @@ Status MpiTransport::ProgressPosted() {
       abandoned_.push_back(std::move(it->bytes));
       it = posted_.erase(it);
     } else {
+      bytes += it->bytes.size();
       ++it;
     }
   }
   posted_count_.store(posted_.size());
+  posted_bytes_.store(bytes);
   Status error = posted_error_;
   posted_error_ = OkStatus();
   return error;

@@ -39,6 +39,7 @@ class MpiTransport final : public transport::Transport {
   // the finished ones, and those to a rank known dead.
   Status Post(int to, std::vector<uint8_t> bytes) override;
   Expected<std::optional<transport::Envelope>> Receive(std::chrono::milliseconds timeout) override;
+  uint64_t posted_bytes() const override { return posted_bytes_.load(); }
   // Ends every rank of the job (MPI_Abort), for errors that one rank cannot recover from.
   [[noreturn]] void Abort(int code);
   void NoteRankDied(int rank) override;
@@ -62,6 +63,7 @@ class MpiTransport final : public transport::Transport {
   std::list<Posted> posted_;
   std::list<std::vector<uint8_t>> abandoned_;  // sends to dead ranks: MPI may still read them
   std::atomic<size_t> posted_count_{0};
+  std::atomic<uint64_t> posted_bytes_{0};
   Status posted_error_;
   std::mutex receive_mu_;
   std::vector<Incoming> incoming_;

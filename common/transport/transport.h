@@ -44,6 +44,9 @@ class Transport {
   // is returned by a later Receive or Post. The default, for transports whose Send never
   // waits: Send.
   virtual Status Post(int to, std::vector<uint8_t> bytes) { return Send(to, bytes); }
+  // Bytes handed to Post and not sent yet: a stream's sender bounds its backlog with it
+  // rather than wait for every message (Send) or let a slow receiver's backlog grow.
+  virtual uint64_t posted_bytes() const { return 0; }
   // The next message for this rank, waiting up to `timeout`; nullopt if none came.
   virtual Expected<std::optional<Envelope>> Receive(std::chrono::milliseconds timeout) = 0;
   // Rank `rank` died (killed, its node gone; -1: some rank, which one this rank was not told):

@@ -1,7 +1,8 @@
 // The transport contract over MPI, run by ctest under `mpirun -np 3`: every rank sends to every
 // other rank, messages arrive in order per pair, a hostile message (forged sender, another
 // protocol version) is refused naming the rank it came from, receive times out when idle, and
-// two ranks posting each other large messages before either receives both get theirs.
+// two ranks posting each other large messages before either receives both get theirs, and
+// the bytes they posted count as posted until then only.
 // Prints "N passed, N failed" on rank 0; exit code 0 only if every rank passed.
 
 #include <cstdio>
@@ -105,6 +106,12 @@ int main(int argc, char** argv) {
       for (size_t k = 0; k < kBytes && same; ++k) same = (*e)->bytes[k] == pattern(peer, i, k);
       Expect(same, "posted bytes arrive intact and in order", rank);
     }
+    // Once the peer has taken them, the posted sends are done and their bytes are let go (a
+    // stream's sender bounds its backlog by posted_bytes, so it must come back to zero).
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+    while (net.posted_bytes() > 0 && std::chrono::steady_clock::now() < deadline)
+      (void)net.Receive(std::chrono::milliseconds(10));
+    Expect(net.posted_bytes() == 0, "posted bytes come back to zero once taken", rank);
   }
   if (rank == 1) {
     Expect(net.Send(0, wire::Encode(2, wire::TileRequest{0, 0})).ok(), "send forged", rank);
