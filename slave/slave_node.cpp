@@ -4,6 +4,7 @@
 #include <csignal>
 #include <chrono>
 #include <condition_variable>
+#include <deque>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -15,8 +16,11 @@
 
 namespace raystack::slave {
 
-// Tiles from the master: one slot per ray thread, holding the tile in reserve (or the news
-// that there are no more). The receiving thread fills slots; ray threads take from them.
+// Tiles from the master: one slot per ray thread, holding up to kAhead tiles in reserve, asked
+// for or come (or the news that there are no more). The receiving thread fills slots; ray
+// threads take from them. Two in reserve, not one: a 32x32 tile takes a few ms, about the
+// master's round trip while it merges the others' pixels, so with one the thread waited for
+// its next tile (a fifth of a slave's frame with one slave, more with eight).
 class RemoteTiles final : public TileSource {
  public:
   RemoteTiles(transport::Transport* net, uint32_t frame, int threads,
@@ -27,11 +31,11 @@ class RemoteTiles final : public TileSource {
   bool Next(uint32_t thread, Tile* tile) override {
     Slot& s = slots_[thread];
     std::unique_lock lock(mu_);
-    if (!s.requested && !s.has_tile && !s.exhausted) Request(thread, &s);
-    cv_.wait(lock, [&] { return s.has_tile || s.exhausted || failed_; });
-    if (!s.has_tile) return false;
-    *tile = s.tile;
-    s.has_tile = false;
+    if (s.tiles.empty() && s.requested == 0) Request(thread, &s);
+    cv_.wait(lock, [&] { return !s.tiles.empty() || s.exhausted || failed_; });
+    if (s.tiles.empty()) return false;
+    *tile = s.tiles.front();
+    s.tiles.pop_front();
     if (tiles_++ == 0) first_tile_ = std::chrono::steady_clock::now();
     if (given_->fetch_add(1) + 1 == kill_after_) {  // fault injection: die as kill -9 does
       LOG_WARNING("slave", "rank %d: killing itself at its tile %lld (--fault-kill-after-tiles)",
@@ -44,14 +48,14 @@ class RemoteTiles final : public TileSource {
   bool Ready(uint32_t thread) const override {
     const Slot& s = slots_[thread];
     std::lock_guard lock(mu_);
-    return s.has_tile || s.exhausted || failed_;
+    return !s.tiles.empty() || s.exhausted || failed_;
   }
 
-  // The next tile, fetched while this one renders (at --tile-ahead of it).
+  // The next tiles, fetched while this one renders (at --tile-ahead of it).
   void Ahead(uint32_t thread) override {
     Slot& s = slots_[thread];
     std::lock_guard lock(mu_);
-    if (!s.requested && !s.has_tile && !s.exhausted) Request(thread, &s);
+    TopUp(thread, &s);
   }
 
   // From the receiving thread.
@@ -62,10 +66,10 @@ class RemoteTiles final : public TileSource {
                                      "(this is frame %u with %zu threads)",
                                      a.frame, a.thread, frame_, slots_.size()));
     Slot& s = slots_[a.thread];
-    if (!s.requested)
+    if (s.requested == 0)
       return Status::Error(StrFormat("the master assigned thread %u a tile it did not ask for",
                                      a.thread));
-    s.requested = false;
+    --s.requested;
     if (a.none) {
       s.exhausted = true;
     } else {
@@ -81,8 +85,7 @@ class RemoteTiles final : public TileSource {
       if (a.rank_begin >= rank_end || rank_end > 256)
         return Status::Error(StrFormat("the master assigned the pixel ranks [%u, %u) of a tile",
                                        a.rank_begin, a.rank_end));
-      s.tile = {a.x0, a.y0, a.x1, a.y1, a.sample_begin, a.sample_end, a.rank_begin, rank_end};
-      s.has_tile = true;
+      s.tiles.push_back({a.x0, a.y0, a.x1, a.y1, a.sample_begin, a.sample_end, a.rank_begin, rank_end});
     }
     cv_.notify_all();
     return OkStatus();
@@ -104,12 +107,17 @@ class RemoteTiles final : public TileSource {
  private:
   static constexpr uint32_t kMaxTileSamples = 1 << 20;
   struct Slot {
-    Tile tile;
-    bool has_tile = false, requested = false, exhausted = false;
+    std::deque<Tile> tiles;  // come, not taken yet
+    uint32_t requested = 0;  // asked for, not come yet
+    bool exhausted = false;
   };
+  static constexpr uint32_t kAhead = 2;
+  void TopUp(uint32_t thread, Slot* s) {  // holds mu_
+    while (!s->exhausted && !failed_ && s->requested + s->tiles.size() < kAhead) Request(thread, s);
+  }
   void Request(uint32_t thread, Slot* s) {  // holds mu_
     if (s->exhausted || failed_) return;
-    s->requested = true;
+    ++s->requested;
     const Status st =
         net_->Send(0, wire::Encode(static_cast<uint32_t>(net_->rank()), wire::TileRequest{frame_, thread}));
     if (!st.ok()) {

@@ -1,10 +1,10 @@
 #pragma once
 // A slave's side of a distributed frame (ranks 1..N): its render engine pulls tiles from the
 // master and pushes finished samples back to it, through a Transport. The ray threads ask for
-// tiles through RemoteTiles, which keeps one tile in reserve per thread (requested once the
-// current tile is --tile-ahead done), so a tile request's round trip hides behind work; samples go out
-// in batches from the ray threads as they finish (the engine's result batch, ~1000 samples),
-// in the order their pixels' priorities gave them.
+// tiles through RemoteTiles, which keeps two tiles in reserve per thread (requested once the
+// current tile is --tile-ahead done), so a tile request's round trip hides behind work; samples
+// are posted in batches from the ray threads as they finish (the engine's result batch, ~1000
+// samples), in the order their pixels' priorities gave them.
 
 #include <atomic>
 #include <chrono>

@@ -416,6 +416,66 @@ TEST(Distributed, HostileMessagesEndTheFrameNamingTheSender) {
   EXPECT_NE(s.message().find("outside the 16x16 image"), std::string::npos) << s.message();
 }
 
+// A slave thread keeps two tiles asked for ahead of the one it renders (with --tile-ahead 0,
+// from the moment it starts it): a small tile takes about as long as the master's answer.
+// The test plays the master: it answers the first request only, and counts the requests.
+TEST(Distributed, ASlaveThreadAsksForTwoTilesAheadOfItsCurrentOne) {
+  TestStore s = BuildGenerated("spheres:20000");
+  render::Scene scene = TestScene(*s.reader, render::IntegratorType::kWhitted);
+  transport::InProcessHub hub(2);
+  std::thread slave_thread([&] {
+    auto net = hub.Endpoint(1);
+    EngineOptions o = Options(*s.reader);
+    o.threads = 1;
+    auto engine = slave::RenderEngine::Create(*s.reader, o);
+    ASSERT_TRUE(engine.ok());
+    const render::MaterialTable materials = render::MaterialTable::Build(s.reader->materials(), scene);
+    slave::SlaveNode node(net.get(), engine->get());
+    slave::RenderStats stats;
+    EXPECT_TRUE(node.RunFrame(0, scene, materials, render::Camera(scene.cameras[0]), &stats).ok());
+    (void)node.WaitForShutdown(std::chrono::seconds(30));
+  });
+  auto master = hub.Endpoint(0);
+  int requests = 0;
+  bool frame_done = false;
+  auto assign = [&](bool none) {
+    wire::TileAssign a{};
+    a.frame = 0;
+    a.thread = 0;
+    if (none) {
+      a.none = 1;
+    } else {
+      a.x0 = 0, a.y0 = 0, a.x1 = 8, a.y1 = 8;
+    }
+    ASSERT_TRUE(master->Send(1, wire::Encode(0, a)).ok());
+  };
+  // Until three requests came (the first, answered with a tile, and two ahead of it) or 5 s
+  // passed without a request (heartbeats come meanwhile).
+  auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (requests < 3 && std::chrono::steady_clock::now() < deadline) {
+    auto e = master->Receive(std::chrono::milliseconds(100));
+    ASSERT_TRUE(e.ok());
+    if (!e->has_value()) continue;
+    const Expected<wire::Message> m = wire::Decode((*e)->bytes, 1);
+    ASSERT_TRUE(m.ok()) << m.status().message();
+    if (m->type() != wire::MessageType::kTileRequest) continue;  // pixels, heartbeats
+    if (++requests == 1) assign(false);
+    deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  }
+  EXPECT_EQ(requests, 3);
+  for (int i = 1; i < requests; ++i) assign(true);  // no more tiles: the frame ends
+  while (!frame_done) {
+    auto e = master->Receive(std::chrono::seconds(30));
+    ASSERT_TRUE(e.ok() && e->has_value());
+    const Expected<wire::Message> m = wire::Decode((*e)->bytes, 1);
+    ASSERT_TRUE(m.ok());
+    frame_done = m->type() == wire::MessageType::kFrameDone;
+    EXPECT_NE(m->type(), wire::MessageType::kTileRequest) << "a request after the frame's end";
+  }
+  ASSERT_TRUE(master->Send(1, wire::Encode(0, wire::Shutdown{0, 0})).ok());
+  slave_thread.join();
+}
+
 TEST(Distributed, WhenEverySlaveFailsTheJobEndsWithTheirErrors) {
   TestStore s = BuildGenerated("spheres:20000");
   render::Scene scene = TestScene(*s.reader, render::IntegratorType::kWhitted);
