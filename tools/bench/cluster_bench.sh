@@ -6,7 +6,10 @@
 # modes loc and rem (loc also with LATENCY_US injected per read). Prints a Markdown table, with
 # the master's utilisation (slaves' busy ray-thread time over N x frame time) and, for rem, the
 # requests to owners, the loader's runs they carried, and a request's mean round trip. SLAVES
-# (default "1 2 4 8") picks the cluster sizes; rem skips 1.
+# (default "1 2 4 8") picks the cluster sizes; rem skips 1. REPEATS (default 3) runs the whole
+# set that many times, interleaved, so a noisy moment hits every configuration alike: frame
+# seconds (and T_1 in the efficiencies) are medians over the repeats, the other columns come
+# from the run with the median first frame.
 #
 #   tools/bench/cluster_bench.sh [SCENE] [CACHE_MB] [QUOTA] [LATENCY_US]
 set -euo pipefail
@@ -16,11 +19,12 @@ cache_mb=${2:-24}
 quota=${3:-20}
 latency=${4:-1000}
 slave_counts=${SLAVES:-1 2 4 8}
+repeats=${REPEATS:-3}
 work=$(mktemp -d)
 mkdir -p build/bench  # the scene's output folder
 trap 'rm -rf "$work"; rmdir /sys/fs/cgroup/cpu/raystack_bench_r* 2>/dev/null || true' EXIT
-run() {  # slaves blocks latency -> prints the stats file
-  local n=$1 blocks=$2 lat=$3 out="$work/s-$1-$2-$3.json"
+run() {  # slaves blocks latency repeat -> prints the stats file
+  local n=$1 blocks=$2 lat=$3 out="$work/s-$1-$2-$3-$4.json"
   RAYSTACK_CPU_QUOTA_PCT=$quota mpirun --allow-run-as-root --oversubscribe -np $((n + 1)) \
       -x RAYSTACK_CPU_QUOTA_PCT tools/bench/cpu_capped.sh \
       build/master/raystack render "$scene" --threads 1 --cache-mb "$cache_mb" \
@@ -28,21 +32,33 @@ run() {  # slaves blocks latency -> prints the stats file
   echo "$out"
 }
 results=()
-for blocks_lat in "loc 0" "loc $latency" "rem 0"; do
-  set -- $blocks_lat
-  for n in $slave_counts; do
-    if [ "$1" = rem ] && [ "$n" = 1 ]; then continue; fi  # one slave cannot hold the model
-    results+=("$1 $2 $n $(run "$n" "$1" "$2")")
+for r in $(seq 1 "$repeats"); do
+  for blocks_lat in "loc 0" "loc $latency" "rem 0"; do
+    set -- $blocks_lat
+    for n in $slave_counts; do
+      if [ "$1" = rem ] && [ "$n" = 1 ]; then continue; fi  # one slave cannot hold the model
+      results+=("$1 $2 $n $(run "$n" "$1" "$2" "$r")")
+    done
   done
 done
 python3 - "$quota" "$cache_mb" "${results[@]}" <<'PY'
-import json, sys
+import json, statistics, sys
 quota, cache = sys.argv[1], sys.argv[2]
 rows = [r.split() for r in sys.argv[3:]]
-data = {}
+runs = {}
 for blocks, lat, n, path in rows:
-    data[(blocks, lat, int(n))] = json.load(open(path))
-print(f"each slave: {quota}% of a core, 1 ray thread, {cache} MB block cache; seconds on the master's clock")
+    runs.setdefault((blocks, lat, int(n)), []).append(json.load(open(path)))
+data = {}  # per configuration: the run with the median first frame, seconds the medians
+for key, all_runs in runs.items():
+    by_first = sorted(all_runs, key=lambda frames: frames[0]["seconds"])
+    chosen = [dict(fr) for fr in by_first[len(by_first) // 2]]
+    for f, fr in enumerate(chosen):
+        fr["seconds"] = statistics.median(frames[f]["seconds"] for frames in all_runs)
+        fr["all_seconds"] = [frames[f]["seconds"] for frames in all_runs]
+    data[key] = chosen
+repeats = max(len(v) for v in runs.values())
+print(f"each slave: {quota}% of a core, 1 ray thread, {cache} MB block cache; seconds on the master's clock, "
+      f"medians of {repeats} interleaved runs (each run's seconds in brackets)")
 print()
 print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN) | utilisation | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers | peer requests / runs (mean wait ms) |")
 print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
@@ -59,7 +75,8 @@ for (blocks, lat, n), frames in sorted(data.items(), key=lambda kv: (kv[0][0], i
         peers = sum(s["bytes_from_peers"] for s in fr["slaves"])
         blocks_mb = sum(s["bytes_read"] for s in fr["slaves"]) / 1e6
         net = (to_master + peers) / 1e6
-        print(f"| {blocks} | {lat} | {n} | {'first' if f == 0 else 'warm'} | {fr['seconds']:.2f} | {eff} | "
+        every = ", ".join(f"{x:.2f}" for x in fr["all_seconds"])
+        print(f"| {blocks} | {lat} | {n} | {'first' if f == 0 else 'warm'} | {fr['seconds']:.2f} ({every}) | {eff} | "
               f"{fr['utilisation']:.2f} | {fr['imbalance']*100:.1f}% | {net:.1f} | {pixel/1e6/max(net,1e-9)*100:.0f}% | "
               f"{blocks_mb:.1f} | {peers/1e6:.1f} | {fetch_text} |")
 PY
