@@ -18,6 +18,7 @@ void FrameShared::Fail(const Status& status) {
   }
   abort.store(true);
   for (RayThread* t : threads) t->Wake();
+  if (tiles) tiles->Abort();
 }
 
 RayThread::RayThread(FrameShared* shared, uint32_t index)

@@ -32,7 +32,8 @@ class RemoteTiles final : public TileSource {
     Slot& s = slots_[thread];
     std::unique_lock lock(mu_);
     if (s.tiles.empty() && s.requested == 0) Request(thread, &s);
-    cv_.wait(lock, [&] { return !s.tiles.empty() || s.exhausted || failed_; });
+    // Not over while an answer is still to come: it would reach the next frame's slots.
+    cv_.wait(lock, [&] { return !s.tiles.empty() || Over(s) || failed_; });
     if (s.tiles.empty()) return false;
     *tile = s.tiles.front();
     s.tiles.pop_front();
@@ -48,7 +49,7 @@ class RemoteTiles final : public TileSource {
   bool Ready(uint32_t thread) const override {
     const Slot& s = slots_[thread];
     std::lock_guard lock(mu_);
-    return !s.tiles.empty() || s.exhausted || failed_;
+    return !s.tiles.empty() || Over(s) || failed_;
   }
 
   // The next tiles, fetched while this one renders (at --tile-ahead of it).
@@ -91,7 +92,7 @@ class RemoteTiles final : public TileSource {
     return OkStatus();
   }
 
-  void Fail() {
+  void Abort() override {
     std::lock_guard lock(mu_);
     failed_ = true;
     cv_.notify_all();
@@ -112,6 +113,8 @@ class RemoteTiles final : public TileSource {
     bool exhausted = false;
   };
   static constexpr uint32_t kAhead = 2;
+  // No more tiles, and every request answered.
+  static bool Over(const Slot& s) { return s.exhausted && s.requested == 0; }
   void TopUp(uint32_t thread, Slot* s) {  // holds mu_
     while (!s->exhausted && !failed_ && s->requested + s->tiles.size() < kAhead) Request(thread, s);
   }
@@ -197,7 +200,7 @@ SlaveNode::~SlaveNode() {
 
 void SlaveNode::Failed(const Status& status) {  // holds mu_
   if (error_.ok()) error_ = status;
-  if (tiles_) tiles_->Fail();
+  if (tiles_) tiles_->Abort();
   changed_.notify_all();
 }
 
@@ -242,7 +245,7 @@ void SlaveNode::ReceiveLoop() {
       shut_down_ = true;
       shutdown_reason_ = m->shutdown().reason;
       if (m->shutdown().flags & wire::kShutdownRankDied) net_->NoteRankDied(-1);
-      if (tiles_) tiles_->Fail();  // ray threads waiting for a tile give up
+      if (tiles_) tiles_->Abort();  // ray threads waiting for a tile give up
       if (peers_) peers_->Stop();
       changed_.notify_all();
     } else if (from == 0 && type == wire::MessageType::kRankLost) {
@@ -283,7 +286,7 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
       return Status::Error("the master ended the job");
     }
     tiles_ = &tiles;
-    if (!error_.ok()) tiles.Fail();
+    if (!error_.ok()) tiles.Abort();
   }
   const uint64_t from_peers = peers_ ? peers_->bytes_from_peers() : 0;
   const uint64_t to_peers = peers_ ? peers_->bytes_to_peers() : 0;

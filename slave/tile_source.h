@@ -26,6 +26,10 @@ class TileSource {
   // Ray thread `thread` will soon ask for its next tile (it has done the --tile-ahead share of
   // its current one): a source that must fetch tiles from afar starts now.
   virtual void Ahead(uint32_t /*thread*/) {}
+  // The frame failed on this node (a damaged block, a read error): a thread waiting in Next
+  // gives up (false). A remote source may hold a request back until every tile given out is
+  // finished, and this node's never will be: without this it would wait forever.
+  virtual void Abort() {}
 };
 
 // The whole frame in one process: its tiles in Hilbert order (common/render/tiles.h), handed

@@ -476,6 +476,59 @@ TEST(Distributed, ASlaveThreadAsksForTwoTilesAheadOfItsCurrentOne) {
   slave_thread.join();
 }
 
+// A slave whose frame fails (a damaged block) while one of its threads waits for a tile the
+// master holds back (the master gives a request nothing until every tile out is finished, and
+// this slave's never will be) tells the master, rather than wait for that answer forever. The
+// test plays the master: thread 0 gets one pixel and then nothing; thread 1 gets the frame,
+// whose 8th block read is damaged.
+TEST(Distributed, AFailingSlaveDoesNotWaitForATileHeldBack) {
+  TestStore s = BuildGenerated("spheres:20000");
+  render::Scene scene = TestScene(*s.reader, render::IntegratorType::kWhitted);
+  transport::InProcessHub hub(2);
+  std::thread slave_thread([&] {
+    auto net = hub.Endpoint(1);
+    EngineOptions o = Options(*s.reader);
+    o.faults.corrupt_read = 8;
+    auto engine = slave::RenderEngine::Create(*s.reader, o);
+    ASSERT_TRUE(engine.ok());
+    const render::MaterialTable materials = render::MaterialTable::Build(s.reader->materials(), scene);
+    slave::SlaveNode node(net.get(), engine->get());
+    slave::RenderStats stats;
+    EXPECT_FALSE(node.RunFrame(0, scene, materials, render::Camera(scene.cameras[0]), &stats).ok());
+    (void)node.WaitForShutdown(std::chrono::seconds(60));
+  });
+  auto master = hub.Endpoint(0);
+  const render::Camera camera(scene.cameras[0]);
+  auto assign = [&](uint32_t thread, int x1, int y1) {
+    wire::TileAssign a{};
+    a.thread = thread;
+    a.x0 = 0, a.y0 = 0, a.x1 = x1, a.y1 = y1;
+    ASSERT_TRUE(master->Send(1, wire::Encode(0, a)).ok());
+  };
+  bool thread0_done = false, thread1_given = false, error = false;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (!error && std::chrono::steady_clock::now() < deadline) {
+    auto e = master->Receive(std::chrono::milliseconds(100));
+    ASSERT_TRUE(e.ok());
+    if (!e->has_value()) continue;
+    const Expected<wire::Message> m = wire::Decode((*e)->bytes, 1);
+    ASSERT_TRUE(m.ok()) << m.status().message();
+    if (m->type() == wire::MessageType::kTileRequest && m->tile_request().thread == 0 &&
+        !thread0_done && m->tile_request().frame == 0) {
+      assign(0, 1, 1);  // its first request; the next ones are held back
+      thread0_done = true;
+    } else if (m->type() == wire::MessageType::kPixelBatch && thread0_done && !thread1_given) {
+      assign(1, camera.width(), camera.height());  // thread 0's pixel is in: it waits now
+      thread1_given = true;
+    }
+    error = m->type() == wire::MessageType::kError;
+  }
+  EXPECT_TRUE(thread1_given);
+  EXPECT_TRUE(error) << "the slave did not report its failure";
+  ASSERT_TRUE(master->Send(1, wire::Encode(0, wire::Shutdown{0, 0})).ok());
+  slave_thread.join();
+}
+
 TEST(Distributed, WhenEverySlaveFailsTheJobEndsWithTheirErrors) {
   TestStore s = BuildGenerated("spheres:20000");
   render::Scene scene = TestScene(*s.reader, render::IntegratorType::kWhitted);
