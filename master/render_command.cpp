@@ -23,6 +23,7 @@
 #include "common/store/store_reader.h"
 #include "common/mpi/mpi_transport.h"
 #include "master/convergence_monitor.h"
+#include "master/frame_writer.h"
 #include "master/master_node.h"
 #include "master/preview/live_preview.h"
 #include "master/resume.h"
@@ -323,19 +324,22 @@ Status CheckOutputs(const Args& args, const render::Scene& scene) {
   return image::CheckRoom(FramePath(OutputOf(args, scene), 0, frames, ".exr"), needed);
 }
 
-// Writes frame `f`'s EXR (and the PNG quick look) from the film; returns the EXR's path.
+// Queues frame `f`'s EXR (and the PNG quick look) from the film to `writer`; returns the
+// EXR's path, or the error of an earlier frame's write.
 Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, size_t f,
-                                 const render::Film& film) {
+                                 const render::Film& film, FrameWriter* writer) {
   const size_t frames = scene.cameras.size();
   const std::string output = OutputOf(args, scene);
-  const image::ImageLayers image = film.Resolve();
-  const std::string exr = FramePath(output, f, frames, ".exr");
-  RAYSTACK_RETURN_IF_ERROR(image::WriteExr(exr, image));
-  if (args.png)
-    RAYSTACK_RETURN_IF_ERROR(image::WritePng(FramePath(output, f, frames, ".png"), image, args.exposure));
+  FrameWriter::Image image;
+  image.exr = FramePath(output, f, frames, ".exr");
+  if (args.png) image.png = FramePath(output, f, frames, ".png");
+  image.exposure = args.exposure;
+  image.layers = film.Resolve();
   if (film.nonfinite_dropped() > 0)
     LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
                 static_cast<unsigned long long>(film.nonfinite_dropped()));
+  const std::string exr = image.exr;
+  RAYSTACK_RETURN_IF_ERROR(writer->Write(std::move(image)));
   return exr;
 }
 
@@ -503,6 +507,7 @@ Status Run(const Args& args) {
   const bool coarse_rounds = CoarseRounds(args, store->get(), &why);
   LogFirstPass(args, coarse_rounds, why);
   std::string stats_json = "[\n";
+  FrameWriter writer(!args.quiet);
   for (size_t f = 0; f < frames; ++f) {
     const render::Camera camera(scene->cameras[f]);
     render::Film film(camera.width(), camera.height());
@@ -550,12 +555,13 @@ Status Run(const Args& args) {
     RAYSTACK_RETURN_IF_ERROR(status);
     monitor.Finish();
     ReportStop(args, monitor);
-    Expected<std::string> exr = WriteFrame(args, *scene, f, film);
+    Expected<std::string> exr = WriteFrame(args, *scene, f, film, &writer);
     if (!exr.ok()) return exr.status();
-    if (!args.quiet) std::printf("frame %zu: %s\n  wrote %s\n", f, stats.ToText().c_str(), exr->c_str());
+    if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
     stats_json += stats.ToJson();
     if (f + 1 < frames) stats_json += ",";
   }
+  RAYSTACK_RETURN_IF_ERROR(writer.Finish());
   RAYSTACK_RETURN_IF_ERROR(WriteStats(args.stats, stats_json + "]\n"));
   preview->Finish();
   return OkStatus();
@@ -616,6 +622,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
       ranks.push_back({static_cast<int>(i) + 1, std::move(by_slave[i])});
     return ranks;
   };
+  FrameWriter writer(!args.quiet);
   std::string json = "[\n";
   for (size_t f = 0; f < frames; ++f) {
     const render::Camera camera(scene.cameras[f]);
@@ -660,7 +667,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
     for (const SlaveFigures& s : figures.slaves) rays += s.done.rays;
     preview->EndFrame(status.ok() && figures.seconds > 0 ? static_cast<double>(rays) / figures.seconds
                                                          : std::numeric_limits<double>::quiet_NaN());
-    Expected<std::string> exr = status.ok() ? WriteFrame(args, scene, f, film)
+    Expected<std::string> exr = status.ok() ? WriteFrame(args, scene, f, film, &writer)
                                             : Expected<std::string>(status);
     if (!exr.ok()) {  // every rank ends, none is left waiting
       master.Shutdown(1);
@@ -696,9 +703,12 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                     static_cast<double>(s.done.bytes_read) / 1e6, peers.c_str(),
                     static_cast<double>(s.bytes_received) / 1e6);
       }
-      std::printf("  wrote %s\n", exr->c_str());
     }
     json += FiguresJson(f, figures) + (f + 1 < frames ? ",\n" : "\n");
+  }
+  if (const Status written = writer.Finish(); !written.ok()) {
+    master.Shutdown(1);
+    return written;
   }
   if (!master.Shutdown(0)) LOG_WARNING("master", "a slave did not acknowledge the end of the job");
   RAYSTACK_RETURN_IF_ERROR(WriteStats(args.stats, json + "]\n"));

@@ -1,0 +1,62 @@
+#include "master/frame_writer.h"
+
+#include <cstdio>
+
+#include "common/base/thread_name.h"
+#include "common/image/exr_io.h"
+#include "common/image/png_writer.h"
+
+namespace raystack::master {
+
+FrameWriter::FrameWriter(bool announce) : announce_(announce) {
+  thread_ = std::thread([this] {
+    SetThreadName("rs-write");
+    Loop();
+  });
+}
+
+FrameWriter::~FrameWriter() {
+  {
+    std::lock_guard lock(mu_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+}
+
+Status FrameWriter::Write(Image image) {
+  std::unique_lock lock(mu_);
+  cv_.wait(lock, [&] { return !queued_; });
+  if (!error_.ok()) return error_;
+  queued_ = std::move(image);
+  cv_.notify_all();
+  return OkStatus();
+}
+
+Status FrameWriter::Finish() {
+  std::unique_lock lock(mu_);
+  cv_.wait(lock, [&] { return !queued_ && !writing_; });
+  return error_;
+}
+
+void FrameWriter::Loop() {
+  std::unique_lock lock(mu_);
+  for (;;) {
+    cv_.wait(lock, [&] { return queued_ || stop_; });
+    if (!queued_) return;  // stopped with nothing left to write
+    Image image = std::move(*queued_);
+    queued_.reset();
+    writing_ = true;
+    cv_.notify_all();  // a Write waiting for room may queue the next one
+    lock.unlock();
+    Status s = image::WriteExr(image.exr, image.layers);
+    if (s.ok() && !image.png.empty()) s = image::WritePng(image.png, image.layers, image.exposure);
+    if (s.ok() && announce_) std::printf("  wrote %s\n", image.exr.c_str());
+    lock.lock();
+    writing_ = false;
+    if (error_.ok()) error_ = s;
+    cv_.notify_all();
+  }
+}
+
+}  // namespace raystack::master
