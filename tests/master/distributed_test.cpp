@@ -416,6 +416,23 @@ TEST(Distributed, HostileMessagesEndTheFrameNamingTheSender) {
   EXPECT_NE(s.message().find("outside the 16x16 image"), std::string::npos) << s.message();
 }
 
+// Rank 1 of `hub` as a real slave rendering frame 0 of `scene` while the test plays the
+// master, then waiting for the end of the job; `frame_ok`: whether its frame should succeed.
+std::thread SlaveAlone(transport::InProcessHub* hub, const store::StoreReader& store,
+                       const render::Scene& scene, const EngineOptions& options, bool frame_ok) {
+  return std::thread([hub, &store, &scene, options, frame_ok] {
+    auto net = hub->Endpoint(1);
+    auto engine = slave::RenderEngine::Create(store, options);
+    ASSERT_TRUE(engine.ok());
+    const render::MaterialTable materials = render::MaterialTable::Build(store.materials(), scene);
+    slave::SlaveNode node(net.get(), engine->get());
+    slave::RenderStats stats;
+    EXPECT_EQ(node.RunFrame(0, scene, materials, render::Camera(scene.cameras[0]), &stats).ok(),
+              frame_ok);
+    (void)node.WaitForShutdown(std::chrono::seconds(60));
+  });
+}
+
 // A slave thread keeps two tiles asked for ahead of the one it renders (with --tile-ahead 0,
 // from the moment it starts it): a small tile takes about as long as the master's answer.
 // The test plays the master: it answers the first request only, and counts the requests.
@@ -423,18 +440,9 @@ TEST(Distributed, ASlaveThreadAsksForTwoTilesAheadOfItsCurrentOne) {
   TestStore s = BuildGenerated("spheres:20000");
   render::Scene scene = TestScene(*s.reader, render::IntegratorType::kWhitted);
   transport::InProcessHub hub(2);
-  std::thread slave_thread([&] {
-    auto net = hub.Endpoint(1);
-    EngineOptions o = Options(*s.reader);
-    o.threads = 1;
-    auto engine = slave::RenderEngine::Create(*s.reader, o);
-    ASSERT_TRUE(engine.ok());
-    const render::MaterialTable materials = render::MaterialTable::Build(s.reader->materials(), scene);
-    slave::SlaveNode node(net.get(), engine->get());
-    slave::RenderStats stats;
-    EXPECT_TRUE(node.RunFrame(0, scene, materials, render::Camera(scene.cameras[0]), &stats).ok());
-    (void)node.WaitForShutdown(std::chrono::seconds(30));
-  });
+  EngineOptions o = Options(*s.reader);
+  o.threads = 1;
+  std::thread slave_thread = SlaveAlone(&hub, *s.reader, scene, o, true);
   auto master = hub.Endpoint(0);
   int requests = 0;
   bool frame_done = false;
@@ -485,18 +493,9 @@ TEST(Distributed, AFailingSlaveDoesNotWaitForATileHeldBack) {
   TestStore s = BuildGenerated("spheres:20000");
   render::Scene scene = TestScene(*s.reader, render::IntegratorType::kWhitted);
   transport::InProcessHub hub(2);
-  std::thread slave_thread([&] {
-    auto net = hub.Endpoint(1);
-    EngineOptions o = Options(*s.reader);
-    o.faults.corrupt_read = 8;
-    auto engine = slave::RenderEngine::Create(*s.reader, o);
-    ASSERT_TRUE(engine.ok());
-    const render::MaterialTable materials = render::MaterialTable::Build(s.reader->materials(), scene);
-    slave::SlaveNode node(net.get(), engine->get());
-    slave::RenderStats stats;
-    EXPECT_FALSE(node.RunFrame(0, scene, materials, render::Camera(scene.cameras[0]), &stats).ok());
-    (void)node.WaitForShutdown(std::chrono::seconds(60));
-  });
+  EngineOptions o = Options(*s.reader);
+  o.faults.corrupt_read = 8;
+  std::thread slave_thread = SlaveAlone(&hub, *s.reader, scene, o, false);
   auto master = hub.Endpoint(0);
   const render::Camera camera(scene.cameras[0]);
   auto assign = [&](uint32_t thread, int x1, int y1) {
