@@ -51,8 +51,8 @@ options:
   --feed-fraction P         start the next tile once this fraction of the current one is
                             done (default 0.1)
   --tile-size N             tile side in pixels (default 32)
-  --tile-ahead P            under mpirun, a slave thread asks for its next tile once this
-                            fraction of its current one is done (default 0: at once)
+  --tile-ahead P            under mpirun, a slave thread asks for its next two tiles once
+                            this fraction of its current one is done (default 0: at once)
   --batch N                 samples per pixel batch a slave sends (default 1024)
   --checkpoint-s S          write the EXR every S seconds while rendering (atomically: a
                             temporary file, then a rename; default 0: only at the end); a
