@@ -81,6 +81,7 @@ class BlockWalk {
   std::span<const store::BlockEntry> blocks_;
   Cell root_;
   std::vector<uint32_t> parent_;  // by node; the root's is itself
+  std::vector<Cell> cells_;       // by inner node: its cell (ChildCell's arithmetic from the root)
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -197,38 +198,18 @@ inline uint32_t BlockWalk::Next(const Ray& ray, uint32_t block) const {
   const Slabs s(ray);
   const uint32_t mate = FirstMet(s, nodes_[leaf], block + 1);
   if (mate != kInvalidId) return mate;
-  if (leaf == 0) return kInvalidId;  // the root is the only leaf
-  // The leaf's ancestors, and their cells from the root down (ChildCell's arithmetic).
-  uint32_t path[kMaxDepth + 1];
-  int levels = 0;
-  for (uint32_t n = leaf; n != 0; n = parent_[n]) {
-    CHECK(levels < kMaxDepth);
-    path[levels++] = n;
-  }
-  path[levels] = 0;  // path[0] = leaf ... path[levels] = root
-  Cell cells[kMaxDepth + 1];
-  cells[levels] = root_;
-  for (int k = levels - 1; k >= 1; --k) {
-    const int i = static_cast<int>(path[k] - nodes_[path[k + 1]].first);
-    const Cell& p = cells[k + 1];
-    for (int a = 0; a < 3; ++a) {
-      const float mid = (p.lower[a] + p.upper[a]) * 0.5f;
-      const bool upper_half = (i >> a) & 1;
-      cells[k].lower[a] = upper_half ? mid : p.lower[a];
-      cells[k].upper[a] = upper_half ? p.upper[a] : mid;
-    }
-  }
-  // Climb: at each ancestor, the children visited after the one we come from, in order.
+  // Climb: at each ancestor, the children visited after the one we come from, in order. The
+  // climb usually ends a level or two up, so ancestors are only visited as far as needed.
   Frame frames[kMaxDepth];
   float enter[8], exit[8];
-  for (int k = 1; k <= levels; ++k) {
-    const uint32_t parent = path[k];
+  for (uint32_t child = leaf; child != 0;) {
+    const uint32_t parent = parent_[child];
     const uint32_t first = nodes_[parent].first;
-    const int from = static_cast<int>(path[k - 1] - first);
+    const int from = static_cast<int>(child - first);
     Frame& f = frames[0];
-    f.cell = cells[k];
+    f.cell = cells_[parent];
     f.first = first;
-    uint32_t keep = Children(s, first, cells[k], f.mid, enter, exit);
+    uint32_t keep = Children(s, first, f.cell, f.mid, enter, exit);
     for (uint32_t m = keep; m; m &= m - 1) {
       const int i = std::countr_zero(m);
       if (!VisitsBefore(enter[from], exit[from], from, enter[i], exit[i], i))
@@ -237,6 +218,7 @@ inline uint32_t BlockWalk::Next(const Ray& ray, uint32_t block) const {
     Push(&f, keep, enter, exit);
     const uint32_t found = Descend(s, frames, 1);
     if (found != kInvalidId) return found;
+    child = parent;
   }
   return kInvalidId;
 }
