@@ -97,14 +97,9 @@ bool RayThread::FeedNextTile(bool may_wait) {
   // or in scanline order, all of equal priority.
   const bool by_priority = shared_->pixel_order == render::PixelOrder::kPriority;
   feed_pixels_.clear();
-  for (int y = tile.y0; y < tile.y1; ++y)
-    for (int x = tile.x0; x < tile.x1; ++x) {
-      if (!tile.HasRank(x, y)) continue;
-      feed_pixels_.push_back({by_priority ? render::PixelPriority(x, y) : uint16_t{0}, x, y});
-    }
-  if (by_priority)
-    std::stable_sort(feed_pixels_.begin(), feed_pixels_.end(),
-                     [](const FeedPixel& a, const FeedPixel& b) { return a.priority > b.priority; });
+  render::ForEachTilePixel(tile, by_priority, [&](int x, int y) {
+    feed_pixels_.push_back({by_priority ? render::PixelPriority(x, y) : uint16_t{0}, x, y});
+  });
   const uint32_t local = static_cast<uint32_t>(tiles_.size());
   const uint32_t samples = sample_end > sample_begin ? sample_end - sample_begin : 0;
   tiles_.push_back({tile, static_cast<uint32_t>(feed_pixels_.size()) * samples, 0});

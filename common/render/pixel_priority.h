@@ -3,6 +3,7 @@
 // pixels are ranked in Bayer (bit-reversed, interleaved) order, so the first pixels done are
 // spread evenly over the whole frame and each later group halves the gaps. Higher is sooner.
 
+#include <array>
 #include <cstdint>
 
 namespace raystack::render {
@@ -31,5 +32,18 @@ constexpr uint16_t PixelRank(int x, int y) {
 constexpr uint16_t PixelPriority(int x, int y) {
   return static_cast<uint16_t>(kMaxPixelPriority - PixelRank(x, y));
 }
+
+// Where each rank sits in the 16x16 square (PixelRank's inverse), so a tile's pixels can be
+// listed rank by rank without sorting them.
+struct RankPosition {
+  uint8_t x, y;
+};
+inline constexpr std::array<RankPosition, kPriorityPeriod * kPriorityPeriod> kRankPositions = [] {
+  std::array<RankPosition, kPriorityPeriod * kPriorityPeriod> p{};
+  for (int y = 0; y < kPriorityPeriod; ++y)
+    for (int x = 0; x < kPriorityPeriod; ++x)
+      p[BayerIndex16(x, y)] = {static_cast<uint8_t>(x), static_cast<uint8_t>(y)};
+  return p;
+}();
 
 }  // namespace raystack::render

@@ -31,6 +31,29 @@ struct Tile {
   bool operator==(const Tile&) const = default;
 };
 
+// Calls f(x, y) for each pixel of `tile` (those of its rank range) in the order they should be
+// done: by priority (rank by rank, the pixels of one rank in scanline order), or in scanline
+// order. The same order as a stable sort of the tile's pixels by descending priority, without
+// the sort: a round's sparse tile lists only its own pixels.
+template <typename F>
+void ForEachTilePixel(const Tile& tile, bool by_priority, F&& f) {
+  if (!by_priority) {
+    for (int y = tile.y0; y < tile.y1; ++y)
+      for (int x = tile.x0; x < tile.x1; ++x)
+        if (tile.HasRank(x, y)) f(x, y);
+    return;
+  }
+  constexpr int kRanks = kPriorityPeriod * kPriorityPeriod, p = kPriorityPeriod;
+  const int rank_end = tile.rank_end < kRanks ? tile.rank_end : kRanks;
+  // The first coordinate at or after v0 that is congruent to b modulo the period (v0 >= 0).
+  auto first_from = [](int v0, int b) { return v0 + ((b - v0 % p) % p + p) % p; };
+  for (int rank = tile.rank_begin; rank < rank_end; ++rank) {
+    const RankPosition at = kRankPositions[static_cast<size_t>(rank)];
+    for (int y = first_from(tile.y0, at.y); y < tile.y1; y += p)
+      for (int x = first_from(tile.x0, at.x); x < tile.x1; x += p) f(x, y);
+  }
+}
+
 // Position `d` along a Hilbert curve filling a side x side grid (side a power of two).
 inline void HilbertPoint(uint32_t side, uint32_t d, uint32_t* x, uint32_t* y) {
   *x = *y = 0;
