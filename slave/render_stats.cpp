@@ -2,7 +2,9 @@
 
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <sstream>
+#include <string>
 
 #include "common/base/log.h"
 
@@ -53,9 +55,13 @@ std::string RenderStats::ToText() const {
                  static_cast<unsigned long long>(reads), loader_busy_seconds, ray_idle_seconds);
   s += StrFormat("\n  ray threads: busy %.3f s, waiting for a tile %.3f s", ray_busy_seconds,
                  ray_tile_wait_seconds);
-  s += StrFormat("\n  cache: hit rate %.4f, peak %.1f of %.1f MB, %llu evictions",
-                 cache_hit_rate, static_cast<double>(cache_peak_bytes) / 1e6,
-                 static_cast<double>(cache_budget_bytes) / 1e6,
+  // In core the cache has no budget (the largest byte count stands for none).
+  const std::string budget =
+      cache_budget_bytes == std::numeric_limits<uint64_t>::max()
+          ? std::string("(no budget: in core)")
+          : StrFormat("of %.1f MB", static_cast<double>(cache_budget_bytes) / 1e6);
+  s += StrFormat("\n  cache: hit rate %.4f, peak %.1f MB %s, %llu evictions", cache_hit_rate,
+                 static_cast<double>(cache_peak_bytes) / 1e6, budget.c_str(),
                  static_cast<unsigned long long>(evictions));
   s += StrFormat("\n  ray stack: %llu-byte records, peak %.2f MB (%llu rays); peak RSS %.1f MB",
                  static_cast<unsigned long long>(ray_record_bytes),
