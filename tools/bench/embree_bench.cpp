@@ -46,7 +46,7 @@ struct Options {
 
 Options Parse(int argc, char** argv) {
   Options o;
-  if (argc < 2) Usage();
+  if (argc < 2 || argv[1][0] == '-') Usage();  // --help, or an option where STORE belongs
   o.store = argv[1];
   for (int i = 2; i < argc; i += 2) {
     if (i + 1 >= argc) Usage();
