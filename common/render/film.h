@@ -61,9 +61,6 @@ class Film {
     uint32_t count = 0;
     uint32_t hits = 0;
   };
-  // Asks the CPU for the film data a sample will update (Merge, a few samples ahead).
-  void Prefetch(const SampleResult& s) const;
-
   int width_, height_;
   mutable std::mutex mu_;
   std::vector<Pixel> pixels_;
