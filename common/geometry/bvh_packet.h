@@ -135,6 +135,7 @@ void TraverseBvhPacket4(std::span<const BvhNode> nodes, const RayPacket4& packet
         uint32_t far_child = node.offset;
         if (packet.dir_is_neg[node.axis]) std::swap(near_child, far_child);
         DCHECK(size < kBvhMaxDepth);
+        __builtin_prefetch(&nodes[far_child]);  // as TraverseBvh: fetched while the near side is walked
         stack[size++] = {far_child, hit};
         index = near_child;
         active = hit;
