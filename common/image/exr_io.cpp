@@ -116,6 +116,10 @@ Status WriteExr(const std::string& path, const ImageLayers& image) {
   try {
     Imf::Header header(image.width, image.height);
     header.compression() = Imf::ZIP_COMPRESSION;
+    // zlib's fastest level: a 1024x768 image with every layer is written in about half the
+    // time of OpenEXR's default (4) and comes out 2% larger (7.67 against 7.51 MB); level 6
+    // saves another 0.6% for twice the time again. Checkpoints and frames are written often.
+    header.zipCompressionLevel() = 1;
     Imf::FrameBuffer frame;
     AddLayer(image.rgba, kRgba, image.width, &header, &frame);
     AddLayer(image.z, kZ, image.width, &header, &frame);
