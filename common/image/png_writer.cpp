@@ -6,15 +6,9 @@
 #include <cstring>
 #include <vector>
 
-namespace raystack::image {
+#include "common/image/srgb8.h"
 
-uint8_t LinearToSrgb8(float linear) {
-  if (!(linear > 0)) return 0;  // also NaN
-  if (linear >= 1) return 255;
-  const double v = linear <= 0.0031308f ? 12.92 * double{linear}
-                                        : 1.055 * std::pow(double{linear}, 1.0 / 2.4) - 0.055;
-  return static_cast<uint8_t>(v * 255.0 + 0.5);
-}
+namespace raystack::image {
 
 Status WritePng(const std::string& path, const ImageLayers& image, float exposure) {
   if (image.width < 1 || image.height < 1)
@@ -28,9 +22,10 @@ Status WritePng(const std::string& path, const ImageLayers& image, float exposur
   if (!std::isfinite(exposure))
     return Status::Error(path + ": cannot write: exposure must be finite");
   const float scale = std::exp2(exposure);
+  static const Srgb8Encoder encoder;  // LinearToSrgb8 without a pow per channel
   std::vector<uint8_t> rgb(3 * pixels);
   for (size_t i = 0; i < pixels; ++i)
-    for (size_t c = 0; c < 3; ++c) rgb[3 * i + c] = LinearToSrgb8(image.rgba[4 * i + c] * scale);
+    for (size_t c = 0; c < 3; ++c) rgb[3 * i + c] = encoder.Encode(image.rgba[4 * i + c] * scale);
 
   Expected<AtomicOutput> output = AtomicOutput::Create(path);
   if (!output.ok()) return output.status();

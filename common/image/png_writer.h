@@ -13,9 +13,4 @@ namespace raystack::image {
 // Tone-mapped 8-bit sRGB quick-look: rgb * 2^exposure, clamped, sRGB transfer curve. Atomic like
 // WriteExr. Alpha is not written (an RGB PNG); NaN shows as black.
 Status WritePng(const std::string& path, const ImageLayers& image, float exposure = 0);
-
-// The 8-bit sRGB code of a linear value (clamped to [0, 1]; NaN -> 0), exposed for tests and
-// for previews that tone-map the same way.
-uint8_t LinearToSrgb8(float linear);
-
 }  // namespace raystack::image

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/image/srgb8.h"
 #include "common/render/film.h"
 
 namespace raystack::master::preview {
@@ -38,23 +39,7 @@ struct FrameHeader {
 };
 static_assert(sizeof(FrameHeader) == kFrameHeaderBytes);
 
-// 8-bit sRGB codes of linear values, equal to image::LinearToSrgb8 for every float, without
-// a pow per channel: a table indexed by the float's exponent and top mantissa bits gives the
-// code at the start of the value's bucket, and at most a step or two over the exact code
-// boundaries finishes it.
-class Srgb8Encoder {
- public:
-  Srgb8Encoder();
-  uint8_t Encode(float linear) const;
-
- private:
-  // Buckets cover [2^-13, 1) (below, every value is code 0), 2^8 per power of two.
-  static constexpr uint32_t kFirstBits = 0x39000000;  // the bits of 2^-13
-  static constexpr int kBucketShift = 23 - 8;
-  static constexpr size_t kBuckets = (0x3f800000 - kFirstBits) >> kBucketShift;
-  std::array<float, 256> lower_;  // lower_[c-1]: the smallest value that encodes to c; [255] = inf
-  std::array<uint8_t, kBuckets> bucket_code_;  // the code of each bucket's smallest value
-};
+using image::Srgb8Encoder;  // (common/image/srgb8.h) the page's tone map is the PNG's
 
 // Writes the message of `snapshot` at `exposure` (EV) into `out` (resized; its capacity is
 // reused from frame to frame). Alpha is 255 for pixels with a sample and 0 for the rest, which

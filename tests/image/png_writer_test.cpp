@@ -1,4 +1,5 @@
 #include "common/image/png_writer.h"
+#include "common/image/srgb8.h"
 
 #include <gtest/gtest.h>
 #include <png.h>

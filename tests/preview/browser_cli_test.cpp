@@ -10,7 +10,7 @@
 #include <fstream>
 
 #include "common/image/exr_io.h"
-#include "common/image/png_writer.h"
+#include "common/image/srgb8.h"
 #include "tests/preview/background_process.h"
 #include "tests/preview/headless_chromium.h"
 #include "tests/preview/http_client.h"

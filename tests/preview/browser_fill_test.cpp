@@ -9,7 +9,7 @@
 #include <utility>
 
 #include "common/base/temp_dir.h"
-#include "common/image/png_writer.h"
+#include "common/image/srgb8.h"
 #include "master/preview/preview_server.h"
 #include "tests/preview/headless_chromium.h"
 

@@ -7,7 +7,7 @@
 #include <cstring>
 #include <limits>
 
-#include "common/image/png_writer.h"
+#include "common/image/srgb8.h"
 
 namespace raystack::master::preview {
 namespace {
