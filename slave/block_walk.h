@@ -81,7 +81,7 @@ class BlockWalk {
   std::span<const store::BlockEntry> blocks_;
   Cell root_;
   std::vector<uint32_t> parent_;  // by node; the root's is itself
-  std::vector<Cell> cells_;       // by inner node: its cell (ChildCell's arithmetic from the root)
+  std::vector<Cell> cells_;       // by node: its cell (ChildCell's arithmetic from the root)
 };
 
 // ---------------------------------------------------------------------------------------------
