@@ -108,7 +108,10 @@ class RayThread {
   uint32_t newest_tile_ = 0;
   uint32_t open_tiles_ = 0;  // fed and not finished
   bool ahead_asked_ = false;  // TileSource::Ahead called for the newest tile
-  static constexpr uint32_t kMaxOpenTiles = 4;
+  // Tiles a thread keeps open when all its rays wait. dragon x36 out of core, local disk: 4 -> 8
+  // cut the ray threads' idle time 0.24 -> 0.14 s and the run 1.25 -> 1.16 s (medians of 5);
+  // 16 loaded more blocks (the cache thrashes) and took 1.43 s.
+  static constexpr uint32_t kMaxOpenTiles = 8;
   bool tiles_exhausted_ = false;
   std::vector<render::SampleResult> results_;
   uint64_t rays_reported_ = 0;  // rays counted in the batches handed to the sink
