@@ -154,6 +154,12 @@ Status StoreReader::ReadOctree() {
   }
   if (blocks_seen != blocks_.size())
     return Status::Error(path + ": leaves do not cover every block once");
+  // A node outside the tree was never checked above (an inner one's children could be
+  // anywhere), yet the bounds sweep below and the walks' parent tables visit every node. The
+  // writer leaves empty slots there; anything else is refused.
+  for (uint32_t i = 0; i < nodes_.size(); ++i)
+    if (!seen[i] && nodes_[i].kind != kOctreeEmpty)
+      return Status::Error(StrFormat("%s: node %u is outside the tree", path.c_str(), i));
   ComputeNodeBounds();
   return OkStatus();
 }

@@ -70,6 +70,24 @@ class StoreReaderTest : public ::testing::Test {
                                                 static_cast<std::streamsize>(bytes.size()));
   }
 
+  // Lets `edit` change a whole file's body, then re-seals its checksum.
+  template <typename Edit>
+  void EditBody(const std::string& name, Edit&& edit) {
+    const std::string file = path_ + "/" + name;
+    std::ifstream in(file, std::ios::binary);
+    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), {});
+    in.close();
+    FileHeader h;
+    std::memcpy(&h, bytes.data(), sizeof h);
+    std::vector<uint8_t> body(bytes.begin() + sizeof h, bytes.end());
+    edit(&body);
+    h.body_bytes = body.size();
+    h.body_checksum = Checksum(body);
+    std::ofstream out(file, std::ios::binary);
+    out.write(reinterpret_cast<const char*>(&h), sizeof h);
+    out.write(reinterpret_cast<const char*>(body.data()), static_cast<std::streamsize>(body.size()));
+  }
+
   std::unique_ptr<TempDir> dir_;
   std::string path_;
 };
@@ -128,6 +146,27 @@ TEST_F(StoreReaderTest, DamagedIndexOrOctreeIsRefusedAtOpen) {
   s = StoreReader::Open(path_);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.status().message().find("octree.bin"), std::string::npos) << s.status().message();
+}
+
+// A node no walk reaches was never checked: an inner one could name children anywhere, and
+// the bounds sweep and the walks' tables visit every node. Open refuses it, naming the file.
+TEST_F(StoreReaderTest, AnOctreeNodeOutsideTheTreeIsRefusedAtOpen) {
+  EditBody(kOctreeFile, [](std::vector<uint8_t>* body) {
+    const OctreeNode stray{1u << 30, 0, kOctreeInner, 0};  // children far out of range
+    const auto* p = reinterpret_cast<const uint8_t*>(&stray);
+    body->insert(body->end(), p, p + sizeof stray);
+  });
+  EditBody(kIndexFile, [](std::vector<uint8_t>* body) {
+    StoreSummary summary;
+    std::memcpy(&summary, body->data(), sizeof summary);
+    ++summary.octree_node_count;
+    std::memcpy(body->data(), &summary, sizeof summary);
+  });
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("octree.bin"), std::string::npos) << s.status().message();
+  EXPECT_NE(s.status().message().find("outside the tree"), std::string::npos)
+      << s.status().message();
 }
 
 // The walks skip a block for rays that miss its bounds in the index, so bounds that are not its
