@@ -46,31 +46,8 @@ class StoreReaderTest : public ::testing::Test {
     f.write(&c, 1);
   }
 
-  // Lets `edit` change block `id`'s index entry, then re-seals index.bin's checksum: the
-  // damage a checksum cannot see (a hostile or buggy writer).
-  template <typename Edit>
-  void EditIndexEntry(uint32_t id, Edit&& edit) {
-    const std::string file = path_ + "/" + kIndexFile;
-    std::ifstream in(file, std::ios::binary);
-    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), {});
-    in.close();
-    FileHeader h;
-    std::memcpy(&h, bytes.data(), sizeof h);
-    StoreSummary summary;
-    std::memcpy(&summary, bytes.data() + sizeof h, sizeof summary);
-    const size_t at = sizeof h + sizeof summary + summary.material_count * sizeof(MaterialRecord) +
-                      id * sizeof(BlockEntry);
-    BlockEntry e;
-    std::memcpy(&e, bytes.data() + at, sizeof e);
-    edit(&e);
-    std::memcpy(bytes.data() + at, &e, sizeof e);
-    h.body_checksum = Checksum(std::span<const uint8_t>(bytes).subspan(sizeof h));
-    std::memcpy(bytes.data(), &h, sizeof h);
-    std::ofstream(file, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
-                                                static_cast<std::streamsize>(bytes.size()));
-  }
-
-  // Lets `edit` change a whole file's body, then re-seals its checksum.
+  // Lets `edit` change a whole file's body, then re-seals its checksum: the damage a checksum
+  // cannot see (a hostile or buggy writer).
   template <typename Edit>
   void EditBody(const std::string& name, Edit&& edit) {
     const std::string file = path_ + "/" + name;
@@ -86,6 +63,21 @@ class StoreReaderTest : public ::testing::Test {
     std::ofstream out(file, std::ios::binary);
     out.write(reinterpret_cast<const char*>(&h), sizeof h);
     out.write(reinterpret_cast<const char*>(body.data()), static_cast<std::streamsize>(body.size()));
+  }
+
+  // Lets `edit` change block `id`'s index entry (index.bin re-sealed).
+  template <typename Edit>
+  void EditIndexEntry(uint32_t id, Edit&& edit) {
+    EditBody(kIndexFile, [&](std::vector<uint8_t>* body) {
+      StoreSummary summary;
+      std::memcpy(&summary, body->data(), sizeof summary);
+      const size_t at = sizeof summary + summary.material_count * sizeof(MaterialRecord) +
+                        id * sizeof(BlockEntry);
+      BlockEntry e;
+      std::memcpy(&e, body->data() + at, sizeof e);
+      edit(&e);
+      std::memcpy(body->data() + at, &e, sizeof e);
+    });
   }
 
   std::unique_ptr<TempDir> dir_;
