@@ -53,6 +53,11 @@ void EncodeBlock(std::span<const uint8_t> raw, std::vector<uint8_t>* stored, boo
   stored->resize(static_cast<size_t>(n));
 }
 
+uint64_t MaxStoredBytes(uint32_t raw_bytes) {
+  const uint64_t n = raw_bytes;
+  return n + n / 255 + 16;  // LZ4_COMPRESSBOUND, without its int range limit
+}
+
 void AlignedBuffer::Free::operator()(uint8_t* p) const { std::free(p); }
 
 void AlignedBuffer::Reserve(uint64_t bytes) {

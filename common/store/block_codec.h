@@ -19,6 +19,8 @@ uint64_t Checksum(std::span<const uint8_t> bytes);
 // Compresses `raw` (size a multiple of 4) into `stored` (resized). `shuffle` = false stores
 // plain lz4 (for measurement).
 void EncodeBlock(std::span<const uint8_t> raw, std::vector<uint8_t>* stored, bool shuffle = true);
+// The most bytes EncodeBlock can produce for a raw block of `raw_bytes` (lz4's bound).
+uint64_t MaxStoredBytes(uint32_t raw_bytes);
 
 // A 16-byte aligned byte buffer that only grows: one per thread, reused across blocks.
 class AlignedBuffer {

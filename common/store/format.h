@@ -58,6 +58,9 @@ struct StoreSummary {
 };
 static_assert(sizeof(StoreSummary) == 112);
 
+// The largest block cap (StoreSummary::max_block_bytes) the converter accepts: 1 GiB.
+inline constexpr uint32_t kMaxBlockBytesCap = 1u << 30;
+
 enum BlockCodec : uint32_t { kCodecLz4 = 0, kCodecShuffleLz4 = 1 };
 
 struct MaterialRecord {

@@ -94,6 +94,9 @@ Status StoreReader::ReadIndex() {
   if (expected != body.size())
     return Status::Error(path + ": sizes do not match the block and material counts");
   if (s.codec > kCodecShuffleLz4) return Status::Error(path + ": unknown block codec");
+  if (s.max_block_bytes > kMaxBlockBytesCap)
+    return Status::Error(StrFormat("%s: block size cap %u is above the format's %u", path.c_str(),
+                                   s.max_block_bytes, kMaxBlockBytesCap));
   if (!FiniteBox(s.root_lower, s.root_upper)) return Status::Error(path + ": bad root cell");
   materials_.resize(s.material_count);
   blocks_.resize(s.block_count);
@@ -104,6 +107,13 @@ Status StoreReader::ReadIndex() {
   for (MaterialRecord& m : materials_) m.name[sizeof m.name - 1] = '\0';
   for (uint32_t i = 0; i < blocks_.size(); ++i) {
     const BlockEntry& e = blocks_[i];
+    // Sizes the converter cannot write: a loader would size buffers and the cache by them.
+    if (e.raw_bytes < sizeof(BlockHeader) || e.raw_bytes > s.max_block_bytes ||
+        e.stored_bytes == 0 || e.stored_bytes > MaxStoredBytes(e.raw_bytes))
+      return Status::Error(StrFormat("%s: block %u has sizes out of range (%u stored, %u raw bytes; "
+                                     "the store's cap is %u)",
+                                     path.c_str(), i, e.stored_bytes, e.raw_bytes,
+                                     s.max_block_bytes));
     for (int a = 0; a < 3; ++a)
       if (std::isnan(e.bounds_lower[a]) || std::isnan(e.bounds_upper[a]))
         return Status::Error(StrFormat("%s: block %u has NaN bounds", path.c_str(), i));
@@ -220,10 +230,19 @@ Status StoreReader::OpenBlocks() {
                                    path.c_str(), h.version, kFormatVersion));
   if (h.body_bytes != blocks_file_bytes_ - sizeof h)
     return Status::Error(path + ": size does not match its header (truncated?)");
+  // Blocks lie in id order without overlap: the loader reads neighbouring ids as one run of
+  // bytes and finds each block at its offset from the run's first, so an index out of order
+  // would make it read past its buffer. In 64 bits, so a hostile offset cannot wrap.
+  uint64_t end = sizeof h;
   for (uint32_t i = 0; i < blocks_.size(); ++i) {
     const BlockEntry& e = blocks_[i];
-    if (e.offset < sizeof h || e.offset + e.stored_bytes > blocks_file_bytes_)
+    if (e.offset < end)
+      return Status::Error(BlockError(i, StrFormat("overlaps the block before it or the file header "
+                                                   "(blocks lie in id order from byte %llu)",
+                                                   static_cast<unsigned long long>(end))));
+    if (e.offset > blocks_file_bytes_ || e.stored_bytes > blocks_file_bytes_ - e.offset)
       return Status::Error(BlockError(i, "lies outside the file (truncated?)"));
+    end = e.offset + e.stored_bytes;
   }
   return OkStatus();
 }

@@ -13,6 +13,7 @@
 #include <span>
 #include <vector>
 
+#include "common/base/log.h"
 #include "common/base/temp_dir.h"
 #include "common/store/store_tracer.h"
 #include "tools/prep/convert.h"
@@ -182,6 +183,74 @@ TEST_F(StoreReaderTest, NanBoundsAreRefusedAtOpen) {
   Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.status().message().find("index.bin: block 2 has NaN bounds"), std::string::npos)
+      << s.status().message();
+}
+
+// The loader reads neighbouring blocks as one run and finds each at its offset from the run's
+// first: an index whose blocks are out of file order or overlap would make it read outside its
+// buffer, so Open refuses it, naming the block.
+TEST_F(StoreReaderTest, BlocksOutOfFileOrderAreRefusedAtOpen) {
+  uint64_t before = 0;
+  {
+    Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+    ASSERT_TRUE(s.ok()) << s.status().message();
+    before = (*s)->blocks()[3].offset;
+  }
+  EditIndexEntry(5, [&](BlockEntry* e) { e->offset = before; });
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("blocks.bin: block 5 "), std::string::npos)
+      << s.status().message();
+  EXPECT_NE(s.status().message().find("overlaps"), std::string::npos) << s.status().message();
+}
+
+// An offset near 2^64 must not wrap past the file-size test.
+TEST_F(StoreReaderTest, AnOffsetThatWouldWrapIsRefusedAtOpen) {
+  EditIndexEntry(0, [](BlockEntry* e) { e->offset = ~uint64_t{0} - 7; });
+  EditIndexEntry(1, [](BlockEntry* e) { e->offset = ~uint64_t{0} - 3; });
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("block 0 "), std::string::npos) << s.status().message();
+  EXPECT_NE(s.status().message().find("outside the file"), std::string::npos)
+      << s.status().message();
+}
+
+// Buffers and the cache are sized by these: sizes the converter cannot write are refused
+// before any block is read.
+TEST_F(StoreReaderTest, BlockSizesOutOfRangeAreRefusedAtOpen) {
+  const auto expect_refused = [&](uint32_t block) {
+    Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+    ASSERT_FALSE(s.ok());
+    EXPECT_NE(s.status().message().find(StrFormat("index.bin: block %u has sizes out of range", block)),
+              std::string::npos)
+        << s.status().message();
+  };
+  uint32_t cap = 0;
+  EditBody(kIndexFile, [&](std::vector<uint8_t>* body) {
+    StoreSummary summary;
+    std::memcpy(&summary, body->data(), sizeof summary);
+    cap = summary.max_block_bytes;
+  });
+  EditIndexEntry(2, [&](BlockEntry* e) { e->raw_bytes = cap + 4; });
+  expect_refused(2);
+  SetUp();
+  EditIndexEntry(3, [](BlockEntry* e) { e->stored_bytes = 2 * e->raw_bytes + 64; });
+  expect_refused(3);
+  SetUp();
+  EditIndexEntry(4, [](BlockEntry* e) { e->raw_bytes = 8; });
+  expect_refused(4);
+}
+
+TEST_F(StoreReaderTest, ABlockCapAboveTheFormatsIsRefusedAtOpen) {
+  EditBody(kIndexFile, [](std::vector<uint8_t>* body) {
+    StoreSummary summary;
+    std::memcpy(&summary, body->data(), sizeof summary);
+    summary.max_block_bytes = kMaxBlockBytesCap + 1;
+    std::memcpy(body->data(), &summary, sizeof summary);
+  });
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("index.bin: block size cap"), std::string::npos)
       << s.status().message();
 }
 

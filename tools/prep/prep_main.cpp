@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/base/log.h"
+#include "common/store/format.h"
 #include "tools/prep/convert.h"
 
 namespace raystack::prep {
@@ -85,7 +86,7 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       a->convert.target_block_bytes = kb * 1024;
     } else if (arg == "--max-block-kb") {
       uint32_t kb = 0;
-      RAYSTACK_RETURN_IF_ERROR(number(&kb, 1u, 1024u * 1024u));
+      RAYSTACK_RETURN_IF_ERROR(number(&kb, 1u, store::kMaxBlockBytesCap / 1024));
       a->convert.max_block_bytes = kb * 1024;
     } else if (arg == "--mem-limit") {
       uint64_t mb = 0;
