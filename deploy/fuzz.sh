@@ -4,11 +4,11 @@
 # written. Prints the executions per target; exits non-zero if any target crashed, leaked or
 # reported undefined behaviour (its log and the crashing input are kept and named).
 #   deploy/fuzz.sh [SECONDS]
-# Environment: FUZZ_JOBS (build parallelism, default 2), FUZZ_TARGETS (default: all five).
+# Environment: FUZZ_JOBS (build parallelism, default 2), FUZZ_TARGETS (default: all six).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
-targets="${FUZZ_TARGETS:-obj ply scene block wire}"
+targets="${FUZZ_TARGETS:-obj ply scene block wire store}"
 clang="${CLANGXX:-$(command -v clang++-14 || command -v clang++)}"
 
 cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \

@@ -100,10 +100,13 @@ Status StoreReader::ReadIndex() {
   if (!FiniteBox(s.root_lower, s.root_upper)) return Status::Error(path + ": bad root cell");
   materials_.resize(s.material_count);
   blocks_.resize(s.block_count);
-  std::memcpy(materials_.data(), body.data() + sizeof s,
-              materials_.size() * sizeof(MaterialRecord));
-  std::memcpy(blocks_.data(), body.data() + sizeof s + materials_.size() * sizeof(MaterialRecord),
-              blocks_.size() * sizeof(BlockEntry));
+  // (memcpy from or to an empty vector's null data() is undefined even for 0 bytes.)
+  if (!materials_.empty())
+    std::memcpy(materials_.data(), body.data() + sizeof s,
+                materials_.size() * sizeof(MaterialRecord));
+  if (!blocks_.empty())
+    std::memcpy(blocks_.data(), body.data() + sizeof s + materials_.size() * sizeof(MaterialRecord),
+                blocks_.size() * sizeof(BlockEntry));
   for (MaterialRecord& m : materials_) m.name[sizeof m.name - 1] = '\0';
   for (uint32_t i = 0; i < blocks_.size(); ++i) {
     const BlockEntry& e = blocks_[i];
@@ -129,13 +132,16 @@ Status StoreReader::ReadOctree() {
       body.size() / sizeof(OctreeNode) != summary_.octree_node_count)
     return Status::Error(path + ": node count does not match index.bin");
   nodes_.resize(summary_.octree_node_count);
-  std::memcpy(nodes_.data(), body.data(), body.size());
+  if (!nodes_.empty()) std::memcpy(nodes_.data(), body.data(), body.size());
   if (nodes_.empty())
     return summary_.block_count == 0 ? OkStatus() : Status::Error(path + ": no root node");
 
   // One tree, no cycles, bounded depth, each block owned by exactly one leaf.
-  struct Item { uint32_t node; int depth; };
-  std::vector<Item> stack{{0, 1}};
+  // Each block's cell must be its leaf's, computed from the root as every walk computes it:
+  // a ray's walk ends early when its hit lies inside the cell of the block it just left
+  // (BlockWalk::DoneAfter), so a wrong cell would silently lose closer hits beyond it.
+  struct Item { uint32_t node; int depth; Bounds3f cell; };
+  std::vector<Item> stack{{0, 1, root_cell()}};
   std::vector<uint8_t> seen(nodes_.size(), 0);
   uint64_t blocks_seen = 0;
   while (!stack.empty()) {
@@ -148,15 +154,24 @@ Status StoreReader::ReadOctree() {
       if (n.first <= it.node || uint64_t{n.first} + 8 > nodes_.size())
         return Status::Error(StrFormat("%s: node %u has children out of range", path.c_str(),
                                        it.node));
-      for (uint32_t c = 0; c < 8; ++c) stack.push_back({n.first + c, it.depth + 1});
+      for (uint32_t c = 0; c < 8; ++c)
+        stack.push_back({n.first + c, it.depth + 1, ChildCell(it.cell, static_cast<int>(c))});
     } else if (n.kind == kOctreeLeaf) {
       if (n.count == 0 || uint64_t{n.first} + n.count > blocks_.size())
         return Status::Error(StrFormat("%s: leaf %u has blocks out of range", path.c_str(),
                                        it.node));
-      for (uint32_t b = n.first; b < n.first + n.count; ++b)
-        if (blocks_[b].octree_leaf != it.node)
+      for (uint32_t b = n.first; b < n.first + n.count; ++b) {
+        const BlockEntry& e = blocks_[b];
+        if (e.octree_leaf != it.node)
           return Status::Error(StrFormat("%s: block %u is not owned by leaf %u", path.c_str(), b,
                                          it.node));
+        const float lower[3] = {it.cell.lower.x, it.cell.lower.y, it.cell.lower.z};
+        const float upper[3] = {it.cell.upper.x, it.cell.upper.y, it.cell.upper.z};
+        if (std::memcmp(e.cell_lower, lower, sizeof lower) != 0 ||
+            std::memcmp(e.cell_upper, upper, sizeof upper) != 0)
+          return Status::Error(StrFormat("%s: block %u's cell in index.bin is not the cell of "
+                                         "its octree leaf %u", path.c_str(), b, it.node));
+      }
       blocks_seen += n.count;
     } else if (n.kind != kOctreeEmpty) {
       return Status::Error(StrFormat("%s: node %u has unknown kind", path.c_str(), it.node));

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "common/base/check.h"
+#include "tests/fuzz/fuzz_folder.h"
 #include "tools/import/buffered_input.h"
 #include "tools/import/model_reader.h"
 #include "tools/import/obj_reader.h"
@@ -35,34 +36,12 @@ class CheckingSink : public import::TriangleSink {
   }
 };
 
-// The private folder, removed at exit (libFuzzer ends with exit()); only the input file is
-// left in it between runs: the readers delete their spill files.
-inline std::string& Folder() {
-  static std::string folder;
-  return folder;
-}
-inline void RemoveFolder() {
-  for (const char* name : {"/input.obj", "/input.ply"}) std::remove((Folder() + name).c_str());
-  std::remove(Folder().c_str());
-}
-
 // Writes `data` to `<temp folder>/input.obj` (or .ply) and reads it as an OBJ (or a PLY).
 inline void ReadModelFromBytes(const uint8_t* data, size_t size, bool ply) {
   const char* extension = ply ? ".ply" : ".obj";
-  static const std::string& folder = [] () -> const std::string& {
-    std::string& name = Folder();  // constructed before the atexit call: outlives the handler
-    char pattern[] = "/tmp/raystack-fuzz-XXXXXX";
-    const char* made = mkdtemp(pattern);
-    CHECK(made != nullptr);
-    name = made;
-    std::atexit(RemoveFolder);
-    return name;
-  }();
+  const std::string& folder = Folder();
   const std::string path = folder + "/input" + extension;
-  FILE* file = std::fopen(path.c_str(), "wb");
-  CHECK(file != nullptr);
-  CHECK(std::fwrite(data, 1, size, file) == size);
-  CHECK(std::fclose(file) == 0);
+  WriteFile(path, {}, {data, size});
 
   import::ReadOptions options;
   options.vertex_memory_bytes = 64 << 10;  // spill beyond a few thousand vertices

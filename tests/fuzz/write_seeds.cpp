@@ -1,6 +1,7 @@
-// Writes the binary seeds of the block and wire fuzz targets (the text formats' seeds are
+// Writes the binary seeds of the block, wire and store fuzz targets (the text formats' seeds are
 // written by hand): run once, its output is committed in tests/fuzz/corpus/. Usage:
 //   write_seeds CORPUS_DIR
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
@@ -12,6 +13,7 @@
 #include "common/store/block_codec.h"
 #include "common/store/block_encoder.h"
 #include "common/wire/message.h"
+#include "tools/prep/convert.h"
 
 namespace {
 
@@ -55,6 +57,46 @@ std::vector<uint8_t> RawBlock(int cells, bool attributes) {
   return raw;
 }
 
+std::vector<uint8_t> ReadBody(const std::string& path) {
+  FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) {
+    std::fprintf(stderr, "cannot read %s\n", path.c_str());
+    std::exit(1);
+  }
+  std::vector<uint8_t> bytes;
+  uint8_t buffer[4096];
+  for (size_t n; (n = std::fread(buffer, 1, sizeof buffer, f)) > 0;) bytes.insert(bytes.end(), buffer, buffer + n);
+  std::fclose(f);
+  return {bytes.begin() + std::min<size_t>(bytes.size(), 32), bytes.end()};  // after the FileHeader
+}
+
+// A store converted from a generated sphere, in store_fuzz's input form: the lengths of the
+// index and octree bodies, then the index, octree and blocks bodies.
+std::vector<uint8_t> StoreSeed(const std::string& dir, const std::string& model,
+                               uint32_t target_block_bytes) {
+  prep::ConvertOptions o;
+  o.generate = model;
+  o.output = dir + "/seed-store";
+  o.quiet = true;
+  o.threads = 1;
+  o.target_block_bytes = target_block_bytes;
+  o.max_block_bytes = 4 * target_block_bytes;
+  if (Expected<prep::ConvertReport> r = prep::Convert(o); !r.ok()) {
+    std::fprintf(stderr, "%s\n", r.status().message().c_str());
+    std::exit(1);
+  }
+  const std::vector<uint8_t> index = ReadBody(o.output + "/index.bin");
+  const std::vector<uint8_t> octree = ReadBody(o.output + "/octree.bin");
+  const std::vector<uint8_t> blocks = ReadBody(o.output + "/blocks.bin");
+  std::vector<uint8_t> out(8);
+  const uint32_t lengths[2] = {uint32_t(index.size()), uint32_t(octree.size())};
+  std::memcpy(out.data(), lengths, 8);
+  for (const auto* part : {&index, &octree, &blocks}) out.insert(out.end(), part->begin(), part->end());
+  for (const char* name : {"index.bin", "octree.bin", "blocks.bin"}) std::remove((o.output + "/" + name).c_str());
+  std::remove(o.output.c_str());
+  return out;
+}
+
 std::vector<uint8_t> Prefixed(uint32_t raw_bytes, uint8_t mode, const std::vector<uint8_t>& b) {
   std::vector<uint8_t> out(5);
   std::memcpy(out.data(), &raw_bytes, 4);
@@ -82,6 +124,10 @@ int main(int argc, char** argv) {
     Write(dir + "/block/raw-" + std::to_string(n), Prefixed(0, 1, raw));
     ++n;
   }
+
+  // Several blocks in a few octree levels, and a single-block store.
+  Write(dir + "/store/sphere-300", StoreSeed(dir, "sphere:300", 2048));
+  Write(dir + "/store/sphere-40", StoreSeed(dir, "sphere:40", 32768));
 
   Write(dir + "/wire/hello", wire::Encode(1, wire::Hello{4, 0}));
   Write(dir + "/wire/tile_request", wire::Encode(1, wire::TileRequest{0, 2}));

@@ -254,6 +254,16 @@ TEST_F(StoreReaderTest, ABlockCapAboveTheFormatsIsRefusedAtOpen) {
       << s.status().message();
 }
 
+// A walk ends early when a ray's hit lies inside the cell of the block it just left, so a
+// block whose cell in the index is not its leaf's would lose hits without a word: refused.
+TEST_F(StoreReaderTest, ABlockCellThatIsNotItsLeafsIsRefusedAtOpen) {
+  EditIndexEntry(3, [](BlockEntry* e) { e->cell_upper[2] += 0.5f * (e->cell_upper[2] - e->cell_lower[2]); });
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("octree.bin: block 3's cell"), std::string::npos)
+      << s.status().message();
+}
+
 TEST_F(StoreReaderTest, WrongVersionIsNamed) {
   FlipByte(kIndexFile, 8);  // FileHeader::version
   Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
