@@ -7,11 +7,14 @@
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
+#include <ImfThreading.h>
 
+#include <algorithm>
 #include <cstddef>
 #include <exception>
 #include <filesystem>
 #include <new>
+#include <thread>
 #include <vector>
 
 namespace raystack::image {
@@ -96,6 +99,16 @@ void ReadLayer(const Imath::Box2i& window, size_t pixels, const ChannelSpec (&sp
   }
 }
 
+// OpenEXR's pool, sized once for the whole process (its threads sleep between writes).
+int WriterThreads() {
+  static const int threads = [] {
+    const int n = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+    Imf::setGlobalThreadCount(n);
+    return n;
+  }();
+  return threads;
+}
+
 }  // namespace
 
 Status WriteExr(const std::string& path, const ImageLayers& image) {
@@ -127,7 +140,9 @@ Status WriteExr(const std::string& path, const ImageLayers& image) {
     AddLayer(image.albedo, kAlbedo, image.width, &header, &frame);
     AddLayer(image.samples, kSamples, image.width, &header, &frame);
     AddLayer(image.variance, kVariance, image.width, &header, &frame);
-    Imf::OutputFile file(output->temp_path().c_str(), header);
+    // Chunks compressed on every core: the last frame is written after the render, while the
+    // user waits (a 1024x768 image with every layer: 0.33 -> X s on 2 cores).
+    Imf::OutputFile file(output->temp_path().c_str(), header, WriterThreads());
     file.setFrameBuffer(frame);
     file.writePixels(image.height);
   } catch (const std::exception& e) {

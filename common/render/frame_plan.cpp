@@ -80,14 +80,7 @@ FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint
 uint64_t TileSamples(const Tile& tile, uint32_t spp) {
   const uint32_t end = tile.sample_end == 0 ? spp : tile.sample_end;
   if (end <= tile.sample_begin) return 0;
-  uint64_t pixels = 0;
-  if (tile.all_ranks()) {
-    pixels = static_cast<uint64_t>(std::max(0, tile.pixels()));
-  } else {
-    for (int y = tile.y0; y < tile.y1; ++y)
-      for (int x = tile.x0; x < tile.x1; ++x) pixels += tile.HasRank(x, y) ? 1 : 0;
-  }
-  return pixels * (end - tile.sample_begin);
+  return static_cast<uint64_t>(TilePixelCount(tile)) * (end - tile.sample_begin);
 }
 
 }  // namespace raystack::render

@@ -35,6 +35,34 @@ struct Tile {
 // done: by priority (rank by rank, the pixels of one rank in scanline order), or in scanline
 // order. The same order as a stable sort of the tile's pixels by descending priority, without
 // the sort: a round's sparse tile lists only its own pixels.
+namespace tiles_internal {
+// The first coordinate at or after v0 (>= 0) that is congruent to b modulo the period.
+constexpr int FirstFrom(int v0, int b) {
+  return v0 + ((b - v0 % kPriorityPeriod) % kPriorityPeriod + kPriorityPeriod) % kPriorityPeriod;
+}
+// How many of [v0, v1) are congruent to b modulo the period.
+constexpr int64_t CountFrom(int v0, int v1, int b) {
+  const int first = FirstFrom(v0, b);
+  return first < v1 ? (v1 - 1 - first) / kPriorityPeriod + 1 : 0;
+}
+}  // namespace tiles_internal
+
+// How many pixels the tile holds (those of its rank range), rank by rank: O(ranks), not O(pixels),
+// so a frame plan's large sparse round tiles are counted without visiting their pixels.
+inline int64_t TilePixelCount(const Tile& tile) {
+  if (tile.x1 <= tile.x0 || tile.y1 <= tile.y0) return 0;
+  if (tile.all_ranks()) return int64_t{tile.x1 - tile.x0} * (tile.y1 - tile.y0);
+  constexpr int kRanks = kPriorityPeriod * kPriorityPeriod;
+  const int rank_end = tile.rank_end < kRanks ? tile.rank_end : kRanks;
+  int64_t pixels = 0;
+  for (int rank = tile.rank_begin; rank < rank_end; ++rank) {
+    const RankPosition at = kRankPositions[static_cast<size_t>(rank)];
+    pixels += tiles_internal::CountFrom(tile.x0, tile.x1, at.x) *
+              tiles_internal::CountFrom(tile.y0, tile.y1, at.y);
+  }
+  return pixels;
+}
+
 template <typename F>
 void ForEachTilePixel(const Tile& tile, bool by_priority, F&& f) {
   if (!by_priority) {
@@ -45,12 +73,10 @@ void ForEachTilePixel(const Tile& tile, bool by_priority, F&& f) {
   }
   constexpr int kRanks = kPriorityPeriod * kPriorityPeriod, p = kPriorityPeriod;
   const int rank_end = tile.rank_end < kRanks ? tile.rank_end : kRanks;
-  // The first coordinate at or after v0 that is congruent to b modulo the period (v0 >= 0).
-  auto first_from = [](int v0, int b) { return v0 + ((b - v0 % p) % p + p) % p; };
   for (int rank = tile.rank_begin; rank < rank_end; ++rank) {
     const RankPosition at = kRankPositions[static_cast<size_t>(rank)];
-    for (int y = first_from(tile.y0, at.y); y < tile.y1; y += p)
-      for (int x = first_from(tile.x0, at.x); x < tile.x1; x += p) f(x, y);
+    for (int y = tiles_internal::FirstFrom(tile.y0, at.y); y < tile.y1; y += p)
+      for (int x = tiles_internal::FirstFrom(tile.x0, at.x); x < tile.x1; x += p) f(x, y);
   }
 }
 

@@ -60,6 +60,28 @@ TEST(ForEachTilePixel, ByPriorityIsAStableSortByDescendingPriority) {
   }
 }
 
+TEST(TilePixelCount, CountsThePixelsOfTheRankRange) {
+  std::mt19937 random(11);
+  auto pick = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(random); };
+  for (int i = 0; i < 500; ++i) {
+    Tile tile;
+    tile.x0 = pick(0, 70);
+    tile.y0 = pick(0, 70);
+    tile.x1 = tile.x0 + pick(0, 60);
+    tile.y1 = tile.y0 + pick(0, 60);
+    if (i % 4) {
+      tile.rank_begin = static_cast<uint16_t>(pick(0, 260));
+      tile.rank_end = static_cast<uint16_t>(pick(0, 300));
+    }
+    int64_t counted = 0;
+    for (int y = tile.y0; y < tile.y1; ++y)
+      for (int x = tile.x0; x < tile.x1; ++x) counted += tile.HasRank(x, y) ? 1 : 0;
+    ASSERT_EQ(TilePixelCount(tile), counted) << "tile " << tile.x0 << "," << tile.y0 << " - "
+                                             << tile.x1 << "," << tile.y1 << " ranks "
+                                             << tile.rank_begin << "-" << tile.rank_end;
+  }
+}
+
 TEST(ForEachTilePixel, ScanlineOrderListsTheTilesPixelsRowByRow) {
   Tile tile{3, 5, 7, 8};
   tile.rank_begin = 0;
