@@ -140,8 +140,9 @@ Status WriteExr(const std::string& path, const ImageLayers& image) {
     AddLayer(image.albedo, kAlbedo, image.width, &header, &frame);
     AddLayer(image.samples, kSamples, image.width, &header, &frame);
     AddLayer(image.variance, kVariance, image.width, &header, &frame);
-    // Chunks compressed on every core: the last frame is written after the render, while the
-    // user waits (a 1024x768 image with every layer: 0.33 -> X s on 2 cores).
+    // Chunks compressed on every core (the file is byte for byte the same): the last frame is
+    // written after the render, while the user waits. The dragon 1024x768 job without PNG,
+    // medians of 5 interleaved runs on 2 cores: 1.18 -> 0.97 s.
     Imf::OutputFile file(output->temp_path().c_str(), header, WriterThreads());
     file.setFrameBuffer(frame);
     file.writePixels(image.height);
