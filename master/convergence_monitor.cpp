@@ -58,22 +58,40 @@ ConvergenceMonitor::ConvergenceMonitor(const render::Film& film, const render::F
   if (log_) log_->Write(frame_, "start", 0, Measure());
 }
 
-render::ConvergencePoint ConvergenceMonitor::Measure() const {
+render::ConvergencePoint ConvergenceMonitor::Measure(const image::ImageLayers* resolved) const {
   render::ConvergencePoint p;
   // Counts first, so they never run ahead of the image they describe.
   p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   p.rays = film_.rays_traced();
   p.samples = film_.samples_merged();
-  render::EstimateError(film_.Resolve(), reference_, &p);
+  // The image changes only as samples merge. A frame's end measures right after its last pass
+  // end, and a resolve of a 1024x768 film with the error sums is ~0.1 s: not twice.
+  if (measured_ && measured_samples_ == p.samples) {
+    p.pixels_covered = error_.pixels_covered;
+    p.min_samples = error_.min_samples;
+    p.error_estimate = error_.error_estimate;
+    p.rel_error_estimate = error_.rel_error_estimate;
+    p.rmse = error_.rmse;
+    p.relmse = error_.relmse;
+    return p;
+  }
+  if (resolved) {
+    render::EstimateError(*resolved, reference_, &p);
+  } else {
+    render::EstimateError(film_.Resolve(), reference_, &p);
+  }
+  measured_ = true;
+  measured_samples_ = p.samples;
+  error_ = p;
   return p;
 }
 
-void ConvergenceMonitor::CheckPassEnds() {
+void ConvergenceMonitor::CheckPassEnds(const image::ImageLayers* resolved) {
   while (passes_ended_ < plan_.passes.size() && !stopped()) {
     const uint32_t end = plan_.passes[passes_ended_].end;
     if (film_.samples_below(end) < pass_samples_[passes_ended_]) return;
     ++passes_ended_;
-    last_ = Measure();
+    last_ = Measure(resolved);
     if (log_) log_->Write(frame_, "pass", passes_ended_, last_);
     if (rules_.target_error > 0 && last_.min_samples >= 2 &&
         last_.error_estimate <= rules_.target_error && passes_ended_ < plan_.passes.size()) {
@@ -107,8 +125,9 @@ bool ConvergenceMonitor::Poll() {
 }
 
 void ConvergenceMonitor::Finish() {
-  CheckPassEnds();
-  last_ = Measure();
+  final_image_ = film_.Resolve();
+  CheckPassEnds(&final_image_);
+  last_ = Measure(&final_image_);
   if (log_) log_->Write(frame_, "end", passes_ended_, last_);
 }
 

@@ -55,8 +55,10 @@ class ConvergenceMonitor {
   // Called a few times a second from one thread while the frame renders. False: a stop rule
   // fired, hand out no more work.
   bool Poll();
-  // After the frame's last sample: the last passes' rows and the "end" row.
+  // After the frame's last sample: the last passes' rows and the "end" row, measured on the
+  // film resolved once, which TakeFinalImage then hands over for the frame's EXR.
   void Finish();
+  image::ImageLayers TakeFinalImage() { return std::move(final_image_); }
 
   bool stopped() const { return !stop_reason_.empty(); }
   const std::string& stop_reason() const { return stop_reason_; }  // empty: not stopped
@@ -64,8 +66,10 @@ class ConvergenceMonitor {
   const render::ConvergencePoint& last() const { return last_; }
 
  private:
-  render::ConvergencePoint Measure() const;
-  void CheckPassEnds();
+  // `resolved`: the film already resolved (else Measure resolves it when samples merged since
+  // the last measure).
+  render::ConvergencePoint Measure(const image::ImageLayers* resolved = nullptr) const;
+  void CheckPassEnds(const image::ImageLayers* resolved = nullptr);
 
   const render::Film& film_;
   const render::FramePlan& plan_;
@@ -82,6 +86,11 @@ class ConvergenceMonitor {
   std::vector<uint64_t> pass_samples_;
   std::string stop_reason_;
   render::ConvergencePoint last_;
+  // The error figures of the last measure, reused while no sample has merged since.
+  mutable bool measured_ = false;
+  mutable uint64_t measured_samples_ = 0;
+  mutable render::ConvergencePoint error_;
+  image::ImageLayers final_image_;
 };
 
 }  // namespace raystack::master

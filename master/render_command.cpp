@@ -324,17 +324,18 @@ Status CheckOutputs(const Args& args, const render::Scene& scene) {
   return image::CheckRoom(FramePath(OutputOf(args, scene), 0, frames, ".exr"), needed);
 }
 
-// Queues frame `f`'s EXR (and the PNG quick look) from the film to `writer`; returns the
-// EXR's path, or the error of an earlier frame's write.
+// Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
+// returns the EXR's path, or the error of an earlier frame's write.
 Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, size_t f,
-                                 const render::Film& film, FrameWriter* writer) {
+                                 const render::Film& film, image::ImageLayers layers,
+                                 FrameWriter* writer) {
   const size_t frames = scene.cameras.size();
   const std::string output = OutputOf(args, scene);
   FrameWriter::Image image;
   image.exr = FramePath(output, f, frames, ".exr");
   if (args.png) image.png = FramePath(output, f, frames, ".png");
   image.exposure = args.exposure;
-  image.layers = film.Resolve();
+  image.layers = std::move(layers);
   if (film.nonfinite_dropped() > 0)
     LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
                 static_cast<unsigned long long>(film.nonfinite_dropped()));
@@ -555,7 +556,7 @@ Status Run(const Args& args) {
     RAYSTACK_RETURN_IF_ERROR(status);
     monitor.Finish();
     ReportStop(args, monitor);
-    Expected<std::string> exr = WriteFrame(args, *scene, f, film, &writer);
+    Expected<std::string> exr = WriteFrame(args, *scene, f, film, monitor.TakeFinalImage(), &writer);
     if (!exr.ok()) return exr.status();
     if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
     stats_json += stats.ToJson();
@@ -667,8 +668,9 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
     for (const SlaveFigures& s : figures.slaves) rays += s.done.rays;
     preview->EndFrame(status.ok() && figures.seconds > 0 ? static_cast<double>(rays) / figures.seconds
                                                          : std::numeric_limits<double>::quiet_NaN());
-    Expected<std::string> exr = status.ok() ? WriteFrame(args, scene, f, film, &writer)
-                                            : Expected<std::string>(status);
+    Expected<std::string> exr =
+        status.ok() ? WriteFrame(args, scene, f, film, monitor.TakeFinalImage(), &writer)
+                    : Expected<std::string>(status);
     if (!exr.ok()) {  // every rank ends, none is left waiting
       master.Shutdown(1);
       return exr.status();
