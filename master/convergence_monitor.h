@@ -86,7 +86,8 @@ class ConvergenceMonitor {
   std::vector<uint64_t> pass_samples_;
   std::string stop_reason_;
   render::ConvergencePoint last_;
-  // The error figures of the last measure, reused while no sample has merged since.
+  // The figures of the last resolve (error_'s counts are not used), reused while no sample
+  // has merged since.
   mutable bool measured_ = false;
   mutable uint64_t measured_samples_ = 0;
   mutable render::ConvergencePoint error_;
