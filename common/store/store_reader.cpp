@@ -246,8 +246,9 @@ Status StoreReader::OpenBlocks() {
   if (h.body_bytes != blocks_file_bytes_ - sizeof h)
     return Status::Error(path + ": size does not match its header (truncated?)");
   // Blocks lie in id order without overlap: the loader reads neighbouring ids as one run of
-  // bytes and finds each block at its offset from the run's first, so an index out of order
-  // would make it read past its buffer. In 64 bits, so a hostile offset cannot wrap.
+  // bytes and finds each block at its offset from the run's first: an index out of order made
+  // it compute a negative run size (store_fuzz found the crash) or would make it read outside
+  // its buffer. In 64 bits, so a hostile offset cannot wrap.
   uint64_t end = sizeof h;
   for (uint32_t i = 0; i < blocks_.size(); ++i) {
     const BlockEntry& e = blocks_[i];
