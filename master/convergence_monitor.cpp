@@ -120,10 +120,9 @@ bool ConvergenceMonitor::Poll() {
   return true;
 }
 
-void ConvergenceMonitor::Finish() {
-  final_image_ = film_.Resolve();
-  CheckPassEnds(&final_image_);
-  last_ = Measure(&final_image_);
+void ConvergenceMonitor::Finish(const image::ImageLayers& resolved) {
+  CheckPassEnds(&resolved);
+  last_ = Measure(&resolved);
   if (log_) log_->Write(frame_, "end", passes_ended_, last_);
 }
 

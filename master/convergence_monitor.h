@@ -55,10 +55,9 @@ class ConvergenceMonitor {
   // Called a few times a second from one thread while the frame renders. False: a stop rule
   // fired, hand out no more work.
   bool Poll();
-  // After the frame's last sample: the last passes' rows and the "end" row, measured on the
-  // film resolved once, which TakeFinalImage then hands over for the frame's EXR.
-  void Finish();
-  image::ImageLayers TakeFinalImage() { return std::move(final_image_); }
+  // After the frame's last sample: the last passes' rows and the "end" row, measured on
+  // `resolved`, the film resolved once for them and for the frame's EXR.
+  void Finish(const image::ImageLayers& resolved);
 
   bool stopped() const { return !stop_reason_.empty(); }
   const std::string& stop_reason() const { return stop_reason_; }  // empty: not stopped
@@ -91,7 +90,6 @@ class ConvergenceMonitor {
   mutable bool measured_ = false;
   mutable uint64_t measured_samples_ = 0;
   mutable render::ConvergencePoint error_;
-  image::ImageLayers final_image_;
 };
 
 }  // namespace raystack::master

@@ -554,9 +554,10 @@ Status Run(const Args& args) {
     }
     preview->EndFrame(status.ok() ? stats.rays_per_second : std::numeric_limits<double>::quiet_NaN());
     RAYSTACK_RETURN_IF_ERROR(status);
-    monitor.Finish();
+    image::ImageLayers resolved = film.Resolve();
+    monitor.Finish(resolved);
     ReportStop(args, monitor);
-    Expected<std::string> exr = WriteFrame(args, *scene, f, film, monitor.TakeFinalImage(), &writer);
+    Expected<std::string> exr = WriteFrame(args, *scene, f, film, std::move(resolved), &writer);
     if (!exr.ok()) return exr.status();
     if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
     stats_json += stats.ToJson();
@@ -660,8 +661,10 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                                },
                                &figures);
     }
+    image::ImageLayers resolved;
     if (status.ok()) {
-      monitor.Finish();
+      resolved = film.Resolve();
+      monitor.Finish(resolved);
       ReportStop(args, monitor);
     }
     uint64_t rays = 0;
@@ -669,7 +672,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
     preview->EndFrame(status.ok() && figures.seconds > 0 ? static_cast<double>(rays) / figures.seconds
                                                          : std::numeric_limits<double>::quiet_NaN());
     Expected<std::string> exr =
-        status.ok() ? WriteFrame(args, scene, f, film, monitor.TakeFinalImage(), &writer)
+        status.ok() ? WriteFrame(args, scene, f, film, std::move(resolved), &writer)
                     : Expected<std::string>(status);
     if (!exr.ok()) {  // every rank ends, none is left waiting
       master.Shutdown(1);

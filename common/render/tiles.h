@@ -31,10 +31,6 @@ struct Tile {
   bool operator==(const Tile&) const = default;
 };
 
-// Calls f(x, y) for each pixel of `tile` (those of its rank range) in the order they should be
-// done: by priority (rank by rank, the pixels of one rank in scanline order), or in scanline
-// order. The same order as a stable sort of the tile's pixels by descending priority, without
-// the sort: a round's sparse tile lists only its own pixels.
 namespace tiles_internal {
 // The first coordinate at or after v0 (>= 0) that is congruent to b modulo the period.
 constexpr int FirstFrom(int v0, int b) {
@@ -63,6 +59,10 @@ inline int64_t TilePixelCount(const Tile& tile) {
   return pixels;
 }
 
+// Calls f(x, y) for each pixel of `tile` (those of its rank range) in the order they should be
+// done: by priority (rank by rank, the pixels of one rank in scanline order), or in scanline
+// order. The same order as a stable sort of the tile's pixels by descending priority, without
+// the sort: a round's sparse tile lists only its own pixels.
 template <typename F>
 void ForEachTilePixel(const Tile& tile, bool by_priority, F&& f) {
   if (!by_priority) {

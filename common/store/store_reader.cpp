@@ -132,9 +132,9 @@ Status StoreReader::ReadOctree() {
       body.size() / sizeof(OctreeNode) != summary_.octree_node_count)
     return Status::Error(path + ": node count does not match index.bin");
   nodes_.resize(summary_.octree_node_count);
-  if (!nodes_.empty()) std::memcpy(nodes_.data(), body.data(), body.size());
   if (nodes_.empty())
     return summary_.block_count == 0 ? OkStatus() : Status::Error(path + ": no root node");
+  std::memcpy(nodes_.data(), body.data(), body.size());
 
   // One tree, no cycles, bounded depth, each block owned by exactly one leaf.
   // Each block's cell must be its leaf's, computed from the root as every walk computes it:
