@@ -4,6 +4,7 @@
 #include <bit>
 
 #include "common/base/log.h"
+#include "common/base/thread_cpu.h"
 #include "common/base/thread_name.h"
 
 namespace raystack::slave {
@@ -15,11 +16,13 @@ BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, Blo
   loader_ = std::thread([this] {
     SetThreadName("rs-loader");
     LoaderLoop();
+    AddCpu(ThreadCpuSeconds());
   });
   for (int i = 0; i < std::max(1, options_.io_threads); ++i)
     workers_.emplace_back([this] {
       SetThreadName("rs-io");
       WorkerLoop();
+      AddCpu(ThreadCpuSeconds());
     });
 }
 
@@ -177,6 +180,16 @@ void BlockLoader::Complete(uint32_t block, const Status& read, std::span<const u
   }
   for (uint64_t t = threads; t; t &= t - 1)
     deliver_(static_cast<uint32_t>(std::countr_zero(t)), block, status);
+}
+
+void BlockLoader::AddCpu(double seconds) {
+  std::lock_guard lock(busy_mu_);
+  cpu_seconds_ += seconds;
+}
+
+double BlockLoader::cpu_seconds() const {
+  std::lock_guard lock(busy_mu_);
+  return cpu_seconds_;
 }
 
 void BlockLoader::BusyBegin() {

@@ -50,6 +50,9 @@ class BlockLoader {
   void Stop();
 
   double busy_seconds() const;  // time with at least one read in flight (T_io)
+  // CPU time of the loader and I/O threads (reads, kernel included, and decoding); complete
+  // once Stop() has returned.
+  double cpu_seconds() const;
   uint64_t batches() const { return batches_.load(); }
   uint64_t runs() const { return runs_.load(); }
 
@@ -64,6 +67,7 @@ class BlockLoader {
   void Submit(Run run);
   void BusyBegin();
   void BusyEnd();
+  void AddCpu(double seconds);
 
   const store::StoreReader& store_;
   BlockCache* cache_;
@@ -86,6 +90,7 @@ class BlockLoader {
   int active_ = 0;
   std::chrono::steady_clock::time_point busy_since_;
   double busy_seconds_ = 0;
+  double cpu_seconds_ = 0;
 
   std::atomic<uint64_t> batches_{0}, runs_{0};
   std::thread loader_;

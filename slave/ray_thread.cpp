@@ -4,6 +4,7 @@
 #include <chrono>
 
 #include "common/base/log.h"
+#include "common/base/thread_cpu.h"
 #include "common/render/pixel_priority.h"
 #include "common/render/random.h"
 #include "common/store/format.h"
@@ -345,6 +346,7 @@ void RayThread::DrainInbox() {
 
 void RayThread::RunStack() {
   const auto began = std::chrono::steady_clock::now();
+  const double cpu_began = ThreadCpuSeconds();
   while (!shared_->abort.load(std::memory_order_relaxed)) {
     DrainInbox();
     const uint32_t q = queues_.PopReady();
@@ -376,6 +378,7 @@ void RayThread::RunStack() {
   counters_.peak_open_samples = slots_.peak_open();
   counters_.run_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
+  counters_.cpu_seconds = ThreadCpuSeconds() - cpu_began;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -450,6 +453,7 @@ void RayThread::TraceSync(RayRecord ray) {
 
 void RayThread::RunSync() {
   const auto began = std::chrono::steady_clock::now();
+  const double cpu_began = ThreadCpuSeconds();
   while (!shared_->abort.load(std::memory_order_relaxed)) {
     if (pending_.empty() && !FeedNextTile(/*may_wait=*/true)) break;
     while (!pending_.empty() && !shared_->abort.load(std::memory_order_relaxed)) {
@@ -462,6 +466,7 @@ void RayThread::RunSync() {
   counters_.peak_open_samples = slots_.peak_open();
   counters_.run_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
+  counters_.cpu_seconds = ThreadCpuSeconds() - cpu_began;
 }
 
 }  // namespace raystack::slave

@@ -156,6 +156,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   if (loader) {
     loader->Stop();
     s.loader_busy_seconds = loader->busy_seconds();
+    s.loader_cpu_seconds = loader->cpu_seconds();
   }
 
   uint64_t visits = 0, waited = 0;
@@ -171,6 +172,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
     s.ray_idle_seconds += c.idle_seconds;
     s.ray_tile_wait_seconds += c.tile_wait_seconds;
     s.ray_busy_seconds += std::max(0.0, c.run_seconds - c.idle_seconds - c.tile_wait_seconds);
+    s.ray_cpu_seconds += c.cpu_seconds;
   }
   for (uint64_t r : s.rays) s.rays_total += r;
   s.rays_per_second = s.seconds > 0 ? static_cast<double>(s.rays_total) / s.seconds : 0;

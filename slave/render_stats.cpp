@@ -31,6 +31,8 @@ std::string RenderStats::ToJson() const {
     << ",\n  \"ray_idle_seconds\": " << ray_idle_seconds
     << ",\n  \"ray_tile_wait_seconds\": " << ray_tile_wait_seconds
     << ",\n  \"ray_busy_seconds\": " << ray_busy_seconds
+    << ",\n  \"ray_cpu_seconds\": " << ray_cpu_seconds
+    << ",\n  \"loader_cpu_seconds\": " << loader_cpu_seconds
     << ",\n  \"cache_budget_bytes\": " << cache_budget_bytes
     << ",\n  \"cache_peak_bytes\": " << cache_peak_bytes << ",\n  \"evictions\": " << evictions
     << ",\n  \"peak_stack_bytes\": " << peak_stack_bytes
@@ -53,8 +55,9 @@ std::string RenderStats::ToText() const {
                  static_cast<unsigned long long>(blocks_distinct),
                  static_cast<unsigned long long>(block_count), static_cast<double>(bytes_read) / 1e6,
                  static_cast<unsigned long long>(reads), loader_busy_seconds, ray_idle_seconds);
-  s += StrFormat("\n  ray threads: busy %.3f s, waiting for a tile %.3f s", ray_busy_seconds,
-                 ray_tile_wait_seconds);
+  s += StrFormat("\n  ray threads: busy %.3f s, waiting for a tile %.3f s; CPU: ray threads %.3f s, "
+                 "loader threads %.3f s",
+                 ray_busy_seconds, ray_tile_wait_seconds, ray_cpu_seconds, loader_cpu_seconds);
   // In core the cache has no budget (the largest byte count stands for none).
   const std::string budget =
       cache_budget_bytes == std::numeric_limits<uint64_t>::max()

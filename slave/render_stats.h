@@ -20,6 +20,7 @@ struct ThreadCounters {
   double idle_seconds = 0;  // asleep with every ray waiting for the loader (stack mode)
   double tile_wait_seconds = 0;  // holding no rays, waiting for the tile source's next tile
   double run_seconds = 0;        // from the thread's start in the frame to its end
+  double cpu_seconds = 0;        // CPU time the thread used in that span
 };
 
 struct RenderStats {
@@ -44,6 +45,11 @@ struct RenderStats {
   // Summed over ray threads: run time minus the two waits above, i.e. tracing and shading (in
   // sync mode a thread's own block reads count as busy). The master's utilisation.
   double ray_busy_seconds = 0;
+  // CPU time, kernel included: summed over ray threads (in sync mode their own block reads
+  // count here), and over the loader's threads (reading and decoding blocks; 0 in sync mode).
+  // On a machine with fewer cores than threads, their sum over the cores bounds the frame.
+  double ray_cpu_seconds = 0;
+  double loader_cpu_seconds = 0;
   uint64_t cache_budget_bytes = 0;
   uint64_t cache_peak_bytes = 0;
   uint64_t evictions = 0;

@@ -126,6 +126,27 @@ TEST(RenderEngine, UnreachedBlocksAreNeverRead) {
   EXPECT_EQ(r.stats.blocks_loaded, r.stats.blocks_distinct);  // the budget holds them all
 }
 
+// The stats split a frame's CPU time between the ray threads and the loader's threads (what
+// bounds a frame on a machine with fewer cores than threads). Each thread's own clock, over the
+// frame only: a ray thread cannot use more CPU than the frame's wall time.
+TEST(RenderEngine, CpuTimeIsCountedByThreadKind) {
+  static TestStore s = BuildGenerated("spheres:60000");
+  const render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
+  for (TraceMode mode : {TraceMode::kStack, TraceMode::kSync}) {
+    SCOPED_TRACE(slave::TraceModeName(mode));
+    const RenderOutcome r = Render(*s.reader, scene, Mode(mode, Budget(*s.reader, 4)));
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
+    ASSERT_GT(r.stats.blocks_loaded, 0u);
+    EXPECT_GT(r.stats.ray_cpu_seconds, 0);
+    EXPECT_LE(r.stats.ray_cpu_seconds, r.stats.threads * r.stats.seconds + 0.01);
+    if (mode == TraceMode::kStack) {
+      EXPECT_GT(r.stats.loader_cpu_seconds, 0);
+    } else {
+      EXPECT_EQ(r.stats.loader_cpu_seconds, 0);  // sync: each ray thread reads for itself
+    }
+  }
+}
+
 TEST(RenderEngine, NoSpecularRaysWithoutSpecularMaterials) {
   TestStore s = BuildGenerated("sphere:5000");
   const RenderOutcome r = Render(*s.reader, SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1),

@@ -46,7 +46,7 @@ done
 grep memcap "$work/log" | sort | uniq -c >&2 || true
 
 python3 - "$work" "$repeats" "$cache_mb" <<'PY'
-import json, statistics, sys
+import json, os, statistics, sys
 work, repeats, cache_mb = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 def load(mode):
     return [json.load(open(f"{work}/{mode}.{r}.json"))[0] for r in range(1, repeats + 1)]
@@ -59,18 +59,31 @@ print(f"cache {cache_mb} MB, {s['threads']} threads, {s['block_count']} blocks, 
       f"{s['rays_total']:,} rays; medians of {repeats} runs (seconds of each run: " +
       "; ".join(f"{m} " + ", ".join(f"{r['seconds']:.2f}" for r in runs[m]) for m in runs) + ")")
 print()
-print("| mode | seconds | M rays/s | #C loaded | #U used | #C/#U | MB read | loader busy s | ray threads idle s | peak stack KB | peak RSS MB |")
-print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+print("| mode | seconds | M rays/s | #C loaded | #U used | #C/#U | MB read | loader busy s | ray threads idle s | ray CPU s | loader CPU s | peak stack KB | peak RSS MB |")
+print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 for m in runs:
     r = runs[m][0]
     print(f"| {m} | {med(m, 'seconds'):.2f} | {med(m, 'rays_per_second')/1e6:.2f} | "
           f"{r['blocks_loaded']:,} | {r['blocks_distinct']:,} | {r['blocks_loaded']/max(1, r['blocks_distinct']):.2f} | "
           f"{r['bytes_read']/2**20:.0f} | {med(m, 'loader_busy_seconds'):.2f} | {med(m, 'ray_idle_seconds'):.2f} | "
+          f"{med(m, 'ray_cpu_seconds'):.2f} | {med(m, 'loader_cpu_seconds'):.2f} | "
           f"{r['peak_stack_bytes']/1024:.0f} | {med(m, 'peak_rss_bytes')/2**20:.0f} |")
 print()
 print(f"- T_sync / T_stack = {t_sy / t_st:.2f}")
 print(f"- T_stack / max(T_incore, T_io) = {t_st / max(t_in, io):.2f} (T_incore {t_in:.2f} s, T_io {io:.2f} s; preload of incore excluded)")
 print(f"- #C/#U (stack) = {s['blocks_loaded'] / s['blocks_distinct']:.2f}")
+# Where the ratio can go on this machine. The stack cannot end before its CPU work is done on
+# the cores it has; sync adds the time its threads sit waiting for the disk.
+cores = os.cpu_count()
+c_stack = med("stack", "ray_cpu_seconds") + med("stack", "loader_cpu_seconds")
+c_sync = med("sync", "ray_cpu_seconds")
+c_ideal = med("incore", "ray_cpu_seconds") + med("stack", "loader_cpu_seconds")
+lanes = min(cores, s["threads"])
+print(f"- CPU (kernel included), {cores} cores: stack {c_stack:.2f} s (floor under T_stack "
+      f"{c_stack / cores:.2f} s), sync {c_sync:.2f} s; sync's threads waited "
+      f"{max(0.0, lanes * t_sy - c_sync):.2f} core-s for the disk")
+print(f"- ceiling of T_sync / T_stack here with no stack overhead (ray threads as in core, loads as "
+      f"now): {t_sy / (c_ideal / cores):.2f}; at the stack's own CPU: {t_sy / (c_stack / cores):.2f}")
 print(f"- bytes per waiting ray: {s['ray_record_bytes']} (record); peak stack {s['peak_stack_bytes']/1024:.0f} KB for "
       f"{s['peak_stack_rays']:,} rays = {s['peak_stack_bytes']/max(1, s['peak_stack_rays']):.0f} bytes/ray with chunk slack")
 PY
