@@ -585,7 +585,9 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
                    "\"bytes_read\": %llu, \"bytes_from_peers\": %llu, \"bytes_to_peers\": %llu, "
                    "\"bytes_to_master\": %llu, \"pixel_bytes\": %llu, "
                    "\"bytes_from_master\": %llu, \"ray_threads\": %u, \"busy_seconds\": %g, "
-                   "\"fetches\": %llu, \"fetch_wait_seconds\": %g, \"fetch_runs\": %llu}",
+                   "\"fetches\": %llu, \"fetch_wait_seconds\": %g, \"fetch_runs\": %llu, "
+                   "\"ray_cpu_seconds\": %g, \"loader_cpu_seconds\": %g, "
+                   "\"process_cpu_seconds\": %g}",
                    i ? "," : "", x.rank, x.done.seconds,
                    static_cast<unsigned long long>(x.done.rays),
                    static_cast<unsigned long long>(x.done.samples),
@@ -599,7 +601,8 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
                    static_cast<unsigned long long>(x.pixel_bytes),
                    static_cast<unsigned long long>(x.bytes_sent), x.done.ray_threads,
                    x.done.busy_seconds, static_cast<unsigned long long>(x.done.fetches),
-                   x.done.fetch_wait_seconds, static_cast<unsigned long long>(x.done.fetch_runs));
+                   x.done.fetch_wait_seconds, static_cast<unsigned long long>(x.done.fetch_runs),
+                   x.done.ray_cpu_seconds, x.done.loader_cpu_seconds, x.done.process_cpu_seconds);
   }
   return s + "\n  ]\n}";
 }
@@ -697,10 +700,12 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                             static_cast<unsigned long long>(s.done.fetches),
                             s.done.fetch_wait_seconds,
                             static_cast<double>(s.done.bytes_to_peers) / 1e6);
-        std::printf("  rank %d: %.3f s (ray threads busy %.3f s), %llu rays, %llu tiles, %llu "
+        std::printf("  rank %d: %.3f s (ray threads busy %.3f s; CPU %.3f s, ray threads %.3f s, "
+                    "loader %.3f s), %llu rays, %llu tiles, %llu "
                     "blocks loaded (%llu distinct), %.1f MB of blocks%s, %.1f MB sent to the "
                     "master\n",
-                    s.rank, s.done.seconds, s.done.busy_seconds,
+                    s.rank, s.done.seconds, s.done.busy_seconds, s.done.process_cpu_seconds,
+                    s.done.ray_cpu_seconds, s.done.loader_cpu_seconds,
                     static_cast<unsigned long long>(s.done.rays),
                     static_cast<unsigned long long>(s.done.tiles),
                     static_cast<unsigned long long>(s.done.blocks_loaded),

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "common/base/log.h"
+#include "common/base/thread_cpu.h"
 #include "common/base/thread_name.h"
 #include "common/wire/message.h"
 #include "slave/peer_blocks.h"
@@ -293,7 +294,9 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   const uint64_t fetches = peers_ ? peers_->fetches() : 0;
   const double fetch_wait = peers_ ? peers_->fetch_wait_seconds() : 0;
   const uint64_t fetch_runs = peers_ ? peers_->runs_fetched() : 0;
+  const double cpu_before = ProcessCpuSeconds();
   Status status = engine_->RenderFrame(scene, materials, camera, tiles, sink, stats);
+  const double process_cpu = ProcessCpuSeconds() - cpu_before;
   const auto rendered = std::chrono::steady_clock::now();
   bool shut_down;
   {
@@ -328,6 +331,9 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
                   ? 0.0
                   : std::chrono::duration<double>(rendered - tiles.first_tile()).count();
   d.busy_seconds = stats->ray_busy_seconds;
+  d.ray_cpu_seconds = stats->ray_cpu_seconds;
+  d.loader_cpu_seconds = stats->loader_cpu_seconds;
+  d.process_cpu_seconds = process_cpu;
   if (peers_) {
     d.bytes_from_peers = peers_->bytes_from_peers() - from_peers;
     d.bytes_to_peers = peers_->bytes_to_peers() - to_peers;

@@ -27,8 +27,8 @@ inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
 // pixel batches carry the rays traced for them. 3: heartbeats, rank-lost notices, shutdown
 // flags (a lost slave costs time, never pixels). 5: a block request carries several runs of
 // the owner's blocks (the fetches that queued for the same owner), its answer their bytes;
-// frame figures count the runs fetched.
-inline constexpr uint16_t kProtocolVersion = 5;
+// frame figures count the runs fetched. 6: frame figures carry the slave's CPU time.
+inline constexpr uint16_t kProtocolVersion = 6;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
 // How often a slave says it is alive (the master drops one it has not heard from for
@@ -96,6 +96,9 @@ struct FrameDone {
   uint64_t fetches;           // --blocks rem: requests for blocks sent to their owners
   double fetch_wait_seconds;  // --blocks rem: summed over fetches, request to answer
   uint64_t fetch_runs;        // --blocks rem: the loader's runs those requests carried
+  double ray_cpu_seconds;     // CPU time of the ray threads (RenderStats)
+  double loader_cpu_seconds;  // CPU time of the loader's threads (RenderStats)
+  double process_cpu_seconds;  // CPU time of the whole slave process during the frame
 };
 struct Shutdown {
   uint32_t reason;  // 0: the job is done
@@ -134,7 +137,7 @@ struct PixelBatchHeader {
   uint64_t rays;   // rays the slave traced for these samples (progress figures)
 };
 static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
-              sizeof(FrameDone) == 112 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
+              sizeof(FrameDone) == 136 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
               sizeof(BlockRequest) == 16 && sizeof(BlockRun) == 8 && sizeof(BlockDataHeader) == 16 &&
               sizeof(Heartbeat) == 8 && sizeof(RankLost) == 8);
 

@@ -225,6 +225,9 @@ TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
       for (const master::SlaveFigures& x : job.figures[f].slaves) {
         if (x.done.tiles > 0) {
           EXPECT_GT(x.done.busy_seconds, 0.0) << "rank " << x.rank;
+          // CPU time: the process's clock over the frame holds its ray threads' own.
+          EXPECT_GT(x.done.ray_cpu_seconds, 0.0) << "rank " << x.rank;
+          EXPECT_GE(x.done.process_cpu_seconds + 1e-3, x.done.ray_cpu_seconds) << "rank " << x.rank;
         }
         EXPECT_EQ(x.done.ray_threads, 2u);
         busy += x.done.busy_seconds;

@@ -5,7 +5,8 @@
 # block cache smaller than the model; two frames of the same view (first, then warm); block
 # modes loc and rem (loc also with LATENCY_US injected per read). Prints a Markdown table, with
 # the master's utilisation (slaves' busy ray-thread time over N x frame time) and, for rem, the
-# requests to owners, the loader's runs they carried, and a request's mean round trip. SLAVES
+# requests to owners, the loader's runs they carried, and a request's mean round trip, and the
+# slaves' CPU time (whole processes, and their ray and loader threads) against N = 1's. SLAVES
 # (default "1 2 4 8") picks the cluster sizes; rem skips 1. REPEATS (default 3) runs the whole
 # set that many times, interleaved, so a noisy moment hits every configuration alike: frame
 # seconds (and T_1 in the efficiencies) are medians over the repeats, the other columns come
@@ -60,8 +61,8 @@ repeats = max(len(v) for v in runs.values())
 print(f"each slave: {quota}% of a core, 1 ray thread, {cache} MB block cache; seconds on the master's clock, "
       f"medians of {repeats} interleaved runs (each run's seconds in brackets)")
 print()
-print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN) | utilisation | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers | peer requests / runs (mean wait ms) |")
-print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN) | utilisation | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers | peer requests / runs (mean wait ms) | slaves' CPU s: process (ray, loader) | CPU / N=1's |")
+print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 for (blocks, lat, n), frames in sorted(data.items(), key=lambda kv: (kv[0][0], int(kv[0][1]), kv[0][2])):
     base = data.get(("loc", lat, 1)) or data.get(("loc", "0", 1))
     for f, fr in enumerate(frames):
@@ -76,7 +77,12 @@ for (blocks, lat, n), frames in sorted(data.items(), key=lambda kv: (kv[0][0], i
         blocks_mb = sum(s["bytes_read"] for s in fr["slaves"]) / 1e6
         net = (to_master + peers) / 1e6
         every = ", ".join(f"{x:.2f}" for x in fr["all_seconds"])
+        cpu = lambda frame, key: sum(s.get(key, 0) for s in frame["slaves"])
+        cpu_text = (f"{cpu(fr, 'process_cpu_seconds'):.2f} ({cpu(fr, 'ray_cpu_seconds'):.2f}, "
+                    f"{cpu(fr, 'loader_cpu_seconds'):.2f})")
+        base_cpu = cpu(base[f], "process_cpu_seconds") if base else 0
+        cpu_ratio = f"{cpu(fr, 'process_cpu_seconds') / base_cpu:.2f}" if base_cpu else "-"
         print(f"| {blocks} | {lat} | {n} | {'first' if f == 0 else 'warm'} | {fr['seconds']:.2f} ({every}) | {eff} | "
               f"{fr['utilisation']:.2f} | {fr['imbalance']*100:.1f}% | {net:.1f} | {pixel/1e6/max(net,1e-9)*100:.0f}% | "
-              f"{blocks_mb:.1f} | {peers/1e6:.1f} | {fetch_text} |")
+              f"{blocks_mb:.1f} | {peers/1e6:.1f} | {fetch_text} | {cpu_text} | {cpu_ratio} |")
 PY
