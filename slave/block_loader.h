@@ -3,7 +3,8 @@
 // the loader takes all pending requests as one batch, sorts it by file offset, merges blocks
 // that are neighbours on disk into one read, reserves their room in the cache and hands the
 // reads to its I/O workers so up to 32 reads are in flight (a disk, and even more a network
-// filesystem, is fastest with a deep queue). Each loaded block is announced to every thread
+// filesystem, is fastest with a deep queue). Workers start as reads pile up, so blocks served
+// from the page cache keep only a few (fewer threads competing with the ray threads). Each loaded block is announced to every thread
 // that asked for it, with one cache pin per asker already taken, so it cannot be evicted
 // before they use it.
 //
@@ -54,6 +55,8 @@ class BlockLoader {
   // once Stop() has returned.
   double cpu_seconds() const;
   uint64_t batches() const { return batches_.load(); }
+  // I/O workers started so far (at most LoaderOptions::io_threads). Call after Stop().
+  size_t workers() const { return workers_.size(); }
   uint64_t runs() const { return runs_.load(); }
 
  private:
@@ -65,6 +68,7 @@ class BlockLoader {
   void Complete(uint32_t block, const Status& status, std::span<const uint8_t> stored,
                 store::AlignedBuffer* scratch);
   void Submit(Run run);
+  void StartWorker();
   void BusyBegin();
   void BusyEnd();
   void AddCpu(double seconds);
@@ -85,6 +89,9 @@ class BlockLoader {
   std::condition_variable runs_cv_;
   std::deque<Run> run_queue_;
   bool workers_stop_ = false;
+  size_t idle_workers_ = 0;  // waiting for a run
+  const size_t max_workers_;
+  size_t allowed_workers_;  // the cores, plus one per read that had to wait (to max_workers_)
 
   mutable std::mutex busy_mu_;
   int active_ = 0;

@@ -157,6 +157,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
     loader->Stop();
     s.loader_busy_seconds = loader->busy_seconds();
     s.loader_cpu_seconds = loader->cpu_seconds();
+    s.io_workers = loader->workers();
   }
 
   uint64_t visits = 0, waited = 0;

@@ -180,6 +180,30 @@ TEST(RenderEngine, CacheBudgetHoldsFromAFewBlocksUp) {
   }
 }
 
+// The loader's I/O threads start as reads pile up: as many as the cores while reads come from
+// the page cache (the test's store was just written), all of them once reads have to wait
+// (an injected latency, as a slow disk or network filesystem).
+TEST(RenderEngine, IoThreadsStartWhenReadsWait) {
+  static TestStore s = BuildGenerated("spheres:60000");
+  const render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
+  EngineOptions fast = Mode(TraceMode::kStack, Budget(*s.reader, 6));
+  fast.loader.io_threads = 32;
+  const RenderOutcome a = Render(*s.reader, scene, fast);
+  ASSERT_TRUE(a.status.ok()) << a.status.message();
+  ASSERT_GT(a.stats.reads, 100u);
+  EXPECT_GE(a.stats.io_workers, 1u);
+  // A read that waits on a lock now and then may add one or two.
+  EXPECT_LT(a.stats.io_workers, 16u);
+
+  EngineOptions slow = fast;
+  slow.loader.io_threads = 8;
+  slow.faults.io_latency_us = 1000;
+  const RenderOutcome b = Render(*s.reader, scene, slow);
+  ASSERT_TRUE(b.status.ok()) << b.status.message();
+  EXPECT_EQ(b.stats.io_workers, 8u);
+  EXPECT_TRUE(SameBits(a.image.rgba, b.image.rgba));
+}
+
 class Faults : public ::testing::TestWithParam<TraceMode> {};
 
 TEST_P(Faults, ReadErrorEndsTheRenderNamingTheBlock) {
