@@ -4,9 +4,9 @@
 // that are neighbours on disk into one read, reserves their room in the cache and hands the
 // reads to its I/O workers so up to 32 reads are in flight (a disk, and even more a network
 // filesystem, is fastest with a deep queue). Workers start as reads pile up, so blocks served
-// from the page cache keep only a few (fewer threads competing with the ray threads). Each loaded block is announced to every thread
-// that asked for it, with one cache pin per asker already taken, so it cannot be evicted
-// before they use it.
+// from the page cache keep only a few (fewer threads competing with the ray threads). Each
+// loaded block is announced to every thread that asked for it, with one cache pin per asker
+// already taken, so it cannot be evicted before they use it.
 //
 // Thread-safe. A failed read or a damaged block is announced to its askers as an error naming
 // the block; the loader never blocks forever on a failure.
