@@ -700,8 +700,8 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                             static_cast<unsigned long long>(s.done.fetches),
                             s.done.fetch_wait_seconds,
                             static_cast<double>(s.done.bytes_to_peers) / 1e6);
-        std::printf("  rank %d: %.3f s (ray threads busy %.3f s; CPU %.3f s, ray threads %.3f s, "
-                    "loader %.3f s), %llu rays, %llu tiles, %llu "
+        std::printf("  rank %d: %.3f s (ray threads busy %.3f s; CPU: process %.3f s, ray threads "
+                    "%.3f s, loader %.3f s), %llu rays, %llu tiles, %llu "
                     "blocks loaded (%llu distinct), %.1f MB of blocks%s, %.1f MB sent to the "
                     "master\n",
                     s.rank, s.done.seconds, s.done.busy_seconds, s.done.process_cpu_seconds,
