@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Out-of-core figures of the ray stack for tools/bench/RESULTS.md (issue 3): one scene rendered
 # in the three modes with a cold page cache, side by side, REPEATS times; prints the medians and
-# the ratios the issue asks for as a Markdown table.
+# the ratios the issue asks for as a Markdown table, with each mode's CPU time (ray threads,
+# loader threads), the floor it puts under T_stack on this machine's cores, and the highest
+# T_sync / T_stack those allow.
 #
 #   tools/bench/ooc_bench.sh SCENE.json CACHE_MB [REPEATS] [-- extra render options]
 #
