@@ -21,6 +21,13 @@ quota=${3:-20}
 latency=${4:-1000}
 slave_counts=${SLAVES:-1 2 4 8}
 repeats=${REPEATS:-3}
+store=$(python3 -c "import json,os,sys; s=sys.argv[1]; print(os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(s)), json.load(open(s))['store'])))" "$scene")
+if [ ! -f "$store/index.bin" ]; then
+  echo "cluster_bench: no block store at $store (the scene's \"store\")." >&2
+  echo "  The default scene's store comes from deploy/run-default.sh, or alone:" >&2
+  echo "  build/tools/prep/raystack-prep --generate spheres:2000000 -o build/default-store --mem-limit 512" >&2
+  exit 2
+fi
 work=$(mktemp -d)
 mkdir -p build/bench  # the scene's output folder
 trap 'rm -rf "$work"; rmdir /sys/fs/cgroup/cpu/raystack_bench_r* 2>/dev/null || true' EXIT
