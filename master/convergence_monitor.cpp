@@ -84,6 +84,10 @@ render::ConvergencePoint ConvergenceMonitor::Measure(const image::ImageLayers* r
 
 void ConvergenceMonitor::CheckPassEnds(const image::ImageLayers* resolved) {
   while (passes_ended_ < plan_.passes.size() && !stopped()) {
+    // The last pass ends with the frame: Finish measures it on the image resolved for the
+    // EXR. Measured here, the film would be resolved twice at the end of every frame (~20 ms
+    // for 960x540, inside the frame's time: 4% of a frame at 8 slaves).
+    if (!resolved && passes_ended_ + 1 == plan_.passes.size()) return;
     const uint32_t end = plan_.passes[passes_ended_].end;
     if (film_.samples_below(end) < pass_samples_[passes_ended_]) return;
     ++passes_ended_;

@@ -55,8 +55,9 @@ class ConvergenceMonitor {
   // Called a few times a second from one thread while the frame renders. False: a stop rule
   // fired, hand out no more work.
   bool Poll();
-  // After the frame's last sample: the last passes' rows and the "end" row, measured on
-  // `resolved`, the film resolved once for them and for the frame's EXR.
+  // After the frame's last sample: the last passes' rows (the frame's last pass is always
+  // left to Finish) and the "end" row, measured on `resolved`, the film resolved once for
+  // them and for the frame's EXR.
   void Finish(const image::ImageLayers& resolved);
 
   bool stopped() const { return !stop_reason_.empty(); }

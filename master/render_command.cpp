@@ -546,16 +546,20 @@ Status Run(const Args& args) {
         shown = done;
         checkpoints.Maybe(film);
         if (!monitor.Poll()) tiles.Stop();
-        preview->SetErrorEstimate(monitor.last().error_estimate);  // at the last pass end
+        preview->SetErrorEstimate(monitor.last().error_estimate);  // at each pass end
         preview->Update([&] { return tiles.Given(); });
       }
       render.join();
       progress.Update(film.samples_merged() - shown);
     }
-    preview->EndFrame(status.ok() ? stats.rays_per_second : std::numeric_limits<double>::quiet_NaN());
-    RAYSTACK_RETURN_IF_ERROR(status);
+    if (!status.ok()) {
+      preview->EndFrame(std::numeric_limits<double>::quiet_NaN());
+      return status;
+    }
     image::ImageLayers resolved = film.Resolve();
     monitor.Finish(resolved);
+    preview->SetErrorEstimate(monitor.last().error_estimate);  // the last pass's
+    preview->EndFrame(stats.rays_per_second);
     ReportStop(args, monitor);
     Expected<std::string> exr = WriteFrame(args, *scene, f, film, std::move(resolved), &writer);
     if (!exr.ok()) return exr.status();
@@ -668,6 +672,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
     if (status.ok()) {
       resolved = film.Resolve();
       monitor.Finish(resolved);
+      preview->SetErrorEstimate(monitor.last().error_estimate);  // the last pass's
       ReportStop(args, monitor);
     }
     uint64_t rays = 0;
