@@ -344,6 +344,16 @@ Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, s
   return exr;
 }
 
+// The film for the next frame: the previous frame's, cleared, when the size is the same
+// (Film::Clear: a few milliseconds instead of ~20 of page faults between two frames).
+render::Film& FilmFor(const render::Camera& camera, std::unique_ptr<render::Film>* film) {
+  if (*film && (*film)->width() == camera.width() && (*film)->height() == camera.height())
+    (*film)->Clear();
+  else
+    *film = std::make_unique<render::Film>(camera.width(), camera.height());
+  return **film;
+}
+
 // The scene file, with the command line's overrides.
 Expected<render::Scene> LoadSceneFor(const Args& args) {
   Expected<render::Scene> scene = render::LoadScene(args.scene);
@@ -509,9 +519,10 @@ Status Run(const Args& args) {
   LogFirstPass(args, coarse_rounds, why);
   std::string stats_json = "[\n";
   FrameWriter writer(!args.quiet);
+  std::unique_ptr<render::Film> reused_film;  // FilmFor
   for (size_t f = 0; f < frames; ++f) {
     const render::Camera camera(scene->cameras[f]);
-    render::Film film(camera.width(), camera.height());
+    render::Film& film = FilmFor(camera, &reused_film);
     render::FilmSink sink(&film);
     render::FramePlan plan = PlanOf(args, *scene, camera, coarse_rounds);
     RAYSTACK_RETURN_IF_ERROR(ResumeInto(args, *scene, f, &plan, &film));
@@ -633,9 +644,10 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
   };
   FrameWriter writer(!args.quiet);
   std::string json = "[\n";
+  std::unique_ptr<render::Film> reused_film;  // FilmFor
   for (size_t f = 0; f < frames; ++f) {
     const render::Camera camera(scene.cameras[f]);
-    render::Film film(camera.width(), camera.height());
+    render::Film& film = FilmFor(camera, &reused_film);
     render::FramePlan plan = PlanOf(args, scene, camera, coarse_rounds);
     Status status = ResumeInto(args, scene, f, &plan, &film);
     const uint64_t total = plan.total_samples();

@@ -1,5 +1,7 @@
 #include "common/render/film.h"
 
+#include <algorithm>
+
 #include <cmath>
 #include <limits>
 
@@ -88,6 +90,18 @@ void Film::Unmerge(std::span<const SampleResult> batch) {
       for (int c = 0; c < 3; ++c) normal_[3 * s.pixel + c] = albedo_[3 * s.pixel + c] = 0.0f;
     }
   }
+}
+
+void Film::Clear() {
+  std::lock_guard lock(mu_);
+  std::fill(pixels_.begin(), pixels_.end(), Pixel{});
+  std::fill(z_.begin(), z_.end(), std::numeric_limits<float>::infinity());
+  std::fill(normal_.begin(), normal_.end(), 0.0f);
+  std::fill(albedo_.begin(), albedo_.end(), 0.0f);
+  restored_ = image::ImageLayers{};
+  restored_pixels_.clear();
+  samples_merged_ = rays_ = nonfinite_ = covered_ = 0;
+  by_sample_.clear();
 }
 
 void Film::Restore(const image::ImageLayers& from, std::span<const uint32_t> pixels) {

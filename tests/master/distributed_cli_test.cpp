@@ -80,6 +80,28 @@ TEST_F(DistributedCli, ImagesEqualTheOneProcessImage) {
   }
 }
 
+// Frames of one size share one film, cleared in between (Film::Clear): nothing of a frame may
+// leak into the next. The same camera twice gives the same EXR twice, one process and mpirun.
+TEST_F(DistributedCli, ARepeatedCameraGivesTheSameFrameAgain) {
+  const std::string path = dir_->File("twice.json");
+  std::ofstream(path) << R"({ "store": "store",
+      "cameras": [ { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 72, "height": 48 },
+                   { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 72, "height": 48 } ],
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "materials": { "default": { "type": "diffuse", "albedo": [0.7, 0.6, 0.5] } },
+      "integrator": { "type": "path", "max_depth": 3, "spp": 2, "seed": 4 },
+      "output": "out.exr" })";
+  for (int np : {0, 3}) {
+    const std::string out = dir_->File("twice" + std::to_string(np) + ".exr");
+    const ProcessResult r = Render(path, np, out);
+    ASSERT_EQ(r.exit_code, 0) << "np " << np << ": " << r.err << r.out;
+    const std::string first = Slurp(dir_->File("twice" + std::to_string(np) + "-0.exr"));
+    const std::string second = Slurp(dir_->File("twice" + std::to_string(np) + "-1.exr"));
+    ASSERT_FALSE(first.empty());
+    EXPECT_TRUE(first == second) << "np " << np;
+  }
+}
+
 // kill -9 of a slave mid-render (the slave does it to itself at its 3rd tile, so the test
 // knows it happens mid-render), and a slave whose store reads fail: the master drops it, the
 // others render its unfinished tiles (with --blocks rem, the others read the killed owner's

@@ -65,6 +65,45 @@ TEST(Film, UnmergingEverythingLeavesAnEmptyFilm) {
   ExpectSameImage(film.Resolve(), empty.Resolve());
 }
 
+// A cleared film is a new film: the next frame's samples give the same image, layers and
+// counts in a film reused from a frame before (restored pixels, NaN drops and sample-0 layers
+// included) as in a fresh one.
+TEST(Film, AClearedFilmIsANewFilm) {
+  std::vector<SampleResult> before = RandomSamples(9, 7, 400, 4);
+  before[3].sample = 0;  // primary-hit layers
+  before[3].z = 2.5f;
+  before[3].normal[1] = 1.0f;
+  before[3].albedo[0] = 0.5f;
+  before[7].rgb[0] = std::numeric_limits<float>::quiet_NaN();  // dropped and counted
+  Film reused(9, 7);
+  reused.Merge(before, 1234);
+  image::ImageLayers checkpoint = reused.Resolve();
+  const uint32_t restored[] = {0, 1, 2};
+  reused.Restore(checkpoint, restored);
+  reused.Clear();
+  EXPECT_EQ(reused.samples_merged(), 0u);
+  EXPECT_EQ(reused.rays_traced(), 0u);
+  EXPECT_EQ(reused.pixels_covered(), 0u);
+  EXPECT_EQ(reused.pixels_restored(), 0u);
+  EXPECT_EQ(reused.nonfinite_dropped(), 0u);
+  EXPECT_EQ(reused.samples_below(1000), 0u);
+
+  const std::vector<SampleResult> next = RandomSamples(9, 7, 300, 5);
+  Film fresh(9, 7);
+  reused.Merge(next, 77);
+  fresh.Merge(next, 77);
+  EXPECT_EQ(reused.samples_merged(), fresh.samples_merged());
+  EXPECT_EQ(reused.rays_traced(), fresh.rays_traced());
+  EXPECT_EQ(reused.pixels_covered(), fresh.pixels_covered());
+  EXPECT_EQ(reused.samples_below(200), fresh.samples_below(200));
+  const image::ImageLayers a = reused.Resolve(), b = fresh.Resolve();
+  ExpectSameImage(a, b);
+  ASSERT_EQ(a.z.size(), b.z.size());
+  EXPECT_EQ(std::memcmp(a.z.data(), b.z.data(), a.z.size() * sizeof(float)), 0);
+  EXPECT_EQ(std::memcmp(a.normal.data(), b.normal.data(), a.normal.size() * sizeof(float)), 0);
+  EXPECT_EQ(std::memcmp(a.albedo.data(), b.albedo.data(), a.albedo.size() * sizeof(float)), 0);
+}
+
 // A sample 0 taken back takes its pixel's primary-hit layers (Z, normal, albedo) with it: a
 // frame stopped before the tile comes back must not show a lost slave's hit.
 TEST(Film, UnmergingSampleZeroClearsThePrimaryHitLayers) {
