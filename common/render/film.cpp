@@ -1,7 +1,6 @@
 #include "common/render/film.h"
 
 #include <algorithm>
-
 #include <cmath>
 #include <limits>
 

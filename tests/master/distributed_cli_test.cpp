@@ -25,11 +25,14 @@ class DistributedCli : public StoreDirFixture {
  protected:
   void SetUp() override { MakeStore("spheres:30000"); }
 
-  std::string Scene(const std::string& integrator) {
-    const std::string path = dir_->File("scene.json");
+  // A scene of two cameras looking at the spheres; the second at `second_position` (JSON).
+  std::string Scene(const std::string& integrator,
+                    const std::string& second_position = "[4, 3, 6]",
+                    const std::string& name = "scene.json") {
+    const std::string path = dir_->File(name);
     std::ofstream(path) << R"({ "store": "store",
       "cameras": [ { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 72, "height": 48 },
-                   { "position": [4, 3, 6], "look_at": [0, 0.5, 0], "width": 72, "height": 48 } ],
+                   { "position": )" << second_position << R"(, "look_at": [0, 0.5, 0], "width": 72, "height": 48 } ],
       "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
       "materials": { "default": { "type": "diffuse", "albedo": [0.7, 0.6, 0.5] } },
       "integrator": )" << integrator << R"(,
@@ -83,14 +86,8 @@ TEST_F(DistributedCli, ImagesEqualTheOneProcessImage) {
 // Frames of one size share one film, cleared in between (Film::Clear): nothing of a frame may
 // leak into the next. The same camera twice gives the same EXR twice, one process and mpirun.
 TEST_F(DistributedCli, ARepeatedCameraGivesTheSameFrameAgain) {
-  const std::string path = dir_->File("twice.json");
-  std::ofstream(path) << R"({ "store": "store",
-      "cameras": [ { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 72, "height": 48 },
-                   { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 72, "height": 48 } ],
-      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
-      "materials": { "default": { "type": "diffuse", "albedo": [0.7, 0.6, 0.5] } },
-      "integrator": { "type": "path", "max_depth": 3, "spp": 2, "seed": 4 },
-      "output": "out.exr" })";
+  const std::string path =
+      Scene(R"({ "type": "path", "max_depth": 3, "spp": 2, "seed": 4 })", "[0, 5, 10]", "twice.json");
   for (int np : {0, 3}) {
     const std::string out = dir_->File("twice" + std::to_string(np) + ".exr");
     const ProcessResult r = Render(path, np, out);

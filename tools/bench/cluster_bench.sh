@@ -21,7 +21,7 @@ quota=${3:-20}
 latency=${4:-1000}
 slave_counts=${SLAVES:-1 2 4 8}
 repeats=${REPEATS:-3}
-store=$(python3 -c "import json,os,sys; s=sys.argv[1]; print(os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(s)), json.load(open(s))['store'])))" "$scene")
+store=$(tools/bench/scene_store.py "$scene")
 if [ ! -f "$store/index.bin" ]; then
   echo "cluster_bench: no block store at $store (the scene's \"store\")." >&2
   echo "  The default scene's store comes from deploy/run-default.sh, or alone:" >&2

@@ -18,7 +18,7 @@ shift $(( $# >= 3 ? 3 : $# ))
 [ "${1:-}" = "--" ] && shift
 extra=("$@")
 raystack=${RAYSTACK_BIN:-build/master/raystack}  # RAYSTACK_BIN: another build, for before/after pairs
-store=$(python3 -c "import json,os,sys; s=sys.argv[1]; print(os.path.join(os.path.dirname(os.path.abspath(s)), json.load(open(s))['store']))" "$scene")
+store=$(tools/bench/scene_store.py "$scene")
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
