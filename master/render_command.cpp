@@ -27,6 +27,7 @@
 #include "master/master_node.h"
 #include "master/preview/live_preview.h"
 #include "master/resume.h"
+#include "slave/direct_reads.h"
 #include "slave/peer_blocks.h"
 #include "slave/render_engine.h"
 #include "slave/slave_node.h"
@@ -66,6 +67,10 @@ options:
                             block's owner among the slaves (each block is read from disk once,
                             by its owner, whose share counts against its --cache-mb); auto
                             (default): rem when a slave's share fits half its budget, else loc
+  --direct-io auto|on|off   read blocks past the kernel's page cache (O_DIRECT): on, off,
+                            or auto (default): on when the store's blocks.bin does not fit
+                            the memory available (or a cgroup limit) next to --cache-mb,
+                            where the page cache would only copy and reclaim each block
   --io-latency-us N         add N microseconds to every block read (emulates a network
                             filesystem; for measurements)
   --spp N                   samples per pixel (overrides the scene's integrator.spp)
@@ -135,6 +140,7 @@ struct Args {
   double checkpoint_s = 0;
   std::string blocks = "auto";
   std::string coarse_rounds = "auto";  // --coarse-rounds
+  slave::DirectIo direct_io = slave::DirectIo::kAuto;
   uint32_t spp = 0;       // 0: the scene's
   uint32_t pass_spp = 0;  // 0: doubling passes
   StopRules stop;
@@ -205,6 +211,12 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->checkpoint_s, 0, 1e9));
     } else if (arg == "--io-threads") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.loader.io_threads, 1, 256));
+    } else if (arg == "--direct-io") {
+      std::string v;
+      RAYSTACK_RETURN_IF_ERROR(value(&v));
+      Expected<slave::DirectIo> mode = slave::ParseDirectIo(v);
+      if (!mode.ok()) return mode.status();
+      a->direct_io = *mode;
     } else if (arg == "--io-latency-us") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.faults.io_latency_us, 0, 10'000'000));
     } else if (arg == "--spp") {
@@ -506,6 +518,10 @@ Status Run(const Args& args) {
 
   Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
   if (!store.ok()) return store.status();
+  std::string reads;
+  RAYSTACK_RETURN_IF_ERROR(
+      slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads));
+  if (!args.quiet) std::printf("reads: %s\n", reads.c_str());
   Expected<std::unique_ptr<slave::RenderEngine>> engine =
       slave::RenderEngine::Create(**store, args.engine);
   if (!engine.ok()) return engine.status();
@@ -762,6 +778,13 @@ bool UseRemoteBlocks(const Args& args, const store::StoreReader& store, int slav
 
 Status RunSlave(const Args& args, const render::Scene& scene, transport::Transport* net) {
   Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene.store);
+  if (store.ok()) {  // before any block is read (PeerBlocks reads this slave's share)
+    std::string reads;
+    const Status s = slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads);
+    if (!s.ok()) store = s;
+    else if (net->rank() == 1 && !args.quiet)  // one line for the job: the slaves choose alike
+      std::printf("reads (rank 1): %s\n", reads.c_str());
+  }
   std::unique_ptr<slave::PeerBlocks> peers;
   slave::EngineOptions options = args.engine;
   const bool faulty = args.fault_rank == 0 || args.fault_rank == net->rank();

@@ -153,6 +153,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
     });
   for (std::thread& w : workers) w.join();
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  s.direct_reads = store_.direct_reads();
   if (loader) {
     loader->Stop();
     s.loader_busy_seconds = loader->busy_seconds();

@@ -38,6 +38,7 @@ struct RenderStats {
   uint64_t bytes_read = 0;       // stored bytes read from the block source
   uint64_t reads = 0;            // read requests (runs of neighbouring blocks)
   uint64_t io_workers = 0;       // the loader's I/O threads started (as reads piled up)
+  bool direct_reads = false;     // blocks.bin read past the page cache (--direct-io)
   uint64_t block_visits = 0;
   double cache_hit_rate = 0;     // visits whose block was resident when the ray got there
   double loader_busy_seconds = 0;  // T_io: time with at least one read in flight

@@ -37,6 +37,14 @@ class StoreReader {
   // Reads `size` bytes of blocks.bin at `offset` (a loader reading a run of neighbouring blocks
   // in one request). Errors name the file and offset. Thread-safe.
   Status ReadRange(uint64_t offset, uint64_t size, uint8_t* out) const;
+  // From now on ReadRange reads past the page cache (O_DIRECT). For a store larger than the
+  // memory the page cache could keep, the kernel's copy of each block is only a cost: it is
+  // inserted, copied out, and reclaimed soon after (under a cgroup memory limit, by the
+  // reading thread itself). Fails, naming the file, when its filesystem does not take direct
+  // reads (checked with a first read); ReadRange stays buffered then. Call before any reader
+  // thread starts.
+  Status UseDirectReads();
+  bool direct_reads() const { return direct_fd_ >= 0; }
   // Reads block `id`'s stored bytes (for a loader that batches reads). Thread-safe.
   Status ReadStored(uint32_t id, std::vector<uint8_t>* stored) const;
   // Verifies the checksum, decompresses into `raw` and validates. Thread-safe.
@@ -52,6 +60,7 @@ class StoreReader {
   Status ReadOctree();
   void ComputeNodeBounds();
   Status OpenBlocks();
+  Status ReadRangeDirect(uint64_t offset, uint64_t size, uint8_t* out) const;
   std::string BlockError(uint32_t id, const std::string& what) const;
 
   std::string dir_;
@@ -64,6 +73,7 @@ class StoreReader {
   std::vector<float> node_bounds_;
   NodeBounds NodeBoundsView() const;
   int blocks_fd_ = -1;
+  int direct_fd_ = -1;  // blocks.bin again, opened with O_DIRECT (UseDirectReads)
   uint64_t blocks_file_bytes_ = 0;
 };
 

@@ -122,6 +122,40 @@ TEST_F(RenderCli, CoarseRoundsOnlyWhenTheStoreFitsTheCache) {
   EXPECT_NE(bad.err.find("--coarse-rounds must be auto, on or off"), std::string::npos) << bad.err;
 }
 
+// --direct-io: reads past the page cache give the same image, and the run says how it read
+// (on the terminal and in the statistics). auto reads a store this small buffered.
+TEST_F(RenderCli, DirectIoSaysHowItReadsAndKeepsTheImage) {
+  std::vector<image::ImageLayers> images;
+  for (const char* mode : {"off", "on", "auto"}) {
+    SCOPED_TRACE(mode);
+    const std::string out = dir_->File(std::string(mode) + ".exr");
+    const ProcessResult r = RunProcess({kRaystack, "render", Scene(), "--direct-io", mode,
+                                        "--cache-mb", "0.25", "--no-png", "--output", out,
+                                        "--stats", dir_->File("s.json")},
+                                       dir_->path());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const bool direct = std::string(mode) == "on";
+    EXPECT_NE(r.out.find(std::string("reads: ") + (direct ? "direct" : "buffered") +
+                         " (--direct-io " + mode),
+              std::string::npos)
+        << r.out;
+    EXPECT_NE(Slurp(dir_->File("s.json")).find(std::string("\"direct_reads\": ") +
+                                                (direct ? "true" : "false")),
+              std::string::npos);
+    Expected<image::ImageLayers> image = image::ReadExr(out);
+    ASSERT_TRUE(image.ok());
+    images.push_back(std::move(*image));
+  }
+  for (size_t i = 1; i < images.size(); ++i) {
+    EXPECT_EQ(0, std::memcmp(images[i].rgba.data(), images[0].rgba.data(), images[0].rgba.size() * 4));
+    EXPECT_EQ(0, std::memcmp(images[i].z.data(), images[0].z.data(), images[0].z.size() * 4));
+  }
+  const ProcessResult bad = RunProcess({kRaystack, "render", Scene(), "--direct-io", "always"},
+                                       dir_->path());
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--direct-io must be auto, on or off"), std::string::npos) << bad.err;
+}
+
 TEST_F(RenderCli, BadInputIsAClearError) {
   struct Case {
     std::vector<std::string> args;

@@ -204,6 +204,28 @@ TEST(RenderEngine, IoThreadsStartWhenReadsWait) {
   EXPECT_TRUE(SameBits(a.image.rgba, b.image.rgba));
 }
 
+// Reads past the page cache (--direct-io) deliver the same bytes: a stack and a sync render
+// that reload blocks many times equal the buffered ones bit for bit, and say how they read.
+TEST(RenderEngine, DirectReadsRenderTheSameImage) {
+  TestStore s = BuildGenerated("spheres:30000");
+  Expected<std::unique_ptr<store::StoreReader>> direct = store::StoreReader::Open(s.reader->dir());
+  ASSERT_TRUE(direct.ok()) << direct.status().message();
+  ASSERT_TRUE((*direct)->UseDirectReads().ok());
+  const render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
+  for (TraceMode mode : {TraceMode::kStack, TraceMode::kSync}) {
+    SCOPED_TRACE(slave::TraceModeName(mode));
+    const RenderOutcome a = Render(*s.reader, scene, Mode(mode, Budget(*s.reader, 4)));
+    const RenderOutcome b = Render(**direct, scene, Mode(mode, Budget(*s.reader, 4)));
+    ASSERT_TRUE(a.status.ok()) << a.status.message();
+    ASSERT_TRUE(b.status.ok()) << b.status.message();
+    EXPECT_FALSE(a.stats.direct_reads);
+    EXPECT_TRUE(b.stats.direct_reads);
+    EXPECT_GT(b.stats.blocks_loaded, b.stats.blocks_distinct);  // evicted and read again
+    EXPECT_TRUE(SameBits(a.image.rgba, b.image.rgba));
+    EXPECT_TRUE(SameBits(a.image.z, b.image.z));
+  }
+}
+
 class Faults : public ::testing::TestWithParam<TraceMode> {};
 
 TEST_P(Faults, ReadErrorEndsTheRenderNamingTheBlock) {

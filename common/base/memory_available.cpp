@@ -1,0 +1,92 @@
+#include "common/base/memory_available.h"
+
+#include <algorithm>
+#include <fstream>
+#include <sstream>
+
+namespace raystack {
+namespace {
+
+std::optional<uint64_t> ReadNumber(const std::string& file) {
+  std::ifstream in(file);
+  std::string word;
+  if (!(in >> word) || word.empty() || word.find_first_not_of("0123456789") != std::string::npos)
+    return std::nullopt;  // missing, unreadable, or "max"
+  try {
+    return std::stoull(word);
+  } catch (...) {
+    return std::nullopt;
+  }
+}
+
+std::string ReadAll(const std::string& file) {
+  std::ifstream in(file);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// cgroup v1 says "no limit" with the largest page-aligned 63-bit value; anything beyond a
+// petabyte is no limit in practice.
+constexpr uint64_t kNoLimit = uint64_t{1} << 50;
+
+}  // namespace
+
+std::optional<uint64_t> MemAvailableIn(const std::string& meminfo) {
+  std::istringstream in(meminfo);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("MemAvailable:", 0) != 0) continue;
+    std::istringstream fields(line.substr(13));
+    uint64_t kb = 0;
+    std::string unit;
+    if (fields >> kb >> unit && unit == "kB") return kb * 1024;
+    return std::nullopt;
+  }
+  return std::nullopt;
+}
+
+std::optional<uint64_t> CgroupRoom(const std::string& cgroup_fs, const std::string& path,
+                                   const char* limit_file, const char* usage_file) {
+  std::optional<uint64_t> room;
+  std::string group = path;
+  for (;;) {
+    const std::string dir = cgroup_fs + (group == "/" ? "" : group) + "/";
+    const std::optional<uint64_t> limit = ReadNumber(dir + limit_file);
+    const std::optional<uint64_t> usage = ReadNumber(dir + usage_file);
+    if (limit && usage && *limit < kNoLimit) {
+      const uint64_t here = *limit > *usage ? *limit - *usage : 0;
+      room = room ? std::min(*room, here) : here;
+    }
+    if (group.empty() || group == "/") break;
+    const size_t slash = group.find_last_of('/');
+    group = slash == 0 || slash == std::string::npos ? "/" : group.substr(0, slash);
+  }
+  return room;
+}
+
+std::optional<uint64_t> MemoryAvailable() {
+  std::optional<uint64_t> available = MemAvailableIn(ReadAll("/proc/meminfo"));
+  const auto take = [&](std::optional<uint64_t> room) {
+    if (room) available = available ? std::min(*available, *room) : *room;
+  };
+  // /proc/self/cgroup: "id:controllers:path" per hierarchy; v2's is "0::path".
+  std::istringstream groups(ReadAll("/proc/self/cgroup"));
+  std::string line;
+  while (std::getline(groups, line)) {
+    const size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
+    if (b == std::string::npos) continue;
+    const std::string controllers = line.substr(a + 1, b - a - 1), path = line.substr(b + 1);
+    bool memory = false;
+    std::istringstream list(controllers);
+    for (std::string c; std::getline(list, c, ',');) memory = memory || c == "memory";
+    if (memory)
+      take(CgroupRoom("/sys/fs/cgroup/memory", path, "memory.limit_in_bytes",
+                      "memory.usage_in_bytes"));
+    else if (controllers.empty() && line.rfind("0:", 0) == 0)
+      take(CgroupRoom("/sys/fs/cgroup", path, "memory.max", "memory.current"));
+  }
+  return available;
+}
+
+}  // namespace raystack

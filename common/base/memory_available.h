@@ -1,0 +1,26 @@
+#pragma once
+// How much more memory this process may fill, page cache included, before the kernel has to
+// reclaim some: the machine's MemAvailable, or less where a cgroup memory limit on this
+// process (or on a group above it) is nearer. cgroup v1 and v2. Linux; nullopt when nothing
+// could be read.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace raystack {
+
+std::optional<uint64_t> MemoryAvailable();
+
+// The parts, for tests. MemAvailable in bytes from /proc/meminfo's text.
+std::optional<uint64_t> MemAvailableIn(const std::string& meminfo);
+// Room under the limits of a cgroup and its ancestors: the least of limit - usage (0 when a
+// group is at or over its limit), nullopt when none has a limit. `cgroup_fs` is where the
+// hierarchy is mounted (e.g. /sys/fs/cgroup/memory for v1), `path` the group's path in it
+// ("/a/b", from /proc/self/cgroup); `limit_file` and `usage_file` are the names of the
+// hierarchy's version (memory.limit_in_bytes and memory.usage_in_bytes, or memory.max and
+// memory.current). A limit of "max" or absurdly large means none.
+std::optional<uint64_t> CgroupRoom(const std::string& cgroup_fs, const std::string& path,
+                                   const char* limit_file, const char* usage_file);
+
+}  // namespace raystack

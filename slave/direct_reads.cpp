@@ -1,0 +1,51 @@
+#include "slave/direct_reads.h"
+
+#include "common/base/log.h"
+#include "common/base/memory_available.h"
+
+namespace raystack::slave {
+
+Expected<DirectIo> ParseDirectIo(const std::string& name) {
+  if (name == "auto") return DirectIo::kAuto;
+  if (name == "on") return DirectIo::kOn;
+  if (name == "off") return DirectIo::kOff;
+  return Status::Error("--direct-io must be auto, on or off, got '" + name + "'");
+}
+
+bool AutoDirect(uint64_t store_bytes, uint64_t cache_bytes, std::optional<uint64_t> available) {
+  if (!available) return false;
+  return *available <= cache_bytes || store_bytes > *available - cache_bytes;
+}
+
+Status ChooseReads(DirectIo mode, uint64_t cache_bytes, store::StoreReader* store,
+                   std::string* why) {
+  const uint64_t stored = store->blocks_file_bytes();
+  if (mode == DirectIo::kOff) {
+    *why = "buffered (--direct-io off)";
+    return OkStatus();
+  }
+  if (mode == DirectIo::kOn) {
+    RAYSTACK_RETURN_IF_ERROR(store->UseDirectReads());
+    *why = "direct (--direct-io on)";
+    return OkStatus();
+  }
+  const std::optional<uint64_t> available = MemoryAvailable();
+  const std::string sizes =
+      available ? StrFormat("blocks.bin %.1f MB, %.1f MB of memory available, cache %.1f MB",
+                            static_cast<double>(stored) / 1e6, static_cast<double>(*available) / 1e6,
+                            static_cast<double>(cache_bytes) / 1e6)
+                : StrFormat("blocks.bin %.1f MB, available memory unknown",
+                            static_cast<double>(stored) / 1e6);
+  if (!AutoDirect(stored, cache_bytes, available)) {
+    *why = "buffered (--direct-io auto: " + sizes + ")";
+    return OkStatus();
+  }
+  if (const Status s = store->UseDirectReads(); !s.ok()) {
+    *why = "buffered (--direct-io auto: " + sizes + "; " + s.message() + ")";
+    return OkStatus();
+  }
+  *why = "direct (--direct-io auto: " + sizes + ": the page cache cannot keep the store)";
+  return OkStatus();
+}
+
+}  // namespace raystack::slave
