@@ -2,22 +2,17 @@
 // memory budget inside a real cgroup-v1 memory cap (anonymous memory and page cache both
 // count), and must finish without being OOM-killed, with a store that verifies.
 
-#include <fcntl.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <gtest/gtest.h>
 
-#include <cerrno>
 #include <chrono>
-#include <cstring>
-#include <filesystem>
-#include <fstream>
+#include <cstdio>
 #include <regex>
-#include <sstream>
 
 #include "common/base/temp_dir.h"
 #include "tests/prep/run_process.h"
+#include "tests/support/memory_cgroup.h"
 
 namespace raystack::prep {
 namespace {
@@ -26,102 +21,16 @@ using testing::kInfoBinary;
 using testing::kPrepBinary;
 using testing::ProcessResult;
 using testing::RunProcess;
+using raystack::testing::MemoryCgroup;
+using raystack::testing::OwnMemoryGroup;
+using raystack::testing::ReadKey;
+using raystack::testing::ReadValue;
 
 constexpr uint64_t kCapBytes = 320ull << 20;
 constexpr int kMemLimitMb = 256;
 // 2 M triangles on a 3x2x2 grid: 24 M triangles, 864 MB of raw positions alone.
 constexpr uint64_t kSourceTriangles = 2000000;
 constexpr int kCopies = 3 * 2 * 2;
-
-// This process's memory cgroup (v1), or "" with `why` saying why there is none.
-std::string OwnMemoryGroup(std::string* why) {
-  std::ifstream in("/proc/self/cgroup");
-  if (!in) {
-    *why = "cannot read /proc/self/cgroup";
-    return "";
-  }
-  std::string line;
-  while (std::getline(in, line)) {
-    // "ID:CONTROLLERS:PATH"; v1 controllers are comma-separated, v2 has an empty list.
-    const size_t a = line.find(':'), b = line.find(':', a + 1);
-    if (a == std::string::npos || b == std::string::npos) continue;
-    std::stringstream controllers(line.substr(a + 1, b - a - 1));
-    std::string c;
-    while (std::getline(controllers, c, ','))
-      if (c == "memory") {
-        const std::string group = "/sys/fs/cgroup/memory" + line.substr(b + 1);
-        if (!std::filesystem::exists(group + "/memory.limit_in_bytes")) {
-          *why = group + "/memory.limit_in_bytes does not exist (cgroup v1 memory not mounted "
-                         "at /sys/fs/cgroup/memory)";
-          return "";
-        }
-        return group;
-      }
-  }
-  *why = "/proc/self/cgroup has no cgroup-v1 'memory' controller line (cgroup v2 only?)";
-  return "";
-}
-
-bool WriteValue(const std::string& path, const std::string& value) {
-  std::ofstream out(path);
-  out << value;
-  out.flush();
-  return out.good();
-}
-
-uint64_t ReadValue(const std::string& path) {
-  std::ifstream in(path);
-  uint64_t v = 0;
-  in >> v;
-  return v;
-}
-
-// The `key N` entry of a flat-keyed cgroup file such as memory.oom_control; -1 if absent.
-int64_t ReadKey(const std::string& path, const std::string& key) {
-  std::ifstream in(path);
-  std::string k;
-  int64_t v = 0;
-  while (in >> k >> v)
-    if (k == key) return v;
-  return -1;
-}
-
-// A child memory cgroup with a hard limit, removed on destruction (after its tasks exited).
-class MemoryCgroup {
- public:
-  MemoryCgroup(const std::string& parent, const std::string& name) : path_(parent + "/" + name) {}
-  ~MemoryCgroup() {
-    if (!created_) return;
-    WriteValue(path_ + "/memory.force_empty", "0");  // drop the page cache still charged
-    if (rmdir(path_.c_str()) != 0)
-      ADD_FAILURE() << "cannot remove " << path_ << ": " << std::strerror(errno);
-  }
-  MemoryCgroup(const MemoryCgroup&) = delete;
-  MemoryCgroup& operator=(const MemoryCgroup&) = delete;
-
-  // Creates the group; false with `error` set (errno's text) when not allowed.
-  bool Create(std::string* error) {
-    if (mkdir(path_.c_str(), 0755) != 0) {
-      *error = "cannot create " + path_ + ": " + std::strerror(errno);
-      return false;
-    }
-    created_ = true;
-    return true;
-  }
-  bool Limit(uint64_t bytes) {
-    if (!WriteValue(path_ + "/memory.limit_in_bytes", std::to_string(bytes))) return false;
-    // With swap accounting, cap memory + swap too so nothing escapes to swap.
-    const std::string memsw = path_ + "/memory.memsw.limit_in_bytes";
-    if (std::filesystem::exists(memsw) && !WriteValue(memsw, std::to_string(bytes))) return false;
-    return ReadValue(path_ + "/memory.limit_in_bytes") <= bytes;
-  }
-  std::string File(const std::string& name) const { return path_ + "/" + name; }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-  bool created_ = false;
-};
 
 TEST(MemoryCap, ConvertsAModelLargerThanTheCap) {
   std::string why;
@@ -136,20 +45,12 @@ TEST(MemoryCap, ConvertsAModelLargerThanTheCap) {
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok()) << dir.status().message();
   const std::string store = dir->File("store");
-  const std::string procs = group.File("cgroup.procs");
   const auto start = std::chrono::steady_clock::now();
   const ProcessResult r = RunProcess(
       {kPrepBinary, "--generate", "sphere:" + std::to_string(kSourceTriangles), "--replicate",
        "3,2,2", "--mem-limit", std::to_string(kMemLimitMb), "-q", "--temp-dir", dir->path(),
        "-o", store},
-      dir->path(), [&procs] {
-        // After fork: join the group before exec (async-signal-safe calls only).
-        const int fd = open(procs.c_str(), O_WRONLY);
-        char pid[32];
-        const int n = snprintf(pid, sizeof pid, "%d", static_cast<int>(getpid()));
-        if (fd < 0 || write(fd, pid, static_cast<size_t>(n)) != n) _exit(125);
-        close(fd);
-      });
+      dir->path(), group.Joiner());
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
