@@ -618,7 +618,7 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
                    "\"bytes_from_master\": %llu, \"ray_threads\": %u, \"busy_seconds\": %g, "
                    "\"fetches\": %llu, \"fetch_wait_seconds\": %g, \"fetch_runs\": %llu, "
                    "\"ray_cpu_seconds\": %g, \"loader_cpu_seconds\": %g, "
-                   "\"process_cpu_seconds\": %g}",
+                   "\"process_cpu_seconds\": %g, \"direct_reads\": %s}",
                    i ? "," : "", x.rank, x.done.seconds,
                    static_cast<unsigned long long>(x.done.rays),
                    static_cast<unsigned long long>(x.done.samples),
@@ -633,7 +633,8 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
                    static_cast<unsigned long long>(x.bytes_sent), x.done.ray_threads,
                    x.done.busy_seconds, static_cast<unsigned long long>(x.done.fetches),
                    x.done.fetch_wait_seconds, static_cast<unsigned long long>(x.done.fetch_runs),
-                   x.done.ray_cpu_seconds, x.done.loader_cpu_seconds, x.done.process_cpu_seconds);
+                   x.done.ray_cpu_seconds, x.done.loader_cpu_seconds, x.done.process_cpu_seconds,
+                   x.done.flags & wire::kFrameDoneDirectReads ? "true" : "false");
   }
   return s + "\n  ]\n}";
 }
@@ -735,15 +736,16 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                             static_cast<double>(s.done.bytes_to_peers) / 1e6);
         std::printf("  rank %d: %.3f s (ray threads busy %.3f s; CPU: process %.3f s, ray threads "
                     "%.3f s, loader %.3f s), %llu rays, %llu tiles, %llu "
-                    "blocks loaded (%llu distinct), %.1f MB of blocks%s, %.1f MB sent to the "
-                    "master\n",
+                    "blocks loaded (%llu distinct), %.1f MB of blocks (%s reads)%s, %.1f MB sent "
+                    "to the master\n",
                     s.rank, s.done.seconds, s.done.busy_seconds, s.done.process_cpu_seconds,
                     s.done.ray_cpu_seconds, s.done.loader_cpu_seconds,
                     static_cast<unsigned long long>(s.done.rays),
                     static_cast<unsigned long long>(s.done.tiles),
                     static_cast<unsigned long long>(s.done.blocks_loaded),
                     static_cast<unsigned long long>(s.done.blocks_distinct),
-                    static_cast<double>(s.done.bytes_read) / 1e6, peers.c_str(),
+                    static_cast<double>(s.done.bytes_read) / 1e6,
+                    s.done.flags & wire::kFrameDoneDirectReads ? "direct" : "buffered", peers.c_str(),
                     static_cast<double>(s.bytes_received) / 1e6);
       }
     }
@@ -779,11 +781,10 @@ bool UseRemoteBlocks(const Args& args, const store::StoreReader& store, int slav
 Status RunSlave(const Args& args, const render::Scene& scene, transport::Transport* net) {
   Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene.store);
   if (store.ok()) {  // before any block is read (PeerBlocks reads this slave's share)
+    // Each slave decides for its own machine; the master prints each one's reads per frame.
     std::string reads;
     const Status s = slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads);
     if (!s.ok()) store = s;
-    else if (net->rank() == 1 && !args.quiet)  // one line for the job: the slaves choose alike
-      std::printf("reads (rank 1): %s\n", reads.c_str());
   }
   std::unique_ptr<slave::PeerBlocks> peers;
   slave::EngineOptions options = args.engine;

@@ -334,6 +334,7 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   d.ray_cpu_seconds = stats->ray_cpu_seconds;
   d.loader_cpu_seconds = stats->loader_cpu_seconds;
   d.process_cpu_seconds = process_cpu;
+  d.flags = stats->direct_reads ? wire::kFrameDoneDirectReads : 0;
   if (peers_) {
     d.bytes_from_peers = peers_->bytes_from_peers() - from_peers;
     d.bytes_to_peers = peers_->bytes_to_peers() - to_peers;

@@ -28,7 +28,7 @@ inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
 // flags (a lost slave costs time, never pixels). 5: a block request carries several runs of
 // the owner's blocks (the fetches that queued for the same owner), its answer their bytes;
 // frame figures count the runs fetched. 6: frame figures carry the slave's CPU time.
-inline constexpr uint16_t kProtocolVersion = 6;
+inline constexpr uint16_t kProtocolVersion = 7;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
 // How often a slave says it is alive (the master drops one it has not heard from for
@@ -99,7 +99,10 @@ struct FrameDone {
   double ray_cpu_seconds;     // CPU time of the ray threads (RenderStats)
   double loader_cpu_seconds;  // CPU time of the loader's threads (RenderStats)
   double process_cpu_seconds;  // CPU time of the whole slave process during the frame
+  uint32_t flags;              // kFrameDoneDirectReads
+  uint32_t reserved;
 };
+inline constexpr uint32_t kFrameDoneDirectReads = 1;  // blocks read past the page cache
 struct Shutdown {
   uint32_t reason;  // 0: the job is done
   uint32_t flags;   // kShutdownRankDied: a rank died, so no rank may wait for it at the end
@@ -137,7 +140,7 @@ struct PixelBatchHeader {
   uint64_t rays;   // rays the slave traced for these samples (progress figures)
 };
 static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
-              sizeof(FrameDone) == 136 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
+              sizeof(FrameDone) == 144 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
               sizeof(BlockRequest) == 16 && sizeof(BlockRun) == 8 && sizeof(BlockDataHeader) == 16 &&
               sizeof(Heartbeat) == 8 && sizeof(RankLost) == 8);
 

@@ -99,6 +99,33 @@ TEST_F(DistributedCli, ARepeatedCameraGivesTheSameFrameAgain) {
   }
 }
 
+// Slaves reading past the page cache (--direct-io on: their owners' shares under rem too)
+// render the one-process image, and each says so in the master's per-slave figures.
+TEST_F(DistributedCli, DirectReadsUnderMpirunKeepTheImageAndAreReported) {
+  const std::string scene = Scene(R"({ "type": "whitted", "max_depth": 3, "spp": 1, "seed": 1 })");
+  const ProcessResult one = Render(scene, 0, dir_->File("one.exr"));
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  for (const std::string blocks : {"loc", "rem"}) {
+    const std::string out = dir_->File("direct-" + blocks + ".exr");
+    const ProcessResult r = Render(scene, 3, out, blocks,
+                                   {"--direct-io", "on", "--stats", dir_->File("stats.json")});
+    ASSERT_EQ(r.exit_code, 0) << blocks << ": " << r.err << r.out;
+    for (const char* frame : {"-0", "-1"}) {
+      const std::string a = Slurp(dir_->File(std::string("one") + frame + ".exr"));
+      ASSERT_FALSE(a.empty());
+      EXPECT_TRUE(a == Slurp(dir_->File("direct-" + blocks + frame + ".exr"))) << blocks << frame;
+    }
+    // 2 frames x 2 slaves, each with its flag.
+    const std::string stats = Slurp(dir_->File("stats.json"));
+    size_t direct = 0;
+    for (size_t at = stats.find("\"direct_reads\": true"); at != std::string::npos;
+         at = stats.find("\"direct_reads\": true", at + 1))
+      ++direct;
+    EXPECT_EQ(direct, 4u) << stats;
+    EXPECT_EQ(stats.find("\"direct_reads\": false"), std::string::npos) << stats;
+  }
+}
+
 // kill -9 of a slave mid-render (the slave does it to itself at its 3rd tile, so the test
 // knows it happens mid-render), and a slave whose store reads fail: the master drops it, the
 // others render its unfinished tiles (with --blocks rem, the others read the killed owner's
