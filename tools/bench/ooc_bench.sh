@@ -86,6 +86,10 @@ print(f"- CPU (kernel included), {cores} cores: stack {c_stack:.2f} s (floor und
       f"{max(0.0, lanes * t_sy - c_sync):.2f} core-s for the disk")
 print(f"- ceiling of T_sync / T_stack here with no stack overhead (ray threads as in core, loads as "
       f"now): {t_sy / (c_ideal / cores):.2f}; at the stack's own CPU: {t_sy / (c_stack / cores):.2f}")
+# The same floor bounds the overlap figure from below: T_incore leaves out the blocks' loading,
+# which the stack's cores must also do.
+print(f"- floor of T_stack / max(T_incore, T_io) at the stack's own CPU: "
+      f"{(c_stack / cores) / max(t_in, io):.2f}")
 print(f"- bytes per waiting ray: {s['ray_record_bytes']} (record); peak stack {s['peak_stack_bytes']/1024:.0f} KB for "
       f"{s['peak_stack_rays']:,} rays = {s['peak_stack_bytes']/max(1, s['peak_stack_rays']):.0f} bytes/ray with chunk slack")
 PY
