@@ -65,27 +65,33 @@ std::optional<uint64_t> CgroupRoom(const std::string& cgroup_fs, const std::stri
   return room;
 }
 
+MemoryCgroups MemoryCgroupsIn(const std::string& proc_cgroup) {
+  MemoryCgroups groups;
+  std::istringstream lines(proc_cgroup);
+  std::string line;
+  while (std::getline(lines, line)) {
+    const size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
+    if (b == std::string::npos) continue;
+    const std::string controllers = line.substr(a + 1, b - a - 1), path = line.substr(b + 1);
+    std::istringstream list(controllers);
+    for (std::string c; std::getline(list, c, ',');)
+      if (c == "memory") groups.v1 = path;
+    if (controllers.empty() && line.rfind("0:", 0) == 0) groups.v2 = path;
+  }
+  return groups;
+}
+
+MemoryCgroups OwnMemoryCgroups() { return MemoryCgroupsIn(ReadAll("/proc/self/cgroup")); }
+
 std::optional<uint64_t> MemoryAvailable() {
   std::optional<uint64_t> available = MemAvailableIn(ReadAll("/proc/meminfo"));
   const auto take = [&](std::optional<uint64_t> room) {
     if (room) available = available ? std::min(*available, *room) : *room;
   };
-  // /proc/self/cgroup: "id:controllers:path" per hierarchy; v2's is "0::path".
-  std::istringstream groups(ReadAll("/proc/self/cgroup"));
-  std::string line;
-  while (std::getline(groups, line)) {
-    const size_t a = line.find(':'), b = a == std::string::npos ? a : line.find(':', a + 1);
-    if (b == std::string::npos) continue;
-    const std::string controllers = line.substr(a + 1, b - a - 1), path = line.substr(b + 1);
-    bool memory = false;
-    std::istringstream list(controllers);
-    for (std::string c; std::getline(list, c, ',');) memory = memory || c == "memory";
-    if (memory)
-      take(CgroupRoom("/sys/fs/cgroup/memory", path, "memory.limit_in_bytes",
-                      "memory.usage_in_bytes"));
-    else if (controllers.empty() && line.rfind("0:", 0) == 0)
-      take(CgroupRoom("/sys/fs/cgroup", path, "memory.max", "memory.current"));
-  }
+  const MemoryCgroups groups = OwnMemoryCgroups();
+  if (groups.v1)
+    take(CgroupRoom(kCgroupV1Memory, *groups.v1, "memory.limit_in_bytes", "memory.usage_in_bytes"));
+  if (groups.v2) take(CgroupRoom(kCgroupV2, *groups.v2, "memory.max", "memory.current"));
   return available;
 }
 

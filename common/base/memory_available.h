@@ -12,6 +12,18 @@ namespace raystack {
 
 std::optional<uint64_t> MemoryAvailable();
 
+// Where a process sits in the hierarchies that can limit its memory: v1's memory controller
+// (mounted at kCgroupV1Memory) and the unified v2 one (at kCgroupV2).
+struct MemoryCgroups {
+  std::optional<std::string> v1;  // e.g. "/a/b"
+  std::optional<std::string> v2;
+};
+inline constexpr const char* kCgroupV1Memory = "/sys/fs/cgroup/memory";
+inline constexpr const char* kCgroupV2 = "/sys/fs/cgroup";
+// From /proc/<pid>/cgroup's text: "id:controllers:path" lines, v2's being "0::path".
+MemoryCgroups MemoryCgroupsIn(const std::string& proc_cgroup);
+MemoryCgroups OwnMemoryCgroups();
+
 // The parts, for tests. MemAvailable in bytes from /proc/meminfo's text.
 std::optional<uint64_t> MemAvailableIn(const std::string& meminfo);
 // Room under the limits of a cgroup and its ancestors: the least of limit - usage (0 when a

@@ -2,8 +2,6 @@
 // memory budget inside a real cgroup-v1 memory cap (anonymous memory and page cache both
 // count), and must finish without being OOM-killed, with a store that verifies.
 
-#include <unistd.h>
-
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -22,7 +20,6 @@ using testing::kPrepBinary;
 using testing::ProcessResult;
 using testing::RunProcess;
 using raystack::testing::MemoryCgroup;
-using raystack::testing::OwnMemoryGroup;
 using raystack::testing::ReadKey;
 using raystack::testing::ReadValue;
 
@@ -34,11 +31,9 @@ constexpr int kCopies = 3 * 2 * 2;
 
 TEST(MemoryCap, ConvertsAModelLargerThanTheCap) {
   std::string why;
-  const std::string own = OwnMemoryGroup(&why);
-  if (own.empty()) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
-  MemoryCgroup group(own, "raystack-memcap-" + std::to_string(getpid()));
-  if (!group.Create(&why)) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
-  ASSERT_TRUE(group.Limit(kCapBytes)) << "cannot set the limit of " << group.path();
+  const std::unique_ptr<MemoryCgroup> group = MemoryCgroup::CreateOwnChild("raystack-memcap", &why);
+  if (!group) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
+  ASSERT_TRUE(group->Limit(kCapBytes)) << "cannot set the limit of " << group->path();
   // The model is bigger than the cap: it cannot simply be held in memory.
   ASSERT_GT(kSourceTriangles * kCopies * 36, kCapBytes);
 
@@ -50,13 +45,13 @@ TEST(MemoryCap, ConvertsAModelLargerThanTheCap) {
       {kPrepBinary, "--generate", "sphere:" + std::to_string(kSourceTriangles), "--replicate",
        "3,2,2", "--mem-limit", std::to_string(kMemLimitMb), "-q", "--temp-dir", dir->path(),
        "-o", store},
-      dir->path(), group.Joiner());
+      dir->path(), group->Joiner());
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  const uint64_t max_usage = ReadValue(group.File("memory.max_usage_in_bytes"));
-  const uint64_t failcnt = ReadValue(group.File("memory.failcnt"));
-  const int64_t oom_kills = ReadKey(group.File("memory.oom_control"), "oom_kill");
+  const uint64_t max_usage = ReadValue(group->File("memory.max_usage_in_bytes"));
+  const uint64_t failcnt = ReadValue(group->File("memory.failcnt"));
+  const int64_t oom_kills = ReadKey(group->File("memory.oom_control"), "oom_kill");
   ::testing::Test::RecordProperty("cgroup_limit_bytes", std::to_string(kCapBytes));
   ::testing::Test::RecordProperty("cgroup_max_usage_bytes", std::to_string(max_usage));
   ::testing::Test::RecordProperty("cgroup_failcnt", std::to_string(failcnt));
@@ -67,7 +62,7 @@ TEST(MemoryCap, ConvertsAModelLargerThanTheCap) {
               static_cast<unsigned long long>(failcnt), static_cast<long long>(oom_kills),
               seconds, static_cast<unsigned long long>(kSourceTriangles * kCopies));
 
-  ASSERT_NE(r.exit_code, 125) << "the child could not join " << group.path();
+  ASSERT_NE(r.exit_code, 125) << "the child could not join " << group->path();
   EXPECT_EQ(r.signal, 0) << "raystack-prep was killed by signal " << r.signal
                          << " (SIGKILL = the OOM killer); stderr: " << r.err;
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -79,7 +74,7 @@ TEST(MemoryCap, ConvertsAModelLargerThanTheCap) {
   ::testing::Test::RecordProperty("prep_peak_rss_mb", std::to_string(peak_rss_mb));
   std::printf("memory cap: raystack-prep peak RSS %d MB (--mem-limit %d)\n", peak_rss_mb, kMemLimitMb);
   EXPECT_LE(peak_rss_mb, kMemLimitMb);
-  EXPECT_LE(oom_kills, 0) << "the OOM killer fired in " << group.path();
+  EXPECT_LE(oom_kills, 0) << "the OOM killer fired in " << group->path();
   EXPECT_GT(max_usage, 0u) << "nothing was charged to the group: the run was not capped";
   EXPECT_LE(max_usage, kCapBytes);
 

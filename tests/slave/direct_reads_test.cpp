@@ -29,6 +29,19 @@ TEST(MemoryAvailable, ReadsMemAvailableFromMeminfo) {
   EXPECT_GT(*here, 0u);
 }
 
+TEST(MemoryAvailable, FindsTheMemoryHierarchiesInProcCgroup) {
+  const MemoryCgroups both = MemoryCgroupsIn(
+      "12:cpu,cpuacct:/x\n4:memory:/process_api/abc\n1:name=systemd:/\n0::/user/job\n");
+  EXPECT_EQ(both.v1, "/process_api/abc");
+  EXPECT_EQ(both.v2, "/user/job");
+  const MemoryCgroups v1_only = MemoryCgroupsIn("3:pids,memory:/a\n");
+  EXPECT_EQ(v1_only.v1, "/a");
+  EXPECT_FALSE(v1_only.v2);
+  const MemoryCgroups none = MemoryCgroupsIn("garbage\n5:cpu:/b\n");
+  EXPECT_FALSE(none.v1);
+  EXPECT_FALSE(none.v2);
+}
+
 class CgroupTree : public ::testing::Test {
  protected:
   void SetUp() override {

@@ -39,11 +39,9 @@ bool DropFromPageCache(const std::string& file) {
 
 TEST(MemoryCapRender, AutoReadsDirectUnderACapSmallerThanTheStore) {
   std::string why;
-  const std::string own = OwnMemoryGroup(&why);
-  if (own.empty()) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
-  MemoryCgroup group(own, "raystack-render-cap-" + std::to_string(getpid()));
-  if (!group.Create(&why)) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
-  ASSERT_TRUE(group.Limit(kCapBytes)) << "cannot set the limit of " << group.path();
+  const std::unique_ptr<MemoryCgroup> group = MemoryCgroup::CreateOwnChild("raystack-render-cap", &why);
+  if (!group) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
+  ASSERT_TRUE(group->Limit(kCapBytes)) << "cannot set the limit of " << group->path();
 
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());
@@ -66,8 +64,8 @@ TEST(MemoryCapRender, AutoReadsDirectUnderACapSmallerThanTheStore) {
   // A cold store, as a store larger than memory is: pages left in the page cache by the
   // conversion (charged to this test's group) would be read without charging the cap's.
   ASSERT_TRUE(DropFromPageCache(dir->File("store/blocks.bin")));
-  const ProcessResult capped = render("capped.exr", "auto", group.Joiner());
-  ASSERT_NE(capped.exit_code, 125) << "the child could not join " << group.path();
+  const ProcessResult capped = render("capped.exr", "auto", group->Joiner());
+  ASSERT_NE(capped.exit_code, 125) << "the child could not join " << group->path();
   EXPECT_EQ(capped.signal, 0) << "killed by signal " << capped.signal
                               << " (SIGKILL = the OOM killer): " << capped.err;
   ASSERT_EQ(capped.exit_code, 0) << capped.err;
@@ -75,7 +73,7 @@ TEST(MemoryCapRender, AutoReadsDirectUnderACapSmallerThanTheStore) {
   // Read buffered, the store's pages are charged to the group until it is full (peak usage =
   // the cap); read direct, only the renderer's own memory is (~37 MB here, with its 32 I/O
   // threads).
-  const uint64_t peak = ReadValue(group.File("memory.max_usage_in_bytes"));
+  const uint64_t peak = ReadValue(group->File("memory.max_usage_in_bytes"));
   std::printf("memory cap %llu MB: peak usage %.1f MB\n",
               static_cast<unsigned long long>(kCapBytes >> 20), static_cast<double>(peak) / 1048576.0);
   EXPECT_GT(peak, 0u) << "nothing was charged to the group: the run was not capped";

@@ -16,38 +16,28 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <sstream>
+#include <memory>
+#include <optional>
 #include <string>
+
+#include "common/base/memory_available.h"
 
 namespace raystack::testing {
 
-// This process's memory cgroup (v1), or "" with `why` saying why there is none.
+// This process's memory cgroup (v1) directory, or "" with `why` saying why there is none.
 inline std::string OwnMemoryGroup(std::string* why) {
-  std::ifstream in("/proc/self/cgroup");
-  if (!in) {
-    *why = "cannot read /proc/self/cgroup";
+  const std::optional<std::string> path = OwnMemoryCgroups().v1;
+  if (!path) {
+    *why = "/proc/self/cgroup has no cgroup-v1 'memory' controller line (cgroup v2 only?)";
     return "";
   }
-  std::string line;
-  while (std::getline(in, line)) {
-    // "ID:CONTROLLERS:PATH"; v1 controllers are comma-separated, v2 has an empty list.
-    const size_t a = line.find(':'), b = line.find(':', a + 1);
-    if (a == std::string::npos || b == std::string::npos) continue;
-    std::stringstream controllers(line.substr(a + 1, b - a - 1));
-    std::string c;
-    while (std::getline(controllers, c, ','))
-      if (c == "memory") {
-        const std::string group = "/sys/fs/cgroup/memory" + line.substr(b + 1);
-        if (!std::filesystem::exists(group + "/memory.limit_in_bytes")) {
-          *why = group + "/memory.limit_in_bytes does not exist (cgroup v1 memory not mounted "
-                         "at /sys/fs/cgroup/memory)";
-          return "";
-        }
-        return group;
-      }
+  const std::string group = kCgroupV1Memory + *path;
+  if (!std::filesystem::exists(group + "/memory.limit_in_bytes")) {
+    *why = group + "/memory.limit_in_bytes does not exist (cgroup v1 memory not mounted at " +
+           kCgroupV1Memory + ")";
+    return "";
   }
-  *why = "/proc/self/cgroup has no cgroup-v1 'memory' controller line (cgroup v2 only?)";
-  return "";
+  return group;
 }
 
 inline bool WriteValue(const std::string& path, const std::string& value) {
@@ -86,6 +76,17 @@ class MemoryCgroup {
   }
   MemoryCgroup(const MemoryCgroup&) = delete;
   MemoryCgroup& operator=(const MemoryCgroup&) = delete;
+
+  // A new child of this process's own group, named `prefix` and this process's id; null with
+  // `why` set when none can be made (no v1 memory controller, or not allowed: tests skip).
+  static std::unique_ptr<MemoryCgroup> CreateOwnChild(const std::string& prefix,
+                                                      std::string* why) {
+    const std::string own = OwnMemoryGroup(why);
+    if (own.empty()) return nullptr;
+    auto group = std::make_unique<MemoryCgroup>(own, prefix + "-" + std::to_string(getpid()));
+    if (!group->Create(why)) return nullptr;
+    return group;
+  }
 
   // Creates the group; false with `error` set (errno's text) when not allowed.
   bool Create(std::string* error) {
