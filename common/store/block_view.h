@@ -99,21 +99,24 @@ class BlockView {
 inline uint32_t BlockView::EdgeCandidates(const RayTriangleSetup& s, uint32_t first,
                                           uint32_t n) const {
 #if defined(__SSE2__)
-  // [corner][axis][triangle]. Not zero-initialised as a whole: that memset (rep stos) was 5%
-  // of a packet traversal's samples. Lanes past n are zeroed one by one and masked out below.
-  alignas(16) float p[3][3][4];
+  // Lanes past n repeat the last triangle (masked out below). Each lane vector is built in
+  // registers from scalar loads: filling a stack array lane by lane and loading it as one
+  // vector stalls on store forwarding (4 narrow stores feeding a wide load), 9 times a call.
+  uint32_t vi[3][4];
   for (uint32_t k = 0; k < 4; ++k) {
-    Vec3f v[3] = {};
-    if (k < n) TriangleVertices(first + k, &v[0], &v[1], &v[2]);
-    for (int c = 0; c < 3; ++c)
-      for (int a = 0; a < 3; ++a) p[c][a][k] = v[c][a];
+    const uint32_t t = first + (k < n ? k : n - 1);
+    for (int c = 0; c < 3; ++c) vi[c][k] = VertexIndex(t, c);
   }
+  const float* const axis_data[3] = {x_, y_, z_};
   // IntersectTriangle's float expressions, lane by lane: p - origin, then the shear.
   __m128 x[3], y[3];
   for (int c = 0; c < 3; ++c) {
-    const __m128 d[3] = {_mm_sub_ps(_mm_load_ps(p[c][0]), _mm_set1_ps(s.origin.x)),
-                         _mm_sub_ps(_mm_load_ps(p[c][1]), _mm_set1_ps(s.origin.y)),
-                         _mm_sub_ps(_mm_load_ps(p[c][2]), _mm_set1_ps(s.origin.z))};
+    __m128 d[3];
+    for (int a = 0; a < 3; ++a) {
+      const float* q = axis_data[a];
+      d[a] = _mm_sub_ps(_mm_setr_ps(q[vi[c][0]], q[vi[c][1]], q[vi[c][2]], q[vi[c][3]]),
+                        _mm_set1_ps(s.origin[a]));
+    }
     x[c] = _mm_sub_ps(d[s.kx], _mm_mul_ps(_mm_set1_ps(s.sx), d[s.kz]));
     y[c] = _mm_sub_ps(d[s.ky], _mm_mul_ps(_mm_set1_ps(s.sy), d[s.kz]));
   }
