@@ -18,6 +18,7 @@
 #include "tests/prep/run_process.h"
 #include "tests/prep/store_contents.h"
 #include "tools/prep/convert.h"
+#include "tests/support/test_dir.h"
 
 namespace raystack::prep {
 namespace {
@@ -29,9 +30,8 @@ using testing::TouchesCell;
 class OctreeBuilderTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    Expected<TempDir> dir = TempDir::Create();
-    ASSERT_TRUE(dir.ok()) << dir.status().message();
-    dir_ = std::make_unique<TempDir>(std::move(*dir));
+    dir_ = raystack::testing::MakeTestDir();
+    ASSERT_TRUE(dir_);
   }
 
   ConvertOptions Options(const std::string& store) const {

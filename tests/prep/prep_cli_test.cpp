@@ -9,6 +9,7 @@
 #include "common/base/temp_dir.h"
 #include "common/store/store_reader.h"
 #include "tests/prep/run_process.h"
+#include "tests/support/test_dir.h"
 
 namespace raystack::prep {
 namespace {
@@ -21,9 +22,8 @@ using testing::RunProcess;
 class PrepCliTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    Expected<TempDir> dir = TempDir::Create();
-    ASSERT_TRUE(dir.ok()) << dir.status().message();
-    dir_ = std::make_unique<TempDir>(std::move(*dir));
+    dir_ = raystack::testing::MakeTestDir();
+    ASSERT_TRUE(dir_);
   }
 
   ProcessResult Prep(std::vector<std::string> args) {

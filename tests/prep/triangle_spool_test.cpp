@@ -12,6 +12,7 @@
 
 #include "common/base/temp_dir.h"
 #include "tools/prep/write_behind.h"
+#include "tests/support/test_dir.h"
 
 namespace raystack::prep {
 namespace {
@@ -50,9 +51,8 @@ bool SameAttributes(const TriangleAttributes& a, const TriangleAttributes& b) {
 class TriangleSpoolTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    Expected<TempDir> dir = TempDir::Create();
-    ASSERT_TRUE(dir.ok()) << dir.status().message();
-    dir_ = std::make_unique<TempDir>(std::move(*dir));
+    dir_ = raystack::testing::MakeTestDir();
+    ASSERT_TRUE(dir_);
   }
 
   static void Fill(TriangleSpool* spool, uint32_t n, bool plain = false) {

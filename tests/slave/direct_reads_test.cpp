@@ -11,6 +11,7 @@
 #include "common/base/memory_available.h"
 #include "common/base/temp_dir.h"
 #include "tests/slave/render_fixture.h"
+#include "tests/support/test_dir.h"
 
 namespace raystack::testing {
 namespace {
@@ -45,9 +46,8 @@ TEST(MemoryAvailable, FindsTheMemoryHierarchiesInProcCgroup) {
 class CgroupTree : public ::testing::Test {
  protected:
   void SetUp() override {
-    Expected<TempDir> dir = TempDir::Create();
-    ASSERT_TRUE(dir.ok());
-    dir_ = std::make_unique<TempDir>(std::move(*dir));
+    dir_ = raystack::testing::MakeTestDir();
+    ASSERT_TRUE(dir_);
   }
   // Writes `file` with `text` in group `group` ("/" or "/a/b") of the fake hierarchy.
   void Set(const std::string& group, const std::string& file, const std::string& text) {

@@ -17,6 +17,7 @@
 #include "common/store/store_reader.h"
 #include "slave/render_engine.h"
 #include "tools/prep/convert.h"
+#include "tests/support/test_dir.h"
 
 namespace raystack::testing {
 
@@ -27,9 +28,8 @@ struct TestStore {
 
 inline TestStore BuildStore(prep::ConvertOptions o, uint32_t target_kb = 8) {
   TestStore s;
-  Expected<TempDir> dir = TempDir::Create();
-  EXPECT_TRUE(dir.ok());
-  s.dir = std::make_unique<TempDir>(std::move(*dir));
+  s.dir = raystack::testing::MakeTestDir();
+  EXPECT_TRUE(s.dir);
   o.output = s.dir->path() + "/store";
   o.target_block_bytes = target_kb * 1024;
   o.max_block_bytes = std::max<uint32_t>(4 * target_kb, 32) * 1024;

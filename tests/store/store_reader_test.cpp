@@ -17,6 +17,7 @@
 #include "common/base/temp_dir.h"
 #include "common/store/store_tracer.h"
 #include "tools/prep/convert.h"
+#include "tests/support/test_dir.h"
 
 namespace raystack::store {
 namespace {
@@ -24,9 +25,8 @@ namespace {
 class StoreReaderTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    Expected<TempDir> dir = TempDir::Create();
-    ASSERT_TRUE(dir.ok());
-    dir_ = std::make_unique<TempDir>(std::move(*dir));
+    dir_ = raystack::testing::MakeTestDir();
+    ASSERT_TRUE(dir_);
     path_ = dir_->File("store");
     prep::ConvertOptions o;
     o.generate = "sphere:20000";

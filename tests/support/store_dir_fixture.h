@@ -9,6 +9,7 @@
 
 #include "common/base/temp_dir.h"
 #include "tests/prep/run_process.h"
+#include "tests/support/test_dir.h"
 
 namespace raystack::testing {
 
@@ -18,9 +19,8 @@ class StoreDirFixture : public ::testing::Test {
  protected:
   // Generates `spec` (raystack-prep --generate) into dir_/store, with blocks of ~8 KB.
   void MakeStore(const std::string& spec) {
-    Expected<TempDir> dir = TempDir::Create();
-    ASSERT_TRUE(dir.ok());
-    dir_ = std::make_unique<TempDir>(std::move(*dir));
+    dir_ = raystack::testing::MakeTestDir();
+    ASSERT_TRUE(dir_);
     const prep::testing::ProcessResult prep = prep::testing::RunProcess(
         {prep::testing::kPrepBinary, "--generate", spec, "-o", dir_->File("store"),
          "--target-block-kb", "8", "-q"},
