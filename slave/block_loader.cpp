@@ -26,7 +26,21 @@ BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, Blo
     : store_(store), cache_(cache), source_(source), options_(options),
       deliver_(std::move(deliver)),
       max_workers_(static_cast<size_t>(std::max(1, options.io_threads))),
-      allowed_workers_(std::min<size_t>(max_workers_, std::max(1u, std::thread::hardware_concurrency()))) {
+      allowed_workers_(std::min<size_t>(max_workers_, std::max(1u, std::thread::hardware_concurrency()))),
+      aio_(source->OpenAio(static_cast<int>(max_workers_))) {
+  if (aio_) {
+    // Threads that wait for direct reads and decode them, as many as the cores: decoding is
+    // CPU work, and one thread alone fell behind the disk (the ray threads idled 0.5 s of a
+    // 0.7 s frame on dragon x36).
+    aio_runs_.resize(max_workers_);
+    const size_t threads = std::min<size_t>(max_workers_, std::max(1u, std::thread::hardware_concurrency()));
+    for (size_t i = 0; i < threads; ++i)
+      workers_.emplace_back([this] {
+        SetThreadName("rs-aio");
+        AioLoop();
+        AddCpu(ThreadCpuSeconds());
+      });
+  }
   loader_ = std::thread([this] {
     SetThreadName("rs-loader");
     LoaderLoop();
@@ -59,6 +73,11 @@ void BlockLoader::Stop() {
     workers_stop_ = true;
   }
   runs_cv_.notify_all();
+  {
+    std::lock_guard lock(aio_mu_);
+    aio_stop_ = true;
+  }
+  aio_cv_.notify_all();
   for (std::thread& w : workers_)
     if (w.joinable()) w.join();
 }
@@ -147,6 +166,15 @@ void BlockLoader::LoaderLoop() {
 
 void BlockLoader::Submit(Run run) {
   runs_.fetch_add(1, std::memory_order_relaxed);
+  if (aio_) {
+    {
+      std::lock_guard lock(aio_mu_);
+      aio_queue_.push_back(std::move(run));
+      StartQueuedAio();
+    }
+    aio_cv_.notify_one();
+    return;
+  }
   bool start;
   {
     std::lock_guard lock(runs_mu_);
@@ -190,16 +218,59 @@ void BlockLoader::WorkerLoop() {
       std::lock_guard lock(runs_mu_);
       allowed_workers_ = std::min(max_workers_, allowed_workers_ + 1);
     }
-    uint64_t offset = 0;
-    const uint64_t base = store_.blocks()[run.ids.front()].offset;
-    for (uint32_t id : run.ids) {
-      const store::BlockEntry& e = store_.blocks()[id];
-      offset = e.offset - base;
-      std::span<const uint8_t> stored;
-      if (read.ok()) stored = std::span<const uint8_t>(bytes.data() + offset, e.stored_bytes);
-      Complete(id, read, stored, &scratch);
-    }
+    CompleteRun(run, read, bytes.data(), &scratch);
     BusyEnd();
+  }
+}
+
+void BlockLoader::StartQueuedAio() {
+  while (!aio_queue_.empty()) {
+    const int slot = aio_->Start(aio_queue_.front().ids);
+    if (slot < 0) return;  // every slot in flight: the reaper starts the rest as reads end
+    BusyBegin();
+    aio_runs_[slot] = std::move(aio_queue_.front());
+    aio_queue_.pop_front();
+  }
+}
+
+void BlockLoader::AioLoop() {
+  std::vector<AioRuns::Finished> finished;
+  store::AlignedBuffer scratch;
+  for (;;) {
+    {
+      std::unique_lock lock(aio_mu_);
+      aio_cv_.wait(lock, [&] { return aio_stop_ || aio_->in_flight() > 0; });
+      // Runs wait in the queue only while every slot is taken, so nothing in flight means
+      // nothing left.
+      if (aio_->in_flight() == 0) return;
+    }
+    // A few reads at a time, so the other threads share the decoding of a burst. The
+    // timeout only matters when another thread took the last reads in flight.
+    finished.clear();
+    aio_->Wait(/*timeout_ms=*/20, /*max=*/4, &finished);
+    for (AioRuns::Finished& f : finished) {
+      Run run;
+      {
+        std::lock_guard lock(aio_mu_);
+        run = std::move(aio_runs_[f.slot]);
+      }
+      CompleteRun(run, f.status, f.bytes.data(), &scratch);
+      aio_->Release(f.slot);
+      BusyEnd();
+      std::lock_guard lock(aio_mu_);
+      StartQueuedAio();
+    }
+  }
+}
+
+void BlockLoader::CompleteRun(const Run& run, const Status& read, const uint8_t* bytes,
+                              store::AlignedBuffer* scratch) {
+  const uint64_t base = store_.blocks()[run.ids.front()].offset;
+  for (uint32_t id : run.ids) {
+    const store::BlockEntry& e = store_.blocks()[id];
+    std::span<const uint8_t> stored;
+    if (read.ok()) stored = std::span<const uint8_t>(bytes + (e.offset - base), e.stored_bytes);
+    Complete(id, read, stored, scratch);
   }
 }
 

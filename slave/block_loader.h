@@ -4,7 +4,9 @@
 // that are neighbours on disk into one read, reserves their room in the cache and hands the
 // reads to its I/O workers so up to 32 reads are in flight (a disk, and even more a network
 // filesystem, is fastest with a deep queue). Workers start as reads pile up, so blocks served
-// from the page cache keep only a few (fewer threads competing with the ray threads). Each
+// from the page cache keep only a few (fewer threads competing with the ray threads). Direct
+// reads of a disk (--direct-io) need no thread each: the loader starts them with Linux AIO
+// and a thread per core waits for them and decodes the blocks (slave/aio_runs.h). Each
 // loaded block is announced to every thread that asked for it, with one cache pin per asker
 // already taken, so it cannot be evicted before they use it.
 //
@@ -24,6 +26,7 @@
 
 #include "common/base/status.h"
 #include "common/store/store_reader.h"
+#include "slave/aio_runs.h"
 #include "slave/block_cache.h"
 #include "slave/block_source.h"
 
@@ -57,6 +60,9 @@ class BlockLoader {
   uint64_t batches() const { return batches_.load(); }
   // I/O workers started so far (at most LoaderOptions::io_threads). Call after Stop().
   size_t workers() const { return workers_.size(); }
+  // Whether direct reads are kept in flight with Linux AIO (slave/aio_runs.h) rather than by
+  // a blocking thread each.
+  bool aio() const { return aio_ != nullptr; }
   uint64_t runs() const { return runs_.load(); }
 
  private:
@@ -65,6 +71,10 @@ class BlockLoader {
   };
   void LoaderLoop();
   void WorkerLoop();
+  void AioLoop();
+  void StartQueuedAio();  // aio_mu_ held
+  void CompleteRun(const Run& run, const Status& read, const uint8_t* bytes,
+                   store::AlignedBuffer* scratch);
   void Complete(uint32_t block, const Status& status, std::span<const uint8_t> stored,
                 store::AlignedBuffer* scratch);
   void Submit(Run run);
@@ -98,6 +108,15 @@ class BlockLoader {
   std::chrono::steady_clock::time_point busy_since_;
   double busy_seconds_ = 0;
   double cpu_seconds_ = 0;
+
+  // Direct reads (when the source offers them, slave/aio_runs.h): the loader thread starts
+  // them and one reaper thread, the only worker, waits for them and decodes the blocks.
+  std::unique_ptr<AioRuns> aio_;
+  std::mutex aio_mu_;
+  std::condition_variable aio_cv_;  // a read started, or stop
+  std::vector<Run> aio_runs_;       // by slot
+  std::deque<Run> aio_queue_;       // runs waiting for a slot
+  bool aio_stop_ = false;
 
   std::atomic<uint64_t> batches_{0}, runs_{0};
   std::thread loader_;

@@ -4,26 +4,45 @@
 #include <thread>
 
 #include "common/base/log.h"
+#include "slave/aio_runs.h"
 
 namespace raystack::slave {
 
+Status DiskBlockSource::BeginRead(std::span<const uint32_t> ids, int64_t* k) {
+  *k = reads_.fetch_add(1);
+  if (*k != faults_.fail_read) return OkStatus();
+  const store::BlockEntry& first = store_.blocks()[ids.front()];
+  return Status::Error(StrFormat("%s/blocks.bin: block %u at offset %llu: read failed (injected fault)",
+                                 store_.dir().c_str(), ids.front(),
+                                 static_cast<unsigned long long>(first.offset)));
+}
+
+void DiskBlockSource::EndRead(int64_t k, std::span<uint8_t> bytes) {
+  bytes_.fetch_add(bytes.size());
+  if (k == faults_.corrupt_read && !bytes.empty()) bytes[bytes.size() / 2] ^= 0x5a;
+}
+
 Status DiskBlockSource::ReadRun(std::span<const uint32_t> ids, std::vector<uint8_t>* bytes) {
-  const int64_t k = reads_.fetch_add(1);
   const auto entries = store_.blocks();
   const store::BlockEntry& first = entries[ids.front()];
   const store::BlockEntry& last = entries[ids.back()];
   const uint64_t size = last.offset + last.stored_bytes - first.offset;
+  int64_t k;
+  const Status begun = BeginRead(ids, &k);
   if (faults_.io_latency_us > 0)
     std::this_thread::sleep_for(std::chrono::microseconds(faults_.io_latency_us));
-  if (k == faults_.fail_read)
-    return Status::Error(StrFormat("%s/blocks.bin: block %u at offset %llu: read failed (injected fault)",
-                                   store_.dir().c_str(), ids.front(),
-                                   static_cast<unsigned long long>(first.offset)));
+  RAYSTACK_RETURN_IF_ERROR(begun);
   bytes->resize(size);
   RAYSTACK_RETURN_IF_ERROR(store_.ReadRange(first.offset, size, bytes->data()));
-  bytes_.fetch_add(size);
-  if (k == faults_.corrupt_read && size > 0) (*bytes)[size / 2] ^= 0x5a;
+  EndRead(k, *bytes);
   return OkStatus();
+}
+
+std::unique_ptr<AioRuns> DiskBlockSource::OpenAio(int depth) {
+  // An injected latency stands for a network filesystem's, slept by the reading thread: it
+  // needs the threads. Buffered reads from the page cache would run inside io_submit.
+  if (!store_.direct_reads() || faults_.io_latency_us > 0) return nullptr;
+  return AioRuns::Open(store_, this, depth);
 }
 
 }  // namespace raystack::slave

@@ -6,11 +6,13 @@
 
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
 #include "common/base/status.h"
 #include "common/store/store_reader.h"
+#include "slave/aio_runs.h"
 
 namespace raystack::slave {
 
@@ -28,6 +30,10 @@ class BlockSource {
   virtual Status ReadRun(std::span<const uint32_t> ids, std::vector<uint8_t>* bytes) = 0;
   virtual uint64_t reads() const = 0;       // ReadRun calls so far
   virtual uint64_t bytes_read() const = 0;  // stored bytes delivered so far
+  // Reads kept in flight by one thread, with up to `depth` at once (slave/aio_runs.h), where
+  // the source can (a disk read direct); nullptr where it cannot, and the loader then keeps
+  // them in flight with a thread each.
+  virtual std::unique_ptr<AioRuns> OpenAio(int /*depth*/) { return nullptr; }
 };
 
 class DiskBlockSource final : public BlockSource {
@@ -35,6 +41,13 @@ class DiskBlockSource final : public BlockSource {
   DiskBlockSource(const store::StoreReader& store, FaultOptions faults)
       : store_(store), faults_(faults) {}
   Status ReadRun(std::span<const uint32_t> ids, std::vector<uint8_t>* bytes) override;
+  std::unique_ptr<AioRuns> OpenAio(int depth) override;
+
+  // The two ends of every read, by ReadRun or by AioRuns: counts it as read number `*k` and
+  // fails it if that is the injected failure; then counts its bytes and flips one if it is the
+  // injected corruption.
+  Status BeginRead(std::span<const uint32_t> ids, int64_t* k);
+  void EndRead(int64_t k, std::span<uint8_t> bytes);
 
   uint64_t reads() const override { return reads_.load(); }
   uint64_t bytes_read() const override { return bytes_.load(); }

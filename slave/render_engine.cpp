@@ -159,6 +159,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
     s.loader_busy_seconds = loader->busy_seconds();
     s.loader_cpu_seconds = loader->cpu_seconds();
     s.io_workers = loader->workers();
+    s.aio_reads = loader->aio();
   }
 
   uint64_t visits = 0, waited = 0;

@@ -27,6 +27,7 @@ std::string RenderStats::ToJson() const {
     << (blocks_distinct ? static_cast<double>(blocks_loaded) / static_cast<double>(blocks_distinct) : 0.0)
     << ",\n  \"bytes_read\": " << bytes_read << ",\n  \"reads\": " << reads << ",\n  \"io_workers\": " << io_workers
     << ",\n  \"direct_reads\": " << (direct_reads ? "true" : "false")
+    << ",\n  \"aio_reads\": " << (aio_reads ? "true" : "false")
     << ",\n  \"block_visits\": " << block_visits << ",\n  \"cache_hit_rate\": " << cache_hit_rate
     << ",\n  \"loader_busy_seconds\": " << loader_busy_seconds
     << ",\n  \"ray_idle_seconds\": " << ray_idle_seconds
@@ -55,7 +56,8 @@ std::string RenderStats::ToText() const {
                  static_cast<unsigned long long>(blocks_loaded),
                  static_cast<unsigned long long>(blocks_distinct),
                  static_cast<unsigned long long>(block_count), static_cast<double>(bytes_read) / 1e6,
-                 static_cast<unsigned long long>(reads), direct_reads ? "direct" : "buffered",
+                 static_cast<unsigned long long>(reads),
+                 aio_reads ? "direct (Linux AIO)" : direct_reads ? "direct" : "buffered",
                  static_cast<unsigned long long>(io_workers), loader_busy_seconds, ray_idle_seconds);
   s += StrFormat("\n  ray threads: busy %.3f s, waiting for a tile %.3f s; CPU: ray threads %.3f s, "
                  "loader threads %.3f s",

@@ -37,8 +37,9 @@ struct RenderStats {
   uint64_t block_count = 0;      // in the store
   uint64_t bytes_read = 0;       // stored bytes read from the block source
   uint64_t reads = 0;            // read requests (runs of neighbouring blocks)
-  uint64_t io_workers = 0;       // the loader's I/O threads started (as reads piled up)
+  uint64_t io_workers = 0;       // the loader's I/O threads started (as reads piled up; with AIO, its decoding threads)
   bool direct_reads = false;     // blocks.bin read past the page cache (--direct-io)
+  bool aio_reads = false;        // the loader kept those reads in flight with Linux AIO
   uint64_t block_visits = 0;
   double cache_hit_rate = 0;     // visits whose block was resident when the ray got there
   double loader_busy_seconds = 0;  // T_io: time with at least one read in flight

@@ -18,10 +18,6 @@
 namespace raystack::store {
 namespace {
 
-// O_DIRECT wants the file offset, the length and the memory aligned to the device's logical
-// block size; 4096 covers every common device (512-byte ones too).
-constexpr uint64_t kDirectAlign = 4096;
-
 // Where a direct read lands: the aligned span around the range asked for. One per thread,
 // grown to the largest run it has read, so reads do not allocate.
 class DirectBuffer {

@@ -17,6 +17,10 @@
 
 namespace raystack::store {
 
+// O_DIRECT wants the file offset, the length and the memory aligned to the device's logical
+// block size; 4096 covers every common device (512-byte ones too).
+inline constexpr uint64_t kDirectAlign = 4096;
+
 class StoreReader {
  public:
   // Opens the store in directory `dir`, verifying headers, versions, checksums and the octree.
@@ -45,6 +49,9 @@ class StoreReader {
   // thread starts.
   Status UseDirectReads();
   bool direct_reads() const { return direct_fd_ >= 0; }
+  // blocks.bin opened O_DIRECT (-1 before UseDirectReads), for a reader that keeps its reads
+  // in flight itself (slave/aio_runs.h); reads must be kDirectAlign-aligned.
+  int direct_fd() const { return direct_fd_; }
   // Reads block `id`'s stored bytes (for a loader that batches reads). Thread-safe.
   Status ReadStored(uint32_t id, std::vector<uint8_t>* stored) const;
   // Verifies the checksum, decompresses into `raw` and validates. Thread-safe.

@@ -1,0 +1,173 @@
+#include "slave/aio_runs.h"
+
+#include <linux/aio_abi.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+
+#include "common/base/check.h"
+#include "common/base/log.h"
+#include "slave/block_source.h"
+
+namespace raystack::slave {
+namespace {
+
+long IoSetup(unsigned events, aio_context_t* context) {
+  return ::syscall(SYS_io_setup, events, context);
+}
+long IoDestroy(aio_context_t context) { return ::syscall(SYS_io_destroy, context); }
+long IoSubmit(aio_context_t context, long count, iocb** requests) {
+  return ::syscall(SYS_io_submit, context, count, requests);
+}
+long IoGetEvents(aio_context_t context, long min, long max, io_event* events, timespec* timeout) {
+  return ::syscall(SYS_io_getevents, context, min, max, events, timeout);
+}
+
+struct FreeAligned {
+  void operator()(uint8_t* p) const { std::free(p); }
+};
+
+}  // namespace
+
+struct AioRuns::Slot {
+  int index = 0;
+  iocb request{};
+  std::unique_ptr<uint8_t, FreeAligned> buffer;  // the aligned span around the run
+  uint64_t capacity = 0;
+  uint64_t skip = 0;    // the run's first byte in the span
+  uint64_t needed = 0;  // bytes the span must get: the file may end inside its last unit
+  uint64_t size = 0;    // the run's bytes
+  uint64_t offset = 0;  // the run's offset in blocks.bin
+  int64_t read = 0;     // DiskBlockSource's read number (fault injection)
+};
+
+std::unique_ptr<AioRuns> AioRuns::Open(const store::StoreReader& store, DiskBlockSource* disk,
+                                       int depth) {
+  CHECK(store.direct_fd() >= 0 && depth > 0);
+  aio_context_t context = 0;
+  if (IoSetup(static_cast<unsigned>(depth), &context) != 0) {
+    LOG_WARNING("loader", "%s/%s: no Linux AIO context for %d reads (%s); reading with threads",
+        store.dir().c_str(), store::kBlocksFile, depth, std::strerror(errno));
+    return nullptr;
+  }
+  return std::unique_ptr<AioRuns>(new AioRuns(store, disk, context, depth));
+}
+
+AioRuns::AioRuns(const store::StoreReader& store, DiskBlockSource* disk, unsigned long context,
+                 int depth)
+    : store_(store), disk_(disk), context_(context) {
+  for (int i = 0; i < depth; ++i) {
+    slots_.push_back(std::make_unique<Slot>());
+    slots_.back()->index = i;
+    free_.push_back(depth - 1 - i);
+  }
+}
+
+AioRuns::~AioRuns() {
+  // io_destroy cancels what it can and waits for the rest, so no read lands in a freed buffer.
+  IoDestroy(context_);
+}
+
+int AioRuns::in_flight() const {
+  std::lock_guard lock(mu_);
+  return static_cast<int>(slots_.size() - free_.size());
+}
+
+int AioRuns::Start(std::span<const uint32_t> ids) {
+  Slot* slot;
+  {
+    std::lock_guard lock(mu_);
+    if (free_.empty()) return -1;
+    slot = slots_[free_.back()].get();
+    free_.pop_back();
+  }
+  if (Status s = Submit(slot, ids); !s.ok()) {
+    std::lock_guard lock(mu_);
+    failed_.push_back({slot->index, std::move(s), {}});
+  }
+  return slot->index;
+}
+
+Status AioRuns::Submit(Slot* slot, std::span<const uint32_t> ids) {
+  const store::BlockEntry& first = store_.blocks()[ids.front()];
+  const store::BlockEntry& last = store_.blocks()[ids.back()];
+  RAYSTACK_RETURN_IF_ERROR(disk_->BeginRead(ids, &slot->read));
+  slot->offset = first.offset;
+  slot->size = last.offset + last.stored_bytes - first.offset;
+  if (slot->offset > store_.blocks_file_bytes() ||
+      slot->size > store_.blocks_file_bytes() - slot->offset)
+    return Status::Error(StrFormat("%s/%s: read of %llu bytes at offset %llu is past the end",
+                                   store_.dir().c_str(), store::kBlocksFile,
+                                   static_cast<unsigned long long>(slot->size),
+                                   static_cast<unsigned long long>(slot->offset)));
+  const uint64_t begin = slot->offset / store::kDirectAlign * store::kDirectAlign;
+  const uint64_t end = (slot->offset + slot->size + store::kDirectAlign - 1) /
+                       store::kDirectAlign * store::kDirectAlign;
+  slot->skip = slot->offset - begin;
+  slot->needed = slot->skip + slot->size;
+  if (end - begin > slot->capacity) {
+    slot->buffer.reset(static_cast<uint8_t*>(std::aligned_alloc(store::kDirectAlign, end - begin)));
+    CHECK(slot->buffer != nullptr);
+    slot->capacity = end - begin;
+  }
+  slot->request = iocb{};
+  slot->request.aio_data = static_cast<uint64_t>(slot->index);
+  slot->request.aio_lio_opcode = IOCB_CMD_PREAD;
+  slot->request.aio_fildes = static_cast<uint32_t>(store_.direct_fd());
+  slot->request.aio_buf = reinterpret_cast<uint64_t>(slot->buffer.get());
+  slot->request.aio_nbytes = end - begin;
+  slot->request.aio_offset = static_cast<int64_t>(begin);
+  iocb* requests[1] = {&slot->request};
+  long submitted;
+  do {
+    submitted = IoSubmit(context_, 1, requests);
+  } while (submitted < 0 && errno == EINTR);
+  if (submitted != 1)
+    return Status::Error(StrFormat("%s/%s: direct read at offset %llu could not start: %s",
+                                   store_.dir().c_str(), store::kBlocksFile,
+                                   static_cast<unsigned long long>(begin),
+                                   submitted < 0 ? std::strerror(errno) : "not submitted"));
+  return OkStatus();
+}
+
+void AioRuns::Wait(int timeout_ms, int max, std::vector<Finished>* finished) {
+  {
+    std::lock_guard lock(mu_);
+    if (!failed_.empty()) {
+      for (Finished& f : failed_) finished->push_back(std::move(f));
+      failed_.clear();
+      timeout_ms = 0;  // report these now; collect whatever else has finished meanwhile
+    }
+  }
+  io_event events[64];
+  timespec timeout{timeout_ms / 1000, (timeout_ms % 1000) * 1000000L};
+  const long got =
+      IoGetEvents(context_, timeout_ms > 0 ? 1 : 0, std::clamp(max, 1, 64), events, &timeout);
+  for (long i = 0; i < got; ++i) {
+    Slot* slot = slots_[events[i].data].get();
+    const int64_t result = events[i].res;
+    Status status;
+    if (result < 0 || static_cast<uint64_t>(result) < slot->needed) {
+      status = Status::Error(StrFormat(
+          "%s/%s: direct read at offset %llu failed: %s", store_.dir().c_str(), store::kBlocksFile,
+          static_cast<unsigned long long>(slot->offset),
+          result < 0 ? std::strerror(static_cast<int>(-result)) : "unexpected end of file"));
+      finished->push_back({slot->index, std::move(status), {}});
+      continue;
+    }
+    const std::span<uint8_t> bytes(slot->buffer.get() + slot->skip, slot->size);
+    disk_->EndRead(slot->read, bytes);
+    finished->push_back({slot->index, OkStatus(), bytes});
+  }
+}
+
+void AioRuns::Release(int slot) {
+  std::lock_guard lock(mu_);
+  free_.push_back(slot);
+}
+
+}  // namespace raystack::slave
