@@ -150,16 +150,25 @@ void AioRuns::Wait(int timeout_ms, int max, std::vector<Finished>* finished) {
   for (long i = 0; i < got; ++i) {
     Slot* slot = slots_[events[i].data].get();
     const int64_t result = events[i].res;
-    Status status;
-    if (result < 0 || static_cast<uint64_t>(result) < slot->needed) {
-      status = Status::Error(StrFormat(
-          "%s/%s: direct read at offset %llu failed: %s", store_.dir().c_str(), store::kBlocksFile,
-          static_cast<unsigned long long>(slot->offset),
-          result < 0 ? std::strerror(static_cast<int>(-result)) : "unexpected end of file"));
-      finished->push_back({slot->index, std::move(status), {}});
+    const std::span<uint8_t> bytes(slot->buffer.get() + slot->skip, slot->size);
+    if (result < 0) {
+      finished->push_back(
+          {slot->index,
+           Status::Error(StrFormat("%s/%s: direct read at offset %llu failed: %s",
+                                   store_.dir().c_str(), store::kBlocksFile,
+                                   static_cast<unsigned long long>(slot->offset),
+                                   std::strerror(static_cast<int>(-result)))),
+           {}});
       continue;
     }
-    const std::span<uint8_t> bytes(slot->buffer.get() + slot->skip, slot->size);
+    if (static_cast<uint64_t>(result) < slot->needed) {
+      // A short read: the file ends early (cut while open), or the kernel stopped part way.
+      // The blocking read finishes what it can and names the place where it cannot.
+      if (Status s = store_.ReadRange(slot->offset, slot->size, bytes.data()); !s.ok()) {
+        finished->push_back({slot->index, std::move(s), {}});
+        continue;
+      }
+    }
     disk_->EndRead(slot->read, bytes);
     finished->push_back({slot->index, OkStatus(), bytes});
   }

@@ -257,8 +257,11 @@ void BlockLoader::AioLoop() {
       CompleteRun(run, f.status, f.bytes.data(), &scratch);
       aio_->Release(f.slot);
       BusyEnd();
-      std::lock_guard lock(aio_mu_);
-      StartQueuedAio();
+      {
+        std::lock_guard lock(aio_mu_);
+        StartQueuedAio();
+      }
+      aio_cv_.notify_one();  // a thread that found nothing in flight shares these reads
     }
   }
 }

@@ -345,9 +345,12 @@ Status StoreReader::ReadRangeDirect(uint64_t offset, uint64_t size, uint8_t* out
     const ssize_t n =
         ::pread(direct_fd_, span + done, end - begin - done, static_cast<off_t>(begin + done));
     if (n < 0 && errno == EINTR) continue;
-    if (n <= 0)
+    // A read that stops inside an aligned unit met the end of the file (the next direct read
+    // from there would only be refused as unaligned).
+    if (n <= 0 || (static_cast<uint64_t>(n) % kDirectAlign != 0 && done + n < needed))
       return Status::Error(StrFormat("%s/%s: direct read at offset %llu failed: %s", dir_.c_str(),
-                                     kBlocksFile, static_cast<unsigned long long>(begin + done),
+                                     kBlocksFile,
+                                     static_cast<unsigned long long>(begin + done + std::max<ssize_t>(n, 0)),
                                      n < 0 ? std::strerror(errno) : "unexpected end of file"));
     done += static_cast<uint64_t>(n);
   }
