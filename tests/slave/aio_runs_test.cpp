@@ -21,15 +21,6 @@ struct BlockRun {
   uint32_t first, last;
 };
 
-std::unique_ptr<store::StoreReader> OpenDirect(const TestStore& s) {
-  Expected<std::unique_ptr<store::StoreReader>> direct = store::StoreReader::Open(s.reader->dir());
-  EXPECT_TRUE(direct.ok()) << direct.status().message();
-  if (!direct.ok()) return nullptr;
-  const Status d = (*direct)->UseDirectReads();
-  EXPECT_TRUE(d.ok()) << d.message();
-  return std::move(*direct);
-}
-
 std::vector<uint8_t> Buffered(const store::StoreReader& store, BlockRun run) {
   const auto blocks = store.blocks();
   const uint64_t offset = blocks[run.first].offset;

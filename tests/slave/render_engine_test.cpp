@@ -208,14 +208,13 @@ TEST(RenderEngine, IoThreadsStartWhenReadsWait) {
 // that reload blocks many times equal the buffered ones bit for bit, and say how they read.
 TEST(RenderEngine, DirectReadsRenderTheSameImage) {
   TestStore s = BuildGenerated("spheres:30000");
-  Expected<std::unique_ptr<store::StoreReader>> direct = store::StoreReader::Open(s.reader->dir());
-  ASSERT_TRUE(direct.ok()) << direct.status().message();
-  ASSERT_TRUE((*direct)->UseDirectReads().ok());
+  const std::unique_ptr<store::StoreReader> direct = OpenDirect(s);
+  ASSERT_TRUE(direct);
   const render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
   for (TraceMode mode : {TraceMode::kStack, TraceMode::kSync}) {
     SCOPED_TRACE(slave::TraceModeName(mode));
     const RenderOutcome a = Render(*s.reader, scene, Mode(mode, Budget(*s.reader, 4)));
-    const RenderOutcome b = Render(**direct, scene, Mode(mode, Budget(*s.reader, 4)));
+    const RenderOutcome b = Render(*direct, scene, Mode(mode, Budget(*s.reader, 4)));
     ASSERT_TRUE(a.status.ok()) << a.status.message();
     ASSERT_TRUE(b.status.ok()) << b.status.message();
     EXPECT_FALSE(a.stats.direct_reads);
@@ -223,15 +222,15 @@ TEST(RenderEngine, DirectReadsRenderTheSameImage) {
     // The stack's loader keeps direct reads in flight with Linux AIO; sync reads them itself.
     EXPECT_FALSE(a.stats.aio_reads);
     EXPECT_EQ(b.stats.aio_reads, mode == TraceMode::kStack);
-    // One read in flight at a time: every other run waits in the loader's queue for the slot.
-    EngineOptions one = Mode(mode, Budget(*s.reader, 4));
-    one.loader.io_threads = 1;
-    const RenderOutcome c = Render(**direct, scene, one);
-    ASSERT_TRUE(c.status.ok()) << c.status.message();
-    EXPECT_TRUE(SameBits(a.image.rgba, c.image.rgba));
     EXPECT_GT(b.stats.blocks_loaded, b.stats.blocks_distinct);  // evicted and read again
     EXPECT_TRUE(SameBits(a.image.rgba, b.image.rgba));
     EXPECT_TRUE(SameBits(a.image.z, b.image.z));
+    // One read in flight at a time: every other run waits in the loader's queue for the slot.
+    EngineOptions one = Mode(mode, Budget(*s.reader, 4));
+    one.loader.io_threads = 1;
+    const RenderOutcome c = Render(*direct, scene, one);
+    ASSERT_TRUE(c.status.ok()) << c.status.message();
+    EXPECT_TRUE(SameBits(a.image.rgba, c.image.rgba));
   }
 }
 
@@ -239,15 +238,14 @@ TEST(RenderEngine, DirectReadsRenderTheSameImage) {
 // ends with an error naming the block, never a hang.
 TEST(RenderEngine, AioReadFaultsEndTheRenderNamingTheBlock) {
   TestStore s = BuildGenerated("spheres:30000");
-  Expected<std::unique_ptr<store::StoreReader>> direct = store::StoreReader::Open(s.reader->dir());
-  ASSERT_TRUE(direct.ok()) << direct.status().message();
-  ASSERT_TRUE((*direct)->UseDirectReads().ok());
+  const std::unique_ptr<store::StoreReader> direct = OpenDirect(s);
+  ASSERT_TRUE(direct);
   const render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
   for (int64_t k : {0, 3, 17}) {
     for (bool corrupt : {false, true}) {
       EngineOptions o = Mode(TraceMode::kStack, Budget(*s.reader, 4));
       (corrupt ? o.faults.corrupt_read : o.faults.fail_read) = k;
-      const RenderOutcome r = Render(**direct, scene, o);
+      const RenderOutcome r = Render(*direct, scene, o);
       ASSERT_FALSE(r.status.ok()) << "read " << k;
       EXPECT_TRUE(r.stats.aio_reads);
       EXPECT_NE(r.status.message().find("block "), std::string::npos) << r.status.message();

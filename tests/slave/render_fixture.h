@@ -49,6 +49,18 @@ inline TestStore BuildGenerated(const std::string& spec, uint32_t target_kb = 8)
   return BuildStore(o, target_kb);
 }
 
+// A second reader of `s`'s store that reads blocks.bin past the page cache (--direct-io on);
+// null, with a test failure, when the filesystem refuses.
+inline std::unique_ptr<store::StoreReader> OpenDirect(const TestStore& s) {
+  Expected<std::unique_ptr<store::StoreReader>> direct = store::StoreReader::Open(s.reader->dir());
+  EXPECT_TRUE(direct.ok()) << direct.status().message();
+  if (!direct.ok()) return nullptr;
+  const Status d = (*direct)->UseDirectReads();
+  EXPECT_TRUE(d.ok()) << d.message();
+  if (!d.ok()) return nullptr;
+  return std::move(*direct);
+}
+
 // A store from OBJ text (written to a temp file first).
 inline TestStore BuildObj(const std::string& obj_text, uint32_t target_kb = 8) {
   Expected<TempDir> tmp = TempDir::Create();
