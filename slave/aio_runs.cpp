@@ -51,7 +51,7 @@ std::unique_ptr<AioRuns> AioRuns::Open(const store::StoreReader& store, DiskBloc
   aio_context_t context = 0;
   if (IoSetup(static_cast<unsigned>(depth), &context) != 0) {
     LOG_WARNING("loader", "%s/%s: no Linux AIO context for %d reads (%s); reading with threads",
-        store.dir().c_str(), store::kBlocksFile, depth, std::strerror(errno));
+                store.dir().c_str(), store::kBlocksFile, depth, std::strerror(errno));
     return nullptr;
   }
   return std::unique_ptr<AioRuns>(new AioRuns(store, disk, context, depth));

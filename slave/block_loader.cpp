@@ -33,7 +33,8 @@ BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, Blo
     // CPU work, and one thread alone fell behind the disk (the ray threads idled 0.5 s of a
     // 0.7 s frame on dragon x36).
     aio_runs_.resize(max_workers_);
-    const size_t threads = std::min<size_t>(max_workers_, std::max(1u, std::thread::hardware_concurrency()));
+    const size_t threads =
+        std::min<size_t>(max_workers_, std::max(1u, std::thread::hardware_concurrency()));
     for (size_t i = 0; i < threads; ++i)
       workers_.emplace_back([this] {
         SetThreadName("rs-aio");
@@ -226,7 +227,7 @@ void BlockLoader::WorkerLoop() {
 void BlockLoader::StartQueuedAio() {
   while (!aio_queue_.empty()) {
     const int slot = aio_->Start(aio_queue_.front().ids);
-    if (slot < 0) return;  // every slot in flight: the reaper starts the rest as reads end
+    if (slot < 0) return;  // every slot in flight: the AIO threads start the rest as reads end
     BusyBegin();
     aio_runs_[slot] = std::move(aio_queue_.front());
     aio_queue_.pop_front();

@@ -36,11 +36,11 @@ std::vector<uint32_t> Ids(BlockRun run) {
   return ids;
 }
 
+using Outcomes = std::map<size_t, std::pair<Status, std::vector<uint8_t>>>;
+
 // Reads `runs` with up to `depth` in flight; returns each run's outcome, by index.
-std::map<size_t, std::pair<Status, std::vector<uint8_t>>> ReadAll(AioRuns* aio,
-                                                                   const std::vector<BlockRun>& runs,
-                                                                   int depth, bool* filled) {
-  std::map<size_t, std::pair<Status, std::vector<uint8_t>>> out;
+Outcomes ReadAll(AioRuns* aio, const std::vector<BlockRun>& runs, int depth, bool* filled) {
+  Outcomes out;
   std::map<int, size_t> by_slot;
   size_t next = 0;
   std::vector<AioRuns::Finished> finished;
@@ -139,8 +139,8 @@ TEST(AioRuns, AFileCutShortWhileOpenIsAnErrorNamingItAndTheOffset) {
   const Status& status = got.at(0).first;
   ASSERT_FALSE(status.ok());
   // The place: where the file now ends, 10 bytes into the block.
-  EXPECT_NE(status.message().find("blocks.bin: direct read at offset " + std::to_string(offset + 10)),
-            std::string::npos)
+  const std::string where = "blocks.bin: direct read at offset " + std::to_string(offset + 10);
+  EXPECT_NE(status.message().find(where), std::string::npos)
       << status.message() << " (the block starts at " << offset << ")";
   EXPECT_NE(status.message().find("unexpected end of file"), std::string::npos) << status.message();
 }
