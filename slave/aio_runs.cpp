@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cstdlib>
 #include <cstring>
 
 #include "common/base/check.h"
@@ -27,21 +26,15 @@ long IoGetEvents(aio_context_t context, long min, long max, io_event* events, ti
   return ::syscall(SYS_io_getevents, context, min, max, events, timeout);
 }
 
-struct FreeAligned {
-  void operator()(uint8_t* p) const { std::free(p); }
-};
-
 }  // namespace
 
 struct AioRuns::Slot {
   int index = 0;
   iocb request{};
-  std::unique_ptr<uint8_t, FreeAligned> buffer;  // the aligned span around the run
-  uint64_t capacity = 0;
-  uint64_t skip = 0;    // the run's first byte in the span
-  uint64_t needed = 0;  // bytes the span must get: the file may end inside its last unit
-  uint64_t size = 0;    // the run's bytes
+  store::DirectBuffer buffer;  // the aligned span around the run
+  store::DirectSpan span;
   uint64_t offset = 0;  // the run's offset in blocks.bin
+  uint64_t size = 0;    // the run's bytes
   int64_t read = 0;     // DiskBlockSource's read number (fault injection)
 };
 
@@ -98,29 +91,16 @@ Status AioRuns::Submit(Slot* slot, std::span<const uint32_t> ids) {
   RAYSTACK_RETURN_IF_ERROR(disk_->BeginRead(ids, &slot->read));
   slot->offset = first.offset;
   slot->size = last.offset + last.stored_bytes - first.offset;
-  if (slot->offset > store_.blocks_file_bytes() ||
-      slot->size > store_.blocks_file_bytes() - slot->offset)
-    return Status::Error(StrFormat("%s/%s: read of %llu bytes at offset %llu is past the end",
-                                   store_.dir().c_str(), store::kBlocksFile,
-                                   static_cast<unsigned long long>(slot->size),
-                                   static_cast<unsigned long long>(slot->offset)));
-  const uint64_t begin = slot->offset / store::kDirectAlign * store::kDirectAlign;
-  const uint64_t end = (slot->offset + slot->size + store::kDirectAlign - 1) /
-                       store::kDirectAlign * store::kDirectAlign;
-  slot->skip = slot->offset - begin;
-  slot->needed = slot->skip + slot->size;
-  if (end - begin > slot->capacity) {
-    slot->buffer.reset(static_cast<uint8_t*>(std::aligned_alloc(store::kDirectAlign, end - begin)));
-    CHECK(slot->buffer != nullptr);
-    slot->capacity = end - begin;
-  }
+  RAYSTACK_RETURN_IF_ERROR(store_.CheckRange(slot->offset, slot->size));
+  slot->span = store::DirectSpanOf(slot->offset, slot->size);
+  const store::DirectSpan& d = slot->span;
   slot->request = iocb{};
   slot->request.aio_data = static_cast<uint64_t>(slot->index);
   slot->request.aio_lio_opcode = IOCB_CMD_PREAD;
   slot->request.aio_fildes = static_cast<uint32_t>(store_.direct_fd());
-  slot->request.aio_buf = reinterpret_cast<uint64_t>(slot->buffer.get());
-  slot->request.aio_nbytes = end - begin;
-  slot->request.aio_offset = static_cast<int64_t>(begin);
+  slot->request.aio_buf = reinterpret_cast<uint64_t>(slot->buffer.Reserve(d.end - d.begin));
+  slot->request.aio_nbytes = d.end - d.begin;
+  slot->request.aio_offset = static_cast<int64_t>(d.begin);
   iocb* requests[1] = {&slot->request};
   long submitted;
   do {
@@ -129,7 +109,7 @@ Status AioRuns::Submit(Slot* slot, std::span<const uint32_t> ids) {
   if (submitted != 1)
     return Status::Error(StrFormat("%s/%s: direct read at offset %llu could not start: %s",
                                    store_.dir().c_str(), store::kBlocksFile,
-                                   static_cast<unsigned long long>(begin),
+                                   static_cast<unsigned long long>(d.begin),
                                    submitted < 0 ? std::strerror(errno) : "not submitted"));
   return OkStatus();
 }
@@ -150,7 +130,7 @@ void AioRuns::Wait(int timeout_ms, int max, std::vector<Finished>* finished) {
   for (long i = 0; i < got; ++i) {
     Slot* slot = slots_[events[i].data].get();
     const int64_t result = events[i].res;
-    const std::span<uint8_t> bytes(slot->buffer.get() + slot->skip, slot->size);
+    const std::span<uint8_t> bytes(slot->buffer.data() + slot->span.skip, slot->size);
     if (result < 0) {
       finished->push_back(
           {slot->index,
@@ -161,7 +141,7 @@ void AioRuns::Wait(int timeout_ms, int max, std::vector<Finished>* finished) {
            {}});
       continue;
     }
-    if (static_cast<uint64_t>(result) < slot->needed) {
+    if (static_cast<uint64_t>(result) < slot->span.needed) {
       // A short read: the file ends early (cut while open), or the kernel stopped part way.
       // The blocking read finishes what it can and names the place where it cannot.
       if (Status s = store_.ReadRange(slot->offset, slot->size, bytes.data()); !s.ok()) {

@@ -37,7 +37,8 @@ struct RenderStats {
   uint64_t block_count = 0;      // in the store
   uint64_t bytes_read = 0;       // stored bytes read from the block source
   uint64_t reads = 0;            // read requests (runs of neighbouring blocks)
-  uint64_t io_workers = 0;       // the loader's I/O threads started (as reads piled up; with AIO, its decoding threads)
+  // The loader's I/O threads started (as reads piled up); with AIO, its decoding threads.
+  uint64_t io_workers = 0;
   bool direct_reads = false;     // blocks.bin read past the page cache (--direct-io)
   bool aio_reads = false;        // the loader kept those reads in flight with Linux AIO
   uint64_t block_visits = 0;

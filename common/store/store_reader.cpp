@@ -16,28 +16,19 @@
 #include "common/base/log.h"
 
 namespace raystack::store {
-namespace {
 
-// Where a direct read lands: the aligned span around the range asked for. One per thread,
-// grown to the largest run it has read, so reads do not allocate.
-class DirectBuffer {
- public:
-  uint8_t* Reserve(uint64_t bytes) {
-    if (bytes > capacity_) {
-      data_.reset(static_cast<uint8_t*>(std::aligned_alloc(kDirectAlign, bytes)));
-      CHECK(data_ != nullptr);
-      capacity_ = bytes;
-    }
-    return data_.get();
+uint8_t* DirectBuffer::Reserve(uint64_t bytes) {
+  if (bytes > capacity_) {
+    data_.reset(static_cast<uint8_t*>(std::aligned_alloc(kDirectAlign, bytes)));
+    CHECK(data_ != nullptr);
+    capacity_ = bytes;
   }
+  return data_.get();
+}
 
- private:
-  struct Free {
-    void operator()(uint8_t* p) const { std::free(p); }
-  };
-  std::unique_ptr<uint8_t, Free> data_;
-  uint64_t capacity_ = 0;
-};
+void DirectBuffer::Free::operator()(uint8_t* p) const { std::free(p); }
+
+namespace {
 
 // Reads a whole small file (index or octree), checks its FileHeader and body checksum.
 Status ReadChecked(const std::string& path, const char (&magic)[8], std::vector<uint8_t>* body) {
@@ -313,11 +304,16 @@ Status StoreReader::ReadStored(uint32_t id, std::vector<uint8_t>* stored) const 
   return OkStatus();
 }
 
-Status StoreReader::ReadRange(uint64_t offset, uint64_t size, uint8_t* out) const {
+Status StoreReader::CheckRange(uint64_t offset, uint64_t size) const {
   if (offset > blocks_file_bytes_ || size > blocks_file_bytes_ - offset)
     return Status::Error(StrFormat("%s/blocks.bin: read of %llu bytes at offset %llu is past the end",
                                    dir_.c_str(), static_cast<unsigned long long>(size),
                                    static_cast<unsigned long long>(offset)));
+  return OkStatus();
+}
+
+Status StoreReader::ReadRange(uint64_t offset, uint64_t size, uint8_t* out) const {
+  RAYSTACK_RETURN_IF_ERROR(CheckRange(offset, size));
   if (direct_fd_ >= 0) return ReadRangeDirect(offset, size, out);
   uint64_t done = 0;
   while (done < size) {
@@ -335,26 +331,25 @@ Status StoreReader::ReadRange(uint64_t offset, uint64_t size, uint8_t* out) cons
 Status StoreReader::ReadRangeDirect(uint64_t offset, uint64_t size, uint8_t* out) const {
   // The aligned span around the range is read, and the range copied out of it: a copy the
   // buffered path makes too (from the page cache), without its insertion and reclaim.
-  const uint64_t begin = offset / kDirectAlign * kDirectAlign;
-  const uint64_t end = (offset + size + kDirectAlign - 1) / kDirectAlign * kDirectAlign;
-  const uint64_t needed = offset + size - begin;  // the file may end inside the last unit
+  const DirectSpan d = DirectSpanOf(offset, size);
   thread_local DirectBuffer buffer;
-  uint8_t* span = buffer.Reserve(end - begin);
+  uint8_t* span = buffer.Reserve(d.end - d.begin);
   uint64_t done = 0;
-  while (done < needed) {
-    const ssize_t n =
-        ::pread(direct_fd_, span + done, end - begin - done, static_cast<off_t>(begin + done));
+  while (done < d.needed) {
+    const ssize_t n = ::pread(direct_fd_, span + done, d.end - d.begin - done,
+                              static_cast<off_t>(d.begin + done));
     if (n < 0 && errno == EINTR) continue;
     // A read that stops inside an aligned unit met the end of the file (the next direct read
     // from there would only be refused as unaligned).
-    if (n <= 0 || (static_cast<uint64_t>(n) % kDirectAlign != 0 && done + n < needed))
+    const uint64_t got = n > 0 ? static_cast<uint64_t>(n) : 0;
+    if (n <= 0 || (got % kDirectAlign != 0 && done + got < d.needed))
       return Status::Error(StrFormat("%s/%s: direct read at offset %llu failed: %s", dir_.c_str(),
                                      kBlocksFile,
-                                     static_cast<unsigned long long>(begin + done + std::max<ssize_t>(n, 0)),
+                                     static_cast<unsigned long long>(d.begin + done + got),
                                      n < 0 ? std::strerror(errno) : "unexpected end of file"));
-    done += static_cast<uint64_t>(n);
+    done += got;
   }
-  std::memcpy(out, span + (offset - begin), size);
+  std::memcpy(out, span + d.skip, size);
   return OkStatus();
 }
 

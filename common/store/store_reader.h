@@ -21,6 +21,36 @@ namespace raystack::store {
 // block size; 4096 covers every common device (512-byte ones too).
 inline constexpr uint64_t kDirectAlign = 4096;
 
+// What a direct read of [offset, offset + size) reads: the aligned span around it.
+struct DirectSpan {
+  uint64_t begin = 0, end = 0;  // aligned
+  uint64_t skip = 0;            // the range's first byte in the span
+  uint64_t needed = 0;          // bytes the span must get: the file may end inside its last unit
+};
+inline DirectSpan DirectSpanOf(uint64_t offset, uint64_t size) {
+  DirectSpan s;
+  s.begin = offset / kDirectAlign * kDirectAlign;
+  s.end = (offset + size + kDirectAlign - 1) / kDirectAlign * kDirectAlign;
+  s.skip = offset - s.begin;
+  s.needed = s.skip + size;
+  return s;
+}
+
+// Where a direct read lands: aligned memory, grown to the largest span asked for, so reads
+// do not allocate once it has grown.
+class DirectBuffer {
+ public:
+  uint8_t* Reserve(uint64_t bytes);
+  uint8_t* data() { return data_.get(); }
+
+ private:
+  struct Free {
+    void operator()(uint8_t* p) const;
+  };
+  std::unique_ptr<uint8_t, Free> data_;
+  uint64_t capacity_ = 0;
+};
+
 class StoreReader {
  public:
   // Opens the store in directory `dir`, verifying headers, versions, checksums and the octree.
@@ -41,6 +71,8 @@ class StoreReader {
   // Reads `size` bytes of blocks.bin at `offset` (a loader reading a run of neighbouring blocks
   // in one request). Errors name the file and offset. Thread-safe.
   Status ReadRange(uint64_t offset, uint64_t size, uint8_t* out) const;
+  // The error ReadRange gives for a range past the end of blocks.bin, else ok.
+  Status CheckRange(uint64_t offset, uint64_t size) const;
   // From now on ReadRange reads past the page cache (O_DIRECT). For a store larger than the
   // memory the page cache could keep, the kernel's copy of each block is only a cost: it is
   // inserted, copied out, and reclaimed soon after (under a cgroup memory limit, by the
