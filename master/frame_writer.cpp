@@ -1,5 +1,8 @@
 #include "master/frame_writer.h"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <cstdio>
 
 #include "common/base/thread_name.h"
@@ -49,7 +52,12 @@ void FrameWriter::Loop() {
     writing_ = true;
     cv_.notify_all();  // a Write waiting for room may queue the next one
     lock.unlock();
-    Status s = image::WriteExr(image.exr, image.layers);
+    // Linux applies a thread id's priority to that thread alone. Unprivileged, the priority
+    // cannot be raised back, hence "for good"; a refusal only leaves it where it was.
+    if (image.background) (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 19);
+    Status s = image::WriteExr(image.exr, image.layers,
+                               image.background ? image::ExrThreads::kCallingThread
+                                                : image::ExrThreads::kAllCores);
     if (s.ok() && !image.png.empty()) s = image::WritePng(image.png, image.layers, image.exposure);
     if (s.ok() && announce_) std::printf("  wrote %s\n", image.exr.c_str());
     lock.lock();

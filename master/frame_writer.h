@@ -4,6 +4,13 @@
 // thread between frames, a 960x540 EXR took ~0.4 s in which every slave waited for its first
 // tile of the next frame: half a frame at 8 slaves. At most one image waits while another is
 // written (Write waits for room), so a slow disk slows the job rather than fill memory.
+//
+// An image written while later frames render (`background`) is compressed on the writer's
+// thread alone, and that thread then runs at the lowest priority (nice 19) for good: it takes
+// the cores the render leaves idle instead of taking them from the render. On a 2-core machine
+// with 8 slaves at 20% of a core, the compression of a 1920x1080 frame (0.58 CPU-s on both
+// cores) otherwise slowed the next frame by ~6% (tools/bench/RESULTS.md). The last frame, which
+// the user waits for, is compressed on every core; by then nothing else runs.
 
 #include <condition_variable>
 #include <mutex>
@@ -22,6 +29,7 @@ class FrameWriter {
     std::string exr;
     std::string png;  // empty: no PNG
     float exposure = 0;
+    bool background = false;  // later frames render while it is written
     image::ImageLayers layers;
   };
   // announce: print "  wrote PATH" once an EXR is written.

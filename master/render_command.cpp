@@ -347,6 +347,7 @@ Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, s
   image.exr = FramePath(output, f, frames, ".exr");
   if (args.png) image.png = FramePath(output, f, frames, ".png");
   image.exposure = args.exposure;
+  image.background = f + 1 < frames;  // the next frame renders while it is written
   image.layers = std::move(layers);
   if (film.nonfinite_dropped() > 0)
     LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",

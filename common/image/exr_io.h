@@ -17,7 +17,12 @@ namespace raystack::image {
 // file in the same folder then rename, so a reader never sees half a file. Errors name the path.
 // rgba is required; any other layer may be empty, and its channels are then left out. A layer
 // that is neither empty nor exactly the image's size is an error.
-Status WriteExr(const std::string& path, const ImageLayers& image);
+// Chunks are compressed on every core (kAllCores, for a file the user waits for) or on the
+// calling thread alone (kCallingThread, for one written while rendering goes on); the file is
+// byte for byte the same.
+enum class ExrThreads { kAllCores, kCallingThread };
+Status WriteExr(const std::string& path, const ImageLayers& image,
+                ExrThreads threads = ExrThreads::kAllCores);
 
 // Reads a file written by WriteExr (or any EXR with at least R G B; missing layers left empty;
 // a missing A reads as 1). Errors name the path (missing file, not an EXR, truncated). A header

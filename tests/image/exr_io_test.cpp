@@ -90,6 +90,27 @@ TEST(ExrIo, RoundTripIsBitExactForEveryLayer) {
   EXPECT_EQ(EntryCount(dir.path()), 1u);  // no temporaries left behind
 }
 
+std::string FileBytes(const std::string& path) {
+  std::string bytes(static_cast<size_t>(fs::file_size(path)), '\0');
+  std::ifstream(path, std::ios::binary).read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  return bytes;
+}
+
+// A frame written while the next renders uses the calling thread alone: the file must not
+// depend on it. Tall enough for many ZIP chunks (16 rows each), so the pool has work to share.
+TEST(ExrIo, EveryCoreAndTheCallingThreadWriteTheSameBytes) {
+  TempDir dir = TempDir::Create().value();
+  const ImageLayers image = TestImage(64, 200, 7);
+  ASSERT_TRUE(WriteExr(dir.File("all.exr"), image, ExrThreads::kAllCores).ok());
+  ASSERT_TRUE(WriteExr(dir.File("one.exr"), image, ExrThreads::kCallingThread).ok());
+  const std::string all = FileBytes(dir.File("all.exr"));
+  EXPECT_GT(all.size(), 1000u);
+  EXPECT_TRUE(all == FileBytes(dir.File("one.exr")));
+  Expected<ImageLayers> read = ReadExr(dir.File("one.exr"));
+  ASSERT_TRUE(read.ok());
+  ExpectBitEqual(image, *read);
+}
+
 TEST(ExrIo, OnlyRgbaWritesAndReadsBackTheOthersEmpty) {
   TempDir dir = TempDir::Create().value();
   ImageLayers image = TestImage(8, 4, 1);

@@ -1,9 +1,15 @@
 // The master's frame writer: images queued while the next frame renders are all written, in
-// order, before Finish returns or the writer ends; a failed write is reported, not lost.
+// order, before Finish returns or the writer ends; a failed write is reported, not lost; a frame
+// written while others render leaves the cores to them.
 
 #include "master/frame_writer.h"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 
 #include "common/base/temp_dir.h"
 #include "common/image/exr_io.h"
@@ -55,6 +61,44 @@ TEST(FrameWriter, WhatIsQueuedIsWrittenWhenTheWriterEnds) {
   }
   EXPECT_TRUE(image::ReadExr(dir->File("a.exr")).ok());
   EXPECT_TRUE(image::ReadExr(dir->File("b.exr")).ok());
+}
+
+// The nice value of this process's thread named `name` (the first found), or -100 if none.
+int NiceOfThread(const std::string& name) {
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream comm(task.path() / "comm");
+    std::string thread_name;
+    std::getline(comm, thread_name);
+    if (thread_name != name) continue;
+    std::ifstream stat(task.path() / "stat");
+    std::string line;
+    std::getline(stat, line);
+    // Fields after the command, which is in parentheses: state is field 3, nice field 19.
+    std::istringstream fields(line.substr(line.rfind(')') + 2));
+    std::string field;
+    for (int i = 3; i <= 19; ++i) fields >> field;
+    return std::stoi(field);
+  }
+  return -100;
+}
+
+TEST(FrameWriter, AFrameWrittenWhileOthersRenderLeavesThemTheCores) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  const int own = getpriority(PRIO_PROCESS, 0);
+  master::FrameWriter writer(false);
+  ASSERT_TRUE(writer.Write(ImageAt(dir->File("last.exr"), 1)).ok());
+  ASSERT_TRUE(writer.Finish().ok());
+  EXPECT_EQ(NiceOfThread("rs-write"), own);  // a last frame: written at the job's priority
+  master::FrameWriter::Image background = ImageAt(dir->File("f0.exr"), 2);
+  background.background = true;
+  ASSERT_TRUE(writer.Write(std::move(background)).ok());
+  ASSERT_TRUE(writer.Finish().ok());
+  EXPECT_EQ(NiceOfThread("rs-write"), 19);
+  Expected<image::ImageLayers> read = image::ReadExr(dir->File("f0.exr"));
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  EXPECT_EQ(read->rgba[0], 2.0f);
+  EXPECT_EQ(getpriority(PRIO_PROCESS, 0), own);  // the other threads keep theirs
 }
 
 TEST(FrameWriter, AFailedWriteIsReportedNamingTheFile) {
