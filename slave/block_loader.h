@@ -110,7 +110,8 @@ class BlockLoader {
   double cpu_seconds_ = 0;
 
   // Direct reads (when the source offers them, slave/aio_runs.h): the loader thread starts
-  // them and one reaper thread, the only worker, waits for them and decodes the blocks.
+  // them, and the workers (one per core, at most io_threads) wait for them and decode the
+  // blocks.
   std::unique_ptr<AioRuns> aio_;
   std::mutex aio_mu_;
   std::condition_variable aio_cv_;  // a read started, or stop
