@@ -9,8 +9,11 @@
 # slaves' CPU time (whole processes, and their ray and loader threads) against N = 1's. SLAVES
 # (default "1 2 4 8") picks the cluster sizes; rem skips 1. REPEATS (default 3) runs the whole
 # set that many times, interleaved, so a noisy moment hits every configuration alike: frame
-# seconds (and T_1 in the efficiencies) are medians over the repeats, the other columns come
-# from the run with the median first frame.
+# seconds are medians over the repeats, the other columns come from the run with the median
+# first frame. Each efficiency is the median of the repeats' own efficiencies, each against
+# the T_1 of the same repeat (run minutes apart at most): this VM's speed drifts by up to
+# +-15% over a bench, and a T_1 from one moment against a T_N from another carries that drift
+# into the efficiency.
 #
 #   tools/bench/cluster_bench.sh [SCENE] [CACHE_MB] [QUOTA] [LATENCY_US]
 set -euo pipefail
@@ -45,7 +48,7 @@ for r in $(seq 1 "$repeats"); do
     set -- $blocks_lat
     for n in $slave_counts; do
       if [ "$1" = rem ] && [ "$n" = 1 ]; then continue; fi  # one slave cannot hold the model
-      results+=("$1 $2 $n $(run "$n" "$1" "$2" "$r")")
+      results+=("$1 $2 $n $r $(run "$n" "$1" "$2" "$r")")
     done
   done
 done
@@ -53,9 +56,22 @@ python3 - "$quota" "$cache_mb" "${results[@]}" <<'PY'
 import json, statistics, sys
 quota, cache = sys.argv[1], sys.argv[2]
 rows = [r.split() for r in sys.argv[3:]]
-runs = {}
-for blocks, lat, n, path in rows:
-    runs.setdefault((blocks, lat, int(n)), []).append(json.load(open(path)))
+runs = {}     # per configuration: every repeat's frames
+by_round = {}  # per configuration and repeat: that repeat's frames
+for blocks, lat, n, r, path in rows:
+    frames = json.load(open(path))
+    runs.setdefault((blocks, lat, int(n)), []).append(frames)
+    by_round[(blocks, lat, int(n), r)] = frames
+def efficiency(blocks, lat, n, f):
+    """Median over the repeats of T_1 / (N T_N), each repeat against its own T_1."""
+    per_round = []
+    for (b, l, k, r), frames in by_round.items():
+        if (b, l, k) != (blocks, lat, n):
+            continue
+        base = by_round.get(("loc", lat, 1, r)) or by_round.get(("loc", "0", 1, r))
+        if base:
+            per_round.append(base[f]["seconds"] / (n * frames[f]["seconds"]))
+    return (statistics.median(per_round), per_round) if per_round else (None, [])
 data = {}  # per configuration: the run with the median first frame, seconds the medians
 for key, all_runs in runs.items():
     by_first = sorted(all_runs, key=lambda frames: frames[0]["seconds"])
@@ -68,12 +84,14 @@ repeats = max(len(v) for v in runs.values())
 print(f"each slave: {quota}% of a core, 1 ray thread, {cache} MB block cache; seconds on the master's clock, "
       f"medians of {repeats} interleaved runs (each run's seconds in brackets)")
 print()
-print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN) | utilisation | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers | peer requests / runs (mean wait ms) | slaves' CPU s: process (ray, loader) | CPU / N=1's |")
+print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN), per repeat | utilisation | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers | peer requests / runs (mean wait ms) | slaves' CPU s: process (ray, loader) | CPU / N=1's |")
 print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 for (blocks, lat, n), frames in sorted(data.items(), key=lambda kv: (kv[0][0], int(kv[0][1]), kv[0][2])):
     base = data.get(("loc", lat, 1)) or data.get(("loc", "0", 1))
     for f, fr in enumerate(frames):
-        eff = f"{base[f]['seconds'] / (n * fr['seconds']):.2f}" if base else "-"
+        eff_median, eff_rounds = efficiency(blocks, lat, n, f)
+        eff = (f"{eff_median:.2f} ({', '.join(f'{e:.2f}' for e in eff_rounds)})"
+               if eff_median is not None else "-")
         fetches = sum(s["fetches"] for s in fr["slaves"])
         wait = sum(s["fetch_wait_seconds"] for s in fr["slaves"])
         runs = sum(s.get("fetch_runs", s["fetches"]) for s in fr["slaves"])
