@@ -12,6 +12,9 @@
 namespace raystack::master {
 
 FrameWriter::FrameWriter(bool announce) : announce_(announce) {
+  // From here, not from the writer's thread, which drops to nice 19 for background images:
+  // the last frame's all-core compression runs at the job's priority.
+  image::StartExrThreads();
   thread_ = std::thread([this] {
     SetThreadName("rs-write");
     Loop();
@@ -34,6 +37,11 @@ Status FrameWriter::Write(Image image) {
   queued_ = std::move(image);
   cv_.notify_all();
   return OkStatus();
+}
+
+bool FrameWriter::HasRoom() {
+  std::lock_guard lock(mu_);
+  return !queued_;
 }
 
 Status FrameWriter::Finish() {
@@ -59,10 +67,11 @@ void FrameWriter::Loop() {
                                image.background ? image::ExrThreads::kCallingThread
                                                 : image::ExrThreads::kAllCores);
     if (s.ok() && !image.png.empty()) s = image::WritePng(image.png, image.layers, image.exposure);
-    if (s.ok() && announce_) std::printf("  wrote %s\n", image.exr.c_str());
+    if (image.done) image.done(s);
+    else if (s.ok() && announce_) std::printf("  wrote %s\n", image.exr.c_str());
     lock.lock();
     writing_ = false;
-    if (error_.ok()) error_ = s;
+    if (error_.ok() && !image.done) error_ = s;
     cv_.notify_all();
   }
 }

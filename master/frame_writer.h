@@ -11,8 +11,13 @@
 // with 8 slaves at 20% of a core, the compression of a 1920x1080 frame (0.58 CPU-s on both
 // cores) otherwise slowed the next frame by ~6% (tools/bench/RESULTS.md). The last frame, which
 // the user waits for, is compressed on every core; by then nothing else runs.
+//
+// Checkpoints (master/checkpoints.h) go through the same queue, so a frame's checkpoints are
+// always written before its final image, which replaces them at the same path. Only one thread
+// queues images.
 
 #include <condition_variable>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -31,6 +36,10 @@ class FrameWriter {
     float exposure = 0;
     bool background = false;  // later frames render while it is written
     image::ImageLayers layers;
+    // Set for a checkpoint: called on the writer's thread with the write's result, which then
+    // is not the writer's error (a failed checkpoint is retried, never the end of the job),
+    // and nothing is announced.
+    std::function<void(const Status&)> done;
   };
   // announce: print "  wrote PATH" once an EXR is written.
   explicit FrameWriter(bool announce);
@@ -42,6 +51,8 @@ class FrameWriter {
   // Queues `image` once the writer has taken the one before it; the first failed write so
   // far, if any (then `image` is not queued).
   Status Write(Image image);
+  // Whether Write would queue an image at once (nothing is waiting to be taken).
+  bool HasRoom();
   // Waits until everything queued is written; the first failed write, if any.
   Status Finish();
 

@@ -2,7 +2,6 @@
 
 #include <atomic>
 #include <charconv>
-#include <csignal>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -22,6 +21,7 @@
 #include "common/render/scene.h"
 #include "common/store/store_reader.h"
 #include "common/mpi/mpi_transport.h"
+#include "master/checkpoints.h"
 #include "master/convergence_monitor.h"
 #include "master/frame_writer.h"
 #include "master/master_node.h"
@@ -55,8 +55,9 @@ options:
   --tile-ahead P            under mpirun, a slave thread asks for its next two tiles once
                             this fraction of its current one is done (default 0: at once)
   --batch N                 samples per pixel batch a slave sends (default 1024)
-  --checkpoint-s S          write the EXR every S seconds while rendering (atomically: a
-                            temporary file, then a rename; default 0: only at the end); a
+  --checkpoint-s S          write the EXR every S seconds while rendering (default 0: only
+                            at the end), on a thread of its own at low priority while the
+                            render goes on, atomically (a temporary file, then a rename); a
                             failed checkpoint is logged and tried again, never fatal
   --resume                  continue from the output EXR a killed run left (its last
                             checkpoint): tiles it holds finished are kept, the others are
@@ -450,41 +451,6 @@ Status ResumeInto(const Args& args, const render::Scene& scene, size_t f,
   return OkStatus();
 }
 
-// Writes the film to the frame's EXR every `every_s` seconds while it renders (atomically, so
-// a reader never sees half a file and a crash leaves the last checkpoint).
-class Checkpoints {
- public:
-  // Fault injection: `kill_after` (> 0): the process kills itself with SIGKILL right after
-  // its `kill_after`-th checkpoint, as a crash of the whole job would; the first `fail_first`
-  // writes fail as on a full disk.
-  Checkpoints(double every_s, std::string path, int64_t kill_after = -1, int64_t fail_first = 0)
-      : every_s_(every_s), path_(std::move(path)), kill_after_(kill_after), fail_first_(fail_first) {}
-  void Maybe(const render::Film& film) {
-    if (every_s_ <= 0) return;
-    const auto now = std::chrono::steady_clock::now();
-    if (std::chrono::duration<double>(now - last_).count() < every_s_) return;
-    last_ = now;
-    const Status s = attempts_++ < fail_first_
-                         ? Status::Error(path_ + ": cannot write (--fault-fail-checkpoints)")
-                         : image::WriteExr(path_, film.Resolve());
-    if (!s.ok()) {  // tried again at the next one
-      LOG_WARNING("render", "checkpoint: %s", s.message().c_str());
-      return;
-    }
-    if (++written_ == kill_after_) {
-      LOG_WARNING("render", "killing the job after checkpoint %lld (--fault-kill-after-checkpoints)",
-                  static_cast<long long>(written_));
-      std::raise(SIGKILL);
-    }
-  }
-
- private:
-  double every_s_;
-  std::string path_;
-  int64_t kill_after_, fail_first_, written_ = 0, attempts_ = 0;
-  std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
-};
-
 // The frame plan's tiles, as PlanTileSource, remembering which were handed out (the live
 // preview shows the ones still in flight).
 class WatchedTileSource final : public slave::TileSource {
@@ -561,7 +527,7 @@ Status Run(const Args& args) {
         status = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
         finished.store(true);
       });
-      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
+      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"), &writer,
                               args.kill_after_checkpoints, args.fail_checkpoints);
       uint64_t shown = 0;
       // Polled at least as often as the convergence log asks for rows.
@@ -682,7 +648,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
       uint64_t shown = 0;
-      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
+      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"), &writer,
                               args.kill_after_checkpoints, args.fail_checkpoints);
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
                           scene.integrator.spp);

@@ -111,6 +111,8 @@ int WriterThreads() {
 
 }  // namespace
 
+void StartExrThreads() { (void)WriterThreads(); }
+
 Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads threads) {
   if (image.width < 1 || image.height < 1)
     return Status::Error(path + ": cannot write an empty image (" + std::to_string(image.width) +

@@ -23,6 +23,11 @@ namespace raystack::image {
 enum class ExrThreads { kAllCores, kCallingThread };
 Status WriteExr(const std::string& path, const ImageLayers& image,
                 ExrThreads threads = ExrThreads::kAllCores);
+// Starts the threads of kAllCores writes now, from the calling thread, whose name and priority
+// they inherit (Linux threads inherit both); otherwise the first such write starts them. A
+// writer thread that lowers its own priority calls this first, so its later all-core writes
+// are not made at that priority.
+void StartExrThreads();
 
 // Reads a file written by WriteExr (or any EXR with at least R G B; missing layers left empty;
 // a missing A reads as 1). Errors name the path (missing file, not an EXR, truncated). A header

@@ -1,0 +1,44 @@
+#include "master/checkpoints.h"
+
+#include <chrono>
+#include <csignal>
+
+#include "common/base/log.h"
+
+namespace raystack::master {
+
+Checkpoints::Checkpoints(double every_s, std::string path, FrameWriter* writer,
+                         int64_t kill_after, int64_t fail_first)
+    : every_s_(every_s), path_(std::move(path)), writer_(writer), fail_first_(fail_first),
+      written_(std::make_shared<Written>(Written{kill_after})) {}
+
+void Checkpoints::Maybe(const render::Film& film) {
+  if (every_s_ <= 0) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (std::chrono::duration<double>(now - last_).count() < every_s_) return;
+  if (!writer_->HasRoom()) return;  // the writer is behind: at the next call
+  last_ = now;
+  if (attempts_++ < fail_first_) {  // tried again at the next interval
+    LOG_WARNING("render", "checkpoint: %s: cannot write (--fault-fail-checkpoints)", path_.c_str());
+    return;
+  }
+  FrameWriter::Image image;
+  image.exr = path_;
+  image.background = true;  // the frame goes on rendering
+  image.layers = film.Resolve();
+  image.done = [written = written_](const Status& s) {
+    if (!s.ok()) {  // tried again at the next interval
+      LOG_WARNING("render", "checkpoint: %s", s.message().c_str());
+      return;
+    }
+    if (++written->count == written->kill_after) {
+      LOG_WARNING("render", "killing the job after checkpoint %lld (--fault-kill-after-checkpoints)",
+                  static_cast<long long>(written->count));
+      std::raise(SIGKILL);
+    }
+  };
+  // Not refused: only a failed frame image sets the writer's error, and that ends the job.
+  (void)writer_->Write(std::move(image));
+}
+
+}  // namespace raystack::master

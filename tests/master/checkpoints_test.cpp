@@ -1,0 +1,152 @@
+// --checkpoint-s: a checkpoint is resolved on the master's loop and written by the frame
+// writer, so the loop never waits for the disk; it never waits for room in the writer either
+// (a checkpoint that cannot be queued is tried at the next call); it is always written before
+// the frame's final image at the same path; and a failed one is not the job's error.
+
+#include "master/checkpoints.h"
+
+#include <gtest/gtest.h>
+
+#include <condition_variable>
+#include <filesystem>
+#include <mutex>
+#include <thread>
+
+#include "common/base/temp_dir.h"
+#include "common/image/exr_io.h"
+#include "common/render/film.h"
+
+namespace raystack::testing {
+namespace {
+
+// A 4x2 film whose pixel 0 has one sample of radiance `value`.
+void Fill(render::Film* film, float value) {
+  film->Clear();
+  render::SampleResult s{};
+  s.pixel = 0;
+  s.rgb[0] = s.rgb[1] = s.rgb[2] = value;
+  s.hit = 1;
+  film->Merge({&s, 1});
+}
+
+master::FrameWriter::Image Flat(const std::string& exr, float value) {
+  master::FrameWriter::Image i;
+  i.exr = exr;
+  i.layers.width = 4;
+  i.layers.height = 2;
+  i.layers.rgba.assign(4 * 2 * 4, value);
+  return i;
+}
+
+// Holds the writer's thread inside an image's `done` until Release.
+class Gate {
+ public:
+  master::FrameWriter::Image Holding(master::FrameWriter::Image image) {
+    image.done = [this](const Status&) {
+      std::unique_lock lock(mu_);
+      entered_ = true;
+      cv_.notify_all();
+      cv_.wait(lock, [&] { return open_; });
+    };
+    return image;
+  }
+  void WaitEntered() {
+    std::unique_lock lock(mu_);
+    cv_.wait(lock, [&] { return entered_; });
+  }
+  void Release() {
+    std::lock_guard lock(mu_);
+    open_ = true;
+    cv_.notify_all();
+  }
+
+ private:
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool entered_ = false, open_ = false;
+};
+
+// Calls Maybe once a checkpoint of `every_s` is due.
+void MaybeWhenDue(master::Checkpoints* checkpoints, const render::Film& film, double every_s) {
+  std::this_thread::sleep_for(std::chrono::duration<double>(every_s * 1.5));
+  checkpoints->Maybe(film);
+}
+
+TEST(Checkpoints, AreWrittenByTheWriterWhileTheLoopGoesOn) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  render::Film film(4, 2);
+  Fill(&film, 5);
+  master::FrameWriter writer(false);
+  Gate gate;
+  ASSERT_TRUE(writer.Write(gate.Holding(Flat(dir->File("earlier.exr"), 1))).ok());
+  gate.WaitEntered();  // the writer is busy (a slow disk)
+  const std::string path = dir->File("frame.exr");
+  master::Checkpoints checkpoints(0.01, path, &writer);
+  MaybeWhenDue(&checkpoints, film, 0.01);  // returns at once: queued, not written
+  EXPECT_FALSE(std::filesystem::exists(path));
+  gate.Release();
+  ASSERT_TRUE(writer.Finish().ok());
+  Expected<image::ImageLayers> read = image::ReadExr(path);
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  EXPECT_EQ(read->rgba[0], 5.0f);
+}
+
+TEST(Checkpoints, WaitForNoRoomButAreTriedAtTheNextCall) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  render::Film film(4, 2);
+  Fill(&film, 7);
+  master::FrameWriter writer(false);
+  Gate gate;
+  ASSERT_TRUE(writer.Write(gate.Holding(Flat(dir->File("a.exr"), 1))).ok());
+  gate.WaitEntered();
+  ASSERT_TRUE(writer.Write(Flat(dir->File("b.exr"), 2)).ok());  // queued: no room left
+  const std::string path = dir->File("frame.exr");
+  master::Checkpoints checkpoints(0.01, path, &writer);
+  MaybeWhenDue(&checkpoints, film, 0.01);  // would hang here if it waited for room
+  gate.Release();
+  ASSERT_TRUE(writer.Finish().ok());
+  EXPECT_FALSE(std::filesystem::exists(path)) << "skipped, the writer had no room";
+  checkpoints.Maybe(film);  // still due: written now
+  ASSERT_TRUE(writer.Finish().ok());
+  Expected<image::ImageLayers> read = image::ReadExr(path);
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  EXPECT_EQ(read->rgba[0], 7.0f);
+}
+
+TEST(Checkpoints, TheFramesFinalImageReplacesItsCheckpoints) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  render::Film film(4, 2);
+  master::FrameWriter writer(false);
+  const std::string path = dir->File("frame.exr");
+  {
+    master::Checkpoints checkpoints(0.005, path, &writer);
+    for (int i = 1; i <= 5; ++i) {
+      Fill(&film, static_cast<float>(i));
+      MaybeWhenDue(&checkpoints, film, 0.005);
+    }
+  }  // the frame ends with its checkpoints perhaps still queued
+  ASSERT_TRUE(writer.Write(Flat(path, 9)).ok());
+  ASSERT_TRUE(writer.Finish().ok());
+  Expected<image::ImageLayers> read = image::ReadExr(path);
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  EXPECT_EQ(read->rgba[0], 9.0f);
+}
+
+TEST(Checkpoints, AFailedOneIsNotTheJobsError) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  render::Film film(4, 2);
+  Fill(&film, 1);
+  master::FrameWriter writer(false);
+  master::Checkpoints checkpoints(0.01, dir->File("no-such-folder/frame.exr"), &writer);
+  MaybeWhenDue(&checkpoints, film, 0.01);
+  EXPECT_TRUE(writer.Finish().ok());
+  EXPECT_TRUE(writer.Write(Flat(dir->File("final.exr"), 1)).ok());
+  EXPECT_TRUE(writer.Finish().ok());
+}
+
+}  // namespace
+}  // namespace raystack::testing
