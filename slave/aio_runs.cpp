@@ -86,11 +86,10 @@ int AioRuns::Start(std::span<const uint32_t> ids) {
 }
 
 Status AioRuns::Submit(Slot* slot, std::span<const uint32_t> ids) {
-  const store::BlockEntry& first = store_.blocks()[ids.front()];
-  const store::BlockEntry& last = store_.blocks()[ids.back()];
   RAYSTACK_RETURN_IF_ERROR(disk_->BeginRead(ids, &slot->read));
-  slot->offset = first.offset;
-  slot->size = last.offset + last.stored_bytes - first.offset;
+  const store::StoreReader::Extent run = store_.RunExtent(ids.front(), ids.back());
+  slot->offset = run.offset;
+  slot->size = run.size;
   RAYSTACK_RETURN_IF_ERROR(store_.CheckRange(slot->offset, slot->size));
   slot->span = store::DirectSpanOf(slot->offset, slot->size);
   const store::DirectSpan& d = slot->span;

@@ -23,17 +23,14 @@ void DiskBlockSource::EndRead(int64_t k, std::span<uint8_t> bytes) {
 }
 
 Status DiskBlockSource::ReadRun(std::span<const uint32_t> ids, std::vector<uint8_t>* bytes) {
-  const auto entries = store_.blocks();
-  const store::BlockEntry& first = entries[ids.front()];
-  const store::BlockEntry& last = entries[ids.back()];
-  const uint64_t size = last.offset + last.stored_bytes - first.offset;
+  const store::StoreReader::Extent run = store_.RunExtent(ids.front(), ids.back());
   int64_t k;
   const Status begun = BeginRead(ids, &k);
   if (faults_.io_latency_us > 0)
     std::this_thread::sleep_for(std::chrono::microseconds(faults_.io_latency_us));
   RAYSTACK_RETURN_IF_ERROR(begun);
-  bytes->resize(size);
-  RAYSTACK_RETURN_IF_ERROR(store_.ReadRange(first.offset, size, bytes->data()));
+  bytes->resize(run.size);
+  RAYSTACK_RETURN_IF_ERROR(store_.ReadRange(run.offset, run.size, bytes->data()));
   EndRead(k, *bytes);
   return OkStatus();
 }

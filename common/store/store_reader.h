@@ -68,6 +68,15 @@ class StoreReader {
   Bounds3f model_bounds() const;
   uint64_t blocks_file_bytes() const { return blocks_file_bytes_; }
 
+  // Where blocks first..last (consecutive ids, neighbours in blocks.bin) lie: from the first's
+  // offset to the end of the last, what one read of the run covers.
+  struct Extent {
+    uint64_t offset, size;
+  };
+  Extent RunExtent(uint32_t first, uint32_t last) const {
+    const uint64_t begin = blocks_[first].offset;
+    return {begin, blocks_[last].offset + blocks_[last].stored_bytes - begin};
+  }
   // Reads `size` bytes of blocks.bin at `offset` (a loader reading a run of neighbouring blocks
   // in one request). Errors name the file and offset. Thread-safe.
   Status ReadRange(uint64_t offset, uint64_t size, uint8_t* out) const;

@@ -22,11 +22,9 @@ struct BlockRun {
 };
 
 std::vector<uint8_t> Buffered(const store::StoreReader& store, BlockRun run) {
-  const auto blocks = store.blocks();
-  const uint64_t offset = blocks[run.first].offset;
-  const uint64_t size = blocks[run.last].offset + blocks[run.last].stored_bytes - offset;
-  std::vector<uint8_t> bytes(size);
-  EXPECT_TRUE(store.ReadRange(offset, size, bytes.data()).ok());
+  const store::StoreReader::Extent extent = store.RunExtent(run.first, run.last);
+  std::vector<uint8_t> bytes(extent.size);
+  EXPECT_TRUE(store.ReadRange(extent.offset, extent.size, bytes.data()).ok());
   return bytes;
 }
 

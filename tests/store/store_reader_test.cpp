@@ -309,8 +309,7 @@ TEST_F(StoreReaderTest, DirectReadsGiveTheBufferedBytes) {
   ASSERT_GT(blocks.size(), 8u);
   ASSERT_NE((*buffered)->blocks_file_bytes() % 4096, 0u) << "the last block should end unaligned";
   const auto same = [&](uint32_t first, uint32_t last) {
-    const uint64_t offset = blocks[first].offset;
-    const uint64_t size = blocks[last].offset + blocks[last].stored_bytes - offset;
+    const auto [offset, size] = (*buffered)->RunExtent(first, last);
     std::vector<uint8_t> a(size), b(size, 0xee);
     ASSERT_TRUE((*buffered)->ReadRange(offset, size, a.data()).ok());
     const Status s = (*direct)->ReadRange(offset, size, b.data());

@@ -59,31 +59,25 @@ python3 - "$quota" "$cache_mb" "${results[@]}" <<'PY'
 import json, statistics, sys
 quota, cache = sys.argv[1], sys.argv[2]
 rows = [r.split() for r in sys.argv[3:]]
-runs = {}     # per configuration: every repeat's frames
-by_round = {}  # per configuration and repeat: that repeat's frames
+by_config = {}  # per configuration: each repeat's frames, by repeat
 for blocks, lat, n, r, path in rows:
-    frames = json.load(open(path))
-    runs.setdefault((blocks, lat, int(n)), []).append(frames)
-    by_round[(blocks, lat, int(n), r)] = frames
+    by_config.setdefault((blocks, lat, int(n)), {})[r] = json.load(open(path))
 def efficiency(blocks, lat, n, f):
     """Median over the repeats of T_1 / (N T_N), each repeat against its own T_1."""
-    per_round = []
-    for (b, l, k, r), frames in by_round.items():
-        if (b, l, k) != (blocks, lat, n):
-            continue
-        base = by_round.get(("loc", lat, 1, r)) or by_round.get(("loc", "0", 1, r))
-        if base:
-            per_round.append(base[f]["seconds"] / (n * frames[f]["seconds"]))
+    base = by_config.get(("loc", lat, 1)) or by_config.get(("loc", "0", 1)) or {}
+    per_round = [base[r][f]["seconds"] / (n * frames[f]["seconds"])
+                 for r, frames in by_config[(blocks, lat, n)].items() if r in base]
     return (statistics.median(per_round), per_round) if per_round else (None, [])
 data = {}  # per configuration: the run with the median first frame, seconds the medians
-for key, all_runs in runs.items():
+for key, by_repeat in by_config.items():
+    all_runs = list(by_repeat.values())
     by_first = sorted(all_runs, key=lambda frames: frames[0]["seconds"])
     chosen = [dict(fr) for fr in by_first[len(by_first) // 2]]
     for f, fr in enumerate(chosen):
         fr["seconds"] = statistics.median(frames[f]["seconds"] for frames in all_runs)
         fr["all_seconds"] = [frames[f]["seconds"] for frames in all_runs]
     data[key] = chosen
-repeats = max(len(v) for v in runs.values())
+repeats = max(len(v) for v in by_config.values())
 print(f"each slave: {quota}% of a core, 1 ray thread, {cache} MB block cache; seconds on the master's clock, "
       f"medians of {repeats} interleaved runs (each run's seconds in brackets)")
 print()
