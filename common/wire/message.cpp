@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <limits>
 
 #include "common/base/check.h"
 #include "common/base/log.h"
@@ -9,11 +10,11 @@
 namespace raystack::wire {
 namespace {
 
-// A whole message: the header, `head` (the payload's fixed part) and `tail` (its records or
-// bytes, if any).
+// A whole message: the header, `head` (the payload's fixed part), `tail` (its records or
+// bytes, if any), then `room` zero bytes for the caller to fill.
 std::vector<uint8_t> Assemble(uint32_t sender, MessageType type, std::span<const uint8_t> head,
-                              std::span<const uint8_t> tail = {}) {
-  const uint64_t payload = head.size() + tail.size();
+                              std::span<const uint8_t> tail = {}, uint64_t room = 0) {
+  const uint64_t payload = head.size() + tail.size() + room;
   CHECK(payload <= 0xffffffffu);
   std::vector<uint8_t> bytes(sizeof(MessageHeader) + payload);
   const MessageHeader h{kMagic, kProtocolVersion, static_cast<uint16_t>(type), sender,
@@ -125,9 +126,31 @@ std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
                                       std::span<const render::SampleResult> samples,
                                       uint64_t rays) {
   CHECK(samples.size() <= kMaxBatchSamples);
-  const PixelBatchHeader b{frame, static_cast<uint32_t>(samples.size()), rays};
-  return Assemble(sender, MessageType::kPixelBatch, BytesOf(b),
-                  {reinterpret_cast<const uint8_t*>(samples.data()), samples.size_bytes()});
+  uint32_t primary = 0;
+  for (const render::SampleResult& s : samples) primary += s.sample == 0 ? 1 : 0;
+  const PixelBatchHeader b{frame, static_cast<uint32_t>(samples.size()), rays, primary, 0};
+  std::vector<uint8_t> bytes = Assemble(
+      sender, MessageType::kPixelBatch, BytesOf(b), {},
+      samples.size() * sizeof(SampleRecord) + uint64_t{primary} * sizeof(PrimaryRecord));
+  uint8_t* const records = bytes.data() + sizeof(MessageHeader) + sizeof b;
+  uint8_t* const primaries = records + samples.size() * sizeof(SampleRecord);
+  // Sample-0 records first, with their primary layers; then the others. Each in batch order.
+  size_t next = 0, next_primary = 0;
+  for (int pass = 0; pass < 2; ++pass) {
+    for (const render::SampleResult& s : samples) {
+      if ((s.sample == 0) != (pass == 0)) continue;
+      CHECK(s.sample < kSampleHit);  // (scenes allow 65535 samples a pixel)
+      const SampleRecord r{s.pixel, s.sample | (s.hit ? kSampleHit : 0),
+                           {s.rgb[0], s.rgb[1], s.rgb[2]}};
+      std::memcpy(records + next++ * sizeof r, &r, sizeof r);
+      if (pass > 0) continue;
+      const PrimaryRecord p{s.z,
+                            {s.normal[0], s.normal[1], s.normal[2]},
+                            {s.albedo[0], s.albedo[1], s.albedo[2]}};
+      std::memcpy(primaries + next_primary++ * sizeof p, &p, sizeof p);
+    }
+  }
+  return bytes;
 }
 
 Expected<Message> Decode(std::span<const uint8_t> bytes, int from) {
@@ -158,8 +181,22 @@ Expected<Message> Decode(std::span<const uint8_t> bytes, int from) {
     std::memcpy(&b, m.payload.data(), sizeof b);
     if (b.count > kMaxBatchSamples)
       return bad(StrFormat("pixel batch of %u samples (at most %u)", b.count, kMaxBatchSamples));
-    if (m.payload.size() != sizeof b + uint64_t{b.count} * sizeof(render::SampleResult))
-      return bad(StrFormat("pixel batch of %u samples in %zu bytes", b.count, m.payload.size()));
+    if (b.primary > b.count)
+      return bad(StrFormat("pixel batch of %u samples, %u of them sample 0", b.count, b.primary));
+    if (m.payload.size() != sizeof b + uint64_t{b.count} * sizeof(SampleRecord) +
+                                uint64_t{b.primary} * sizeof(PrimaryRecord))
+      return bad(StrFormat("pixel batch of %u samples (%u sample 0) in %zu bytes", b.count,
+                           b.primary, m.payload.size()));
+    // The primary layers belong to the first `primary` samples: exactly the sample-0 ones.
+    for (uint32_t i = 0; i < b.count; ++i) {
+      SampleRecord r;
+      std::memcpy(&r, m.payload.data() + sizeof b + uint64_t{i} * sizeof r, sizeof r);
+      if (((r.sample & ~kSampleHit) == 0) != (i < b.primary))
+        return bad(StrFormat("pixel batch: its sample %u (pixel %u, sample %u) %s", i, r.pixel,
+                             r.sample & ~kSampleHit,
+                             i < b.primary ? "should be a sample 0" : "is a sample 0 without "
+                                                                      "its primary layers"));
+    }
   } else if (m.type() == MessageType::kBlockRequest) {
     if (m.payload.size() < sizeof(BlockRequest)) return bad("block request without its count");
     BlockRequest r;
@@ -244,8 +281,24 @@ std::span<const uint8_t> Message::block_data() const {
 void Message::batch_samples(std::vector<render::SampleResult>* out) const {
   const PixelBatchHeader b = batch_header();
   out->resize(b.count);
-  if (b.count > 0)
-    std::memcpy(out->data(), payload.data() + sizeof b, uint64_t{b.count} * sizeof(render::SampleResult));
+  const uint8_t* const records = payload.data() + sizeof b;
+  const uint8_t* const primaries = records + uint64_t{b.count} * sizeof(SampleRecord);
+  for (uint32_t i = 0; i < b.count; ++i) {
+    SampleRecord r;
+    std::memcpy(&r, records + uint64_t{i} * sizeof r, sizeof r);
+    render::SampleResult& s = (*out)[i];
+    s.pixel = r.pixel;
+    s.sample = r.sample & ~kSampleHit;
+    s.hit = (r.sample & kSampleHit) ? 1 : 0;
+    for (int c = 0; c < 3; ++c) s.rgb[c] = r.rgb[c];
+    PrimaryRecord p{std::numeric_limits<float>::infinity(), {0, 0, 0}, {0, 0, 0}};
+    if (i < b.primary) std::memcpy(&p, primaries + uint64_t{i} * sizeof p, sizeof p);
+    s.z = p.z;
+    for (int c = 0; c < 3; ++c) {
+      s.normal[c] = p.normal[c];
+      s.albedo[c] = p.albedo[c];
+    }
+  }
 }
 
 }  // namespace raystack::wire

@@ -28,7 +28,8 @@ inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
 // flags (a lost slave costs time, never pixels). 5: a block request carries several runs of
 // the owner's blocks (the fetches that queued for the same owner), its answer their bytes;
 // frame figures count the runs fetched. 6: frame figures carry the slave's CPU time.
-inline constexpr uint16_t kProtocolVersion = 7;
+// 8: pixel batches carry the primary-hit layers of sample 0 only, the hit flag in the sample.
+inline constexpr uint16_t kProtocolVersion = 8;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
 // How often a slave says it is alive (the master drops one it has not heard from for
@@ -134,13 +135,31 @@ struct BlockDataHeader {  // followed by the runs' stored bytes (none when faile
   uint32_t failed;  // 1: the owner could not read them (its own log says why)
   uint32_t reserved;
 };
+// A pixel batch is this header, `count` SampleRecords, then `primary` PrimaryRecords: those
+// of the first `primary` samples, which are the batch's sample-0 ones (the pixel-centre ray,
+// whose hit gives the Z, normal and albedo layers). Other samples leave them out: the film
+// only keeps sample 0's, and at 8 samples a pixel that is 2.4x fewer bytes.
 struct PixelBatchHeader {
   uint32_t frame;
-  uint32_t count;  // SampleResult records that follow
-  uint64_t rays;   // rays the slave traced for these samples (progress figures)
+  uint32_t count;    // SampleRecords that follow
+  uint64_t rays;     // rays the slave traced for these samples (progress figures)
+  uint32_t primary;  // PrimaryRecords after them: samples [0, primary) are sample 0
+  uint32_t reserved;
+};
+struct SampleRecord {
+  uint32_t pixel;
+  uint32_t sample;  // the sample's index, and kSampleHit when its primary ray hit geometry
+  float rgb[3];
+};
+inline constexpr uint32_t kSampleHit = 1u << 31;
+struct PrimaryRecord {
+  float z;
+  float normal[3];
+  float albedo[3];
 };
 static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
-              sizeof(FrameDone) == 144 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 16 &&
+              sizeof(FrameDone) == 144 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 24 &&
+              sizeof(SampleRecord) == 20 && sizeof(PrimaryRecord) == 28 &&
               sizeof(BlockRequest) == 16 && sizeof(BlockRun) == 8 && sizeof(BlockDataHeader) == 16 &&
               sizeof(Heartbeat) == 8 && sizeof(RankLost) == 8);
 
@@ -181,7 +200,8 @@ struct Message {
   RankLost rank_lost() const;
   BlockDataHeader block_data_header() const;
   std::span<const uint8_t> block_data() const;  // the stored bytes after the header
-  // The batch's samples, copied out (the payload need not be aligned for SampleResult).
+  // The batch's samples, sample-0 ones first (as encoded). The others come without primary-hit
+  // layers: z +inf, normal and albedo 0, which the film does not read for them.
   void batch_samples(std::vector<render::SampleResult>* out) const;
 };
 

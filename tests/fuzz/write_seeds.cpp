@@ -150,7 +150,10 @@ int main(int argc, char** argv) {
   Write(dir + "/wire/block_data",
         wire::EncodeBlockData(1, wire::BlockDataHeader{3, 2, 0, 0}, stored_bytes));
   Write(dir + "/wire/error", wire::EncodeError(1, "block 12 is malformed: bad magic"));
-  std::vector<render::SampleResult> samples(3);
+  std::vector<render::SampleResult> samples(3);  // two kinds: sample 0 carries primary layers
+  samples[1].sample = 1;
+  samples[2].sample = 2;
+  samples[2].hit = 1;
   Write(dir + "/wire/pixel_batch", wire::EncodePixelBatch(1, 0, samples));
   return 0;
 }

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -18,8 +19,21 @@ render::SampleResult Sample(uint32_t i) {
   s.pixel = i * 7;
   s.sample = i % 3;
   s.rgb[0] = 0.5f * static_cast<float>(i);
+  s.rgb[1] = -0.0f;
+  s.rgb[2] = std::numeric_limits<float>::quiet_NaN();  // (counted by the film, never merged)
   s.z = static_cast<float>(i) + 0.25f;
+  s.normal[1] = 1.0f / static_cast<float>(i + 1);
+  s.albedo[2] = 0.125f * static_cast<float>(i);
   s.hit = i & 1;
+  return s;
+}
+
+// What the master reads of a sample: everything for sample 0, no primary layers otherwise.
+render::SampleResult AsReceived(render::SampleResult s) {
+  if (s.sample != 0) {
+    s.z = std::numeric_limits<float>::infinity();
+    for (int c = 0; c < 3; ++c) s.normal[c] = s.albedo[c] = 0.0f;
+  }
   return s;
 }
 
@@ -94,8 +108,17 @@ TEST(Message, PixelBatchRoundTripsBitForBit) {
   EXPECT_EQ(m->batch_header().rays, 98765u);
   std::vector<render::SampleResult> got;
   m->batch_samples(&got);
-  ASSERT_EQ(got.size(), samples.size());
-  EXPECT_EQ(std::memcmp(got.data(), samples.data(), samples.size() * sizeof samples[0]), 0);
+  // Sample 0 first, then the others, each in the batch's order; the primary layers only for
+  // sample 0, which is all the film keeps of them.
+  std::vector<render::SampleResult> expected;
+  for (int pass = 0; pass < 2; ++pass)
+    for (const render::SampleResult& s : samples)
+      if ((s.sample == 0) == (pass == 0)) expected.push_back(AsReceived(s));
+  ASSERT_EQ(got.size(), expected.size());
+  EXPECT_EQ(std::memcmp(got.data(), expected.data(), expected.size() * sizeof expected[0]), 0);
+  EXPECT_EQ(m->batch_header().primary, 334u);  // i % 3 == 0 for 334 of 1000
+  // 20 bytes a sample, 28 more for sample 0: a third of the 52 of the whole record.
+  EXPECT_EQ(bytes.size(), sizeof(MessageHeader) + sizeof(PixelBatchHeader) + 1000 * 20 + 334 * 28);
   // An empty batch is valid too.
   ASSERT_TRUE(Decode(EncodePixelBatch(2, 7, {}), 2).ok());
 }
@@ -150,7 +173,20 @@ TEST(Message, HostilePixelBatchesAreRefused) {
   ExpectError(b, 1, "samples (at most");
   b = EncodePixelBatch(1, 0, samples);
   Poke<uint32_t>(&b, sizeof(MessageHeader) + 4, 11);  // one more than sent
-  ExpectError(b, 1, "pixel batch of 11 samples in");
+  ExpectError(b, 1, "pixel batch of 11 samples (0 sample 0) in");
+  b = EncodePixelBatch(1, 0, samples);
+  Poke<uint32_t>(&b, sizeof(MessageHeader) + 16, 11);  // more sample 0s than samples
+  ExpectError(b, 1, "10 samples, 11 of them sample 0");
+  // Primary layers that do not belong to the first samples, or a sample 0 without them.
+  samples = {Sample(0), Sample(1), Sample(3)};  // samples 0, 1, 0
+  b = EncodePixelBatch(1, 0, samples);
+  const size_t records = sizeof(MessageHeader) + sizeof(PixelBatchHeader);
+  std::vector<uint8_t> swapped = b;  // record 1 (a sample 0) and record 2 (sample 1) swapped
+  std::memcpy(swapped.data() + records + 20, b.data() + records + 40, 20);
+  std::memcpy(swapped.data() + records + 40, b.data() + records + 20, 20);
+  ExpectError(swapped, 1, "its sample 1 (pixel 7, sample 1) should be a sample 0");
+  Poke<uint32_t>(&b, records + 2 * 20 + 4, 0);  // the last sample becomes a sample 0
+  ExpectError(b, 1, "its sample 2 (pixel 7, sample 0) is a sample 0 without its primary");
   b = EncodePixelBatch(1, 0, samples);
   b.resize(sizeof(MessageHeader) + 4);
   Poke<uint32_t>(&b, 12, 4);
