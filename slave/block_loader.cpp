@@ -19,6 +19,8 @@ long VoluntarySwitches() {
   return usage.ru_nvcsw;
 }
 
+size_t Cores() { return std::max(1u, std::thread::hardware_concurrency()); }
+
 }  // namespace
 
 BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, BlockSource* source,
@@ -26,16 +28,14 @@ BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, Blo
     : store_(store), cache_(cache), source_(source), options_(options),
       deliver_(std::move(deliver)),
       max_workers_(static_cast<size_t>(std::max(1, options.io_threads))),
-      allowed_workers_(std::min<size_t>(max_workers_, std::max(1u, std::thread::hardware_concurrency()))),
+      allowed_workers_(std::min<size_t>(max_workers_, Cores())),
       aio_(source->OpenAio(static_cast<int>(max_workers_))) {
   if (aio_) {
     // Threads that wait for direct reads and decode them, as many as the cores: decoding is
     // CPU work, and one thread alone fell behind the disk (the ray threads idled 0.5 s of a
     // 0.7 s frame on dragon x36).
     aio_runs_.resize(max_workers_);
-    const size_t threads =
-        std::min<size_t>(max_workers_, std::max(1u, std::thread::hardware_concurrency()));
-    for (size_t i = 0; i < threads; ++i)
+    for (size_t i = 0; i < std::min<size_t>(max_workers_, Cores()); ++i)
       workers_.emplace_back([this] {
         SetThreadName("rs-aio");
         AioLoop();

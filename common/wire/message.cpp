@@ -135,20 +135,20 @@ std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
   uint8_t* const records = bytes.data() + sizeof(MessageHeader) + sizeof b;
   uint8_t* const primaries = records + samples.size() * sizeof(SampleRecord);
   // Sample-0 records first, with their primary layers; then the others. Each in batch order.
-  size_t next = 0, next_primary = 0;
-  for (int pass = 0; pass < 2; ++pass) {
-    for (const render::SampleResult& s : samples) {
-      if ((s.sample == 0) != (pass == 0)) continue;
-      CHECK(s.sample < kSampleHit);  // (scenes allow 65535 samples a pixel)
-      const SampleRecord r{s.pixel, s.sample | (s.hit ? kSampleHit : 0),
-                           {s.rgb[0], s.rgb[1], s.rgb[2]}};
-      std::memcpy(records + next++ * sizeof r, &r, sizeof r);
-      if (pass > 0) continue;
-      const PrimaryRecord p{s.z,
-                            {s.normal[0], s.normal[1], s.normal[2]},
-                            {s.albedo[0], s.albedo[1], s.albedo[2]}};
-      std::memcpy(primaries + next_primary++ * sizeof p, &p, sizeof p);
+  size_t next_primary = 0, next_other = primary;
+  for (const render::SampleResult& s : samples) {
+    CHECK(s.sample < kSampleHit);  // (scenes allow 65535 samples a pixel)
+    const SampleRecord r{s.pixel, s.sample | (s.hit ? kSampleHit : 0),
+                         {s.rgb[0], s.rgb[1], s.rgb[2]}};
+    if (s.sample != 0) {
+      std::memcpy(records + next_other++ * sizeof r, &r, sizeof r);
+      continue;
     }
+    const PrimaryRecord p{s.z,
+                          {s.normal[0], s.normal[1], s.normal[2]},
+                          {s.albedo[0], s.albedo[1], s.albedo[2]}};
+    std::memcpy(records + next_primary * sizeof r, &r, sizeof r);
+    std::memcpy(primaries + next_primary++ * sizeof p, &p, sizeof p);
   }
   return bytes;
 }
