@@ -44,9 +44,12 @@ cache of --cache-mb; rays that need a missing block wait in that block's queue w
 loader thread reads it (the ray stack), so the store may be far larger than the cache.
 
 options:
-  --mode stack|sync|incore  stack: the ray stack (default); sync: a miss blocks the thread
+  --mode stack|sync|incore|bvh
+                            stack: the ray stack (default); sync: a miss blocks the thread
                             while its block is read (the baseline); incore: load every block
-                            first, no budget
+                            first, no budget; bvh: load every block, then trace through one
+                            BVH over all triangles (the fastest when the model fits in RAM;
+                            needs about twice incore's memory; same image)
   --cache-mb N              block cache budget in MB, never exceeded (default 512)
   --threads N               ray threads (default: all cores)
   --feed-fraction P         start the next tile once this fraction of the current one is

@@ -451,6 +451,25 @@ void RayThread::TraceSync(RayRecord ray) {
   }
 }
 
+void RayThread::TraceBvh(RayRecord ray) {
+  const store::StoreBvh& bvh = *shared_->bvh;
+  if (IsShadow(ray)) {
+    if (bvh.Occluded(ToRay(ray))) {
+      RayDone(ray.slot);
+      return;
+    }
+  } else {
+    Hit h = ToHit(ray);
+    if (bvh.Intersect(ToRay(ray), &h)) {
+      const store::BlockView* view = shared_->cache->TryAcquire(h.block_id);
+      CHECK(view != nullptr);  // preloaded, and nothing is evicted without a budget
+      RecordHit(*view, h, &ray);
+      shared_->cache->Release(h.block_id);
+    }
+  }
+  Finish(ray);
+}
+
 void RayThread::RunSync() {
   const auto began = std::chrono::steady_clock::now();
   const double cpu_began = ThreadCpuSeconds();
@@ -459,7 +478,10 @@ void RayThread::RunSync() {
     while (!pending_.empty() && !shared_->abort.load(std::memory_order_relaxed)) {
       RayRecord r = pending_.back();  // depth first: children come back on top
       pending_.pop_back();
-      TraceSync(r);
+      if (shared_->bvh)
+        TraceBvh(r);
+      else
+        TraceSync(r);
     }
   }
   FlushResults();

@@ -17,6 +17,7 @@
 #include "common/render/camera.h"
 #include "common/render/frame_plan.h"
 #include "common/render/sample_result.h"
+#include "common/store/store_bvh.h"
 #include "common/store/store_reader.h"
 #include "slave/block_cache.h"
 #include "slave/block_loader.h"
@@ -37,6 +38,7 @@ struct FrameShared {
   BlockCache* cache = nullptr;
   BlockLoader* loader = nullptr;  // stack mode only
   BlockSource* source = nullptr;  // sync reads
+  const store::StoreBvh* bvh = nullptr;  // bvh mode: rays traced through it, not the blocks
   bool stack = true;              // which driver routes rays
   const Shader* shader = nullptr;
   const render::Camera* camera = nullptr;
@@ -97,6 +99,8 @@ class RayThread {
   void AskAhead();
   // Sync driver pieces.
   void TraceSync(RayRecord ray);
+  // bvh mode: the whole ray at once through the one tree (every block is resident).
+  void TraceBvh(RayRecord ray);
   const store::BlockView* AcquireSync(uint32_t block);
 
   FrameShared* shared_;

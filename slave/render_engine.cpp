@@ -16,6 +16,7 @@ const char* TraceModeName(TraceMode mode) {
     case TraceMode::kStack: return "stack";
     case TraceMode::kSync: return "sync";
     case TraceMode::kIncore: return "incore";
+    case TraceMode::kBvh: return "bvh";
   }
   return "?";
 }
@@ -24,7 +25,8 @@ Expected<TraceMode> ParseTraceMode(const std::string& name) {
   if (name == "stack") return TraceMode::kStack;
   if (name == "sync") return TraceMode::kSync;
   if (name == "incore") return TraceMode::kIncore;
-  return Status::Error("--mode must be stack, sync or incore, got '" + name + "'");
+  if (name == "bvh") return TraceMode::kBvh;
+  return Status::Error("--mode must be stack, sync, incore or bvh, got '" + name + "'");
 }
 
 Expected<std::unique_ptr<RenderEngine>> RenderEngine::Create(const store::StoreReader& store,
@@ -37,8 +39,8 @@ Expected<std::unique_ptr<RenderEngine>> RenderEngine::Create(const store::StoreR
     return Status::Error("--feed-fraction must be in [0, 1]");
   std::unique_ptr<RenderEngine> engine(new RenderEngine(store, options));
   if (source) engine->source_ = source;
-  const uint64_t budget =
-      options.mode == TraceMode::kIncore ? BlockCache::kUnlimited : options.cache_bytes;
+  const bool everything = options.mode == TraceMode::kIncore || options.mode == TraceMode::kBvh;
+  const uint64_t budget = everything ? BlockCache::kUnlimited : options.cache_bytes;
   Expected<std::unique_ptr<BlockCache>> cache = BlockCache::Create(store, budget);
   if (!cache.ok()) return cache.status();
   engine->cache_ = std::move(*cache);
@@ -88,6 +90,23 @@ Status RenderEngine::Preload(double* seconds) {
   return error;
 }
 
+void RenderEngine::BuildBvh(double* seconds) {
+  const auto start = std::chrono::steady_clock::now();
+  // Every block is resident (the budget is unlimited): the views are pinned while the tree
+  // copies their triangles, then given back.
+  std::vector<store::BlockView> views(store_.blocks().size());
+  for (uint32_t id = 0; id < views.size(); ++id) {
+    const store::BlockView* v = cache_->TryAcquire(id);
+    CHECK(v != nullptr);
+    views[id] = *v;
+  }
+  bvh_ = std::make_unique<store::StoreBvh>(views);
+  for (uint32_t id = 0; id < views.size(); ++id) cache_->Release(id);
+  *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  LOG_INFO("engine", "bvh mode: %zu triangles in one tree (%.1f MB), built in %.2f s",
+           bvh_->triangle_count(), static_cast<double>(bvh_->bytes()) / 1e6, *seconds);
+}
+
 Status RenderEngine::RenderFrame(const render::Scene& scene,
                                  const render::MaterialTable& materials,
                                  const render::Camera& camera, TileSource& tiles,
@@ -102,10 +121,11 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   const uint64_t bytes_before = source_->bytes_read();
   const uint64_t reads_before = source_->reads();
   const uint64_t evictions_before = cache_->evictions();
-  if (options_.mode == TraceMode::kIncore && !preloaded_) {
+  if ((options_.mode == TraceMode::kIncore || options_.mode == TraceMode::kBvh) && !preloaded_) {
     RAYSTACK_RETURN_IF_ERROR(Preload(&s.preload_seconds));
     preloaded_ = true;
   }
+  if (options_.mode == TraceMode::kBvh && !bvh_) BuildBvh(&s.bvh_build_seconds);
 
   const Shader shader(scene, materials);
   FrameShared shared;
@@ -123,7 +143,8 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   shared.feed_fraction = options_.feed_fraction;
   shared.tile_ahead = options_.tile_ahead;
   shared.result_batch = options_.result_batch;
-  shared.stack = options_.mode != TraceMode::kSync;
+  shared.stack = options_.mode != TraceMode::kSync && options_.mode != TraceMode::kBvh;
+  shared.bvh = bvh_.get();
 
   std::vector<std::unique_ptr<RayThread>> threads;
   for (int i = 0; i < options_.threads; ++i)

@@ -17,13 +17,14 @@
 #include "slave/block_cache.h"
 #include "slave/block_loader.h"
 #include "slave/block_source.h"
+#include "common/store/store_bvh.h"
 #include "slave/block_walk.h"
 #include "slave/render_stats.h"
 #include "slave/tile_source.h"
 
 namespace raystack::slave {
 
-enum class TraceMode { kStack, kSync, kIncore };
+enum class TraceMode { kStack, kSync, kIncore, kBvh };
 const char* TraceModeName(TraceMode mode);
 Expected<TraceMode> ParseTraceMode(const std::string& name);
 
@@ -32,7 +33,7 @@ struct EngineOptions {
   int threads = 2;
   double feed_fraction = 0.1;               // P_pr
   double tile_ahead = 0.0;                  // P_ra: ask for the next tile at this share done
-  uint64_t cache_bytes = uint64_t{512} << 20;  // ignored in incore mode
+  uint64_t cache_bytes = uint64_t{512} << 20;  // ignored in incore and bvh modes
   LoaderOptions loader;
   FaultOptions faults;
   size_t result_batch = 1024;               // samples per hand-over to the sink
@@ -61,6 +62,8 @@ class RenderEngine {
  private:
   RenderEngine(const store::StoreReader& store, EngineOptions options);
   Status Preload(double* seconds);
+  // bvh mode: the tree over every preloaded block's triangles.
+  void BuildBvh(double* seconds);
 
   const store::StoreReader& store_;
   EngineOptions options_;
@@ -69,6 +72,7 @@ class RenderEngine {
   BlockSource* source_;  // disk_, or the one given to Create
   BlockWalk walk_;
   bool preloaded_ = false;
+  std::unique_ptr<store::StoreBvh> bvh_;  // bvh mode: every triangle in one tree
 };
 
 }  // namespace raystack::slave

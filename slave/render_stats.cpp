@@ -17,7 +17,7 @@ std::string RenderStats::ToJson() const {
   std::ostringstream o;
   o << "{\n  \"mode\": \"" << mode << "\",\n  \"threads\": " << threads
     << ",\n  \"seconds\": " << seconds << ",\n  \"preload_seconds\": " << preload_seconds
-    << ",\n  \"rays\": {";
+    << ",\n  \"bvh_build_seconds\": " << bvh_build_seconds << ",\n  \"rays\": {";
   for (int t = 0; t < kRayTypeCount; ++t)
     o << (t ? ", " : "") << "\"" << kTypeNames[t] << "\": " << rays[t];
   o << "},\n  \"rays_total\": " << rays_total << ",\n  \"rays_per_second\": " << rays_per_second
@@ -48,6 +48,7 @@ std::string RenderStats::ToJson() const {
 std::string RenderStats::ToText() const {
   std::string s = StrFormat("%s mode, %d threads: %.3f s", mode.c_str(), threads, seconds);
   if (preload_seconds > 0) s += StrFormat(" (+%.3f s preloading)", preload_seconds);
+  if (bvh_build_seconds > 0) s += StrFormat(" (+%.3f s building the BVH)", bvh_build_seconds);
   s += StrFormat("\n  rays: %llu (%.2f M/s); primary %llu, shadow %llu, specular %llu, diffuse %llu",
                  static_cast<unsigned long long>(rays_total), rays_per_second * 1e-6,
                  static_cast<unsigned long long>(rays[0]), static_cast<unsigned long long>(rays[1]),

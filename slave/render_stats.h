@@ -27,7 +27,8 @@ struct RenderStats {
   std::string mode;
   int threads = 0;
   double seconds = 0;          // the frame, after any preloading
-  double preload_seconds = 0;  // incore mode: loading every block first
+  double preload_seconds = 0;  // incore and bvh modes: loading every block first
+  double bvh_build_seconds = 0;  // bvh mode: building the tree over every triangle
   std::array<uint64_t, kRayTypeCount> rays{};
   uint64_t rays_total = 0;
   double rays_per_second = 0;

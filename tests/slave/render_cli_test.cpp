@@ -71,7 +71,7 @@ TEST_F(RenderCli, WritesEveryLayerAPngAndStatistics) {
 
 TEST_F(RenderCli, ModesWriteTheSameImage) {
   std::vector<image::ImageLayers> images;
-  for (const char* mode : {"stack", "sync", "incore"}) {
+  for (const char* mode : {"stack", "sync", "incore", "bvh"}) {
     const ProcessResult r = RunProcess({kRaystack, "render", Scene(), "--mode", mode,
                                         "--cache-mb", "1", "-q", "--output",
                                         dir_->File(std::string(mode) + ".exr")},

@@ -57,6 +57,18 @@ TEST_P(ModesAgree, BitIdenticalRgbaAndZ) {
   scene.default_material.albedo = {0.7f, 0.6f, 0.5f};
   const RenderOutcome incore = Render(*s.reader, scene, Mode(TraceMode::kIncore, 0));
   ASSERT_TRUE(incore.status.ok()) << incore.status.message();
+  {
+    SCOPED_TRACE("bvh");  // one tree over every triangle instead of the blocks' trees
+    const RenderOutcome r = Render(*s.reader, scene, Mode(TraceMode::kBvh, 0));
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
+    EXPECT_TRUE(SameBits(r.image.rgba, incore.image.rgba));
+    EXPECT_TRUE(SameBits(r.image.z, incore.image.z));
+    EXPECT_TRUE(SameBits(r.image.normal, incore.image.normal));
+    EXPECT_EQ(r.stats.samples, incore.stats.samples);
+    EXPECT_EQ(r.stats.rays_total, incore.stats.rays_total);
+    EXPECT_EQ(r.stats.blocks_distinct, r.stats.block_count);
+    EXPECT_GT(r.stats.bvh_build_seconds, 0);
+  }
   for (int blocks : {3, 12}) {
     for (TraceMode mode : {TraceMode::kStack, TraceMode::kSync}) {
       SCOPED_TRACE(std::string(slave::TraceModeName(mode)) + " with a budget of " +

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <map>
 #include <random>
@@ -13,6 +14,7 @@
 
 #include "common/base/temp_dir.h"
 #include "common/store/store_reader.h"
+#include "common/store/store_bvh.h"
 #include "common/store/store_tracer.h"
 #include "tests/support/brute_force.h"
 #include "tests/support/model_loader.h"
@@ -110,6 +112,17 @@ void CheckRays(const store::StoreReader& s, const std::vector<Tri>& tris, int n,
                const std::vector<Ray>& extra = {}) {
   BruteForce reference(tris);
   store::StoreTracer tracer(s);
+  // The same blocks in one BVH (--mode bvh) must give the tracer's hits bit for bit.
+  std::vector<store::AlignedBuffer> raw(s.blocks().size());
+  std::vector<store::BlockView> views;
+  std::vector<uint8_t> stored;
+  store::AlignedBuffer scratch;
+  for (uint32_t id = 0; id < s.blocks().size(); ++id) {
+    Expected<store::BlockView> v = s.Load(id, &stored, &scratch, &raw[id]);
+    ASSERT_TRUE(v.ok()) << v.status().message();
+    views.push_back(*v);
+  }
+  const store::StoreBvh bvh(views);
   Bounds3f box;
   for (const Tri& t : tris)
     for (const Vec3f& p : t.p) box.Extend(p);
@@ -125,6 +138,17 @@ void CheckRays(const store::StoreReader& s, const std::vector<Tri>& tris, int n,
       Expected<bool> occluded = tracer.Occluded(ray);
       ASSERT_TRUE(occluded.ok());
       EXPECT_EQ(*occluded, want.Valid());
+      EXPECT_EQ(bvh.Occluded(ray), want.Valid());
+    }
+    const Hit one = bvh.Intersect(ray);
+    EXPECT_EQ(0, std::memcmp(&one.t, &got->t, sizeof(float)));
+    EXPECT_EQ(one.u, got->u);
+    EXPECT_EQ(one.v, got->v);
+    EXPECT_EQ(one.triangle_id, got->triangle_id);
+    if (one.Valid()) {  // it names a copy of the triangle it hit
+      ASSERT_LT(one.block_id, views.size());
+      ASSERT_LT(one.local_triangle, views[one.block_id].triangle_count());
+      EXPECT_EQ(views[one.block_id].TriangleId(one.local_triangle), one.triangle_id);
     }
     if (got->triangle_id != want.triangle_id || (want.Valid() && got->t != want.t)) {
       if (++mismatches <= 5)

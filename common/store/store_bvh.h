@@ -1,0 +1,45 @@
+#pragma once
+// Every triangle of a store in one Bvh4, for models that fit in memory: the same closest and
+// any hits as StoreTracer (bit for bit: t, u, v and the source triangle), without the octree
+// walk and the per-block trees. A triangle that crosses cells is stored in several blocks;
+// here it is kept once, and a hit names the first block holding it (by block id) and its
+// index there. The copies are the same triangle with the same attributes, so shading from
+// either gives the same result. Read-only after construction: queries may run on several
+// threads at once.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "common/geometry/bvh4.h"
+#include "common/geometry/ray.h"
+#include "common/store/block_view.h"
+
+namespace raystack::store {
+
+class StoreBvh {
+ public:
+  // `blocks[id]` is block `id`, every one of them parsed; they need not outlive this.
+  explicit StoreBvh(std::span<const BlockView> blocks);
+
+  // As StoreTracer::Intersect: the closest hit in (ray.tmin, ray.tmax], invalid on a miss.
+  Hit Intersect(const Ray& ray) const;
+  // As BlockView::Intersect over every block: the closest hit in (ray.tmin, hit->t], ties
+  // broken by CloserThan; on a closer one, fills `hit` (block and index of a copy included)
+  // and returns true.
+  bool Intersect(const Ray& ray, Hit* hit) const;
+  // As StoreTracer::Occluded: anything in (ray.tmin, ray.tmax).
+  bool Occluded(const Ray& ray) const { return bvh_.Occluded(ray); }
+
+  size_t triangle_count() const { return bvh_.triangle_count(); }
+  size_t bytes() const { return bvh_.bytes() + copies_.size() * sizeof(Copy); }
+
+ private:
+  struct Copy {
+    uint32_t block, local;
+  };
+  std::vector<Copy> copies_;  // by the triangle's index in the Bvh4's input
+  Bvh4 bvh_;
+};
+
+}  // namespace raystack::store

@@ -1,0 +1,200 @@
+#include "common/geometry/bvh4.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "common/geometry/next_float.h"
+#include "common/geometry/triangle.h"
+#include "tests/geometry/test_meshes.h"
+
+namespace raystack {
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+struct Mesh {
+  std::vector<Vec3f> vertices;  // 3 per triangle
+  std::vector<uint32_t> ids;
+  void Add(Vec3f a, Vec3f b, Vec3f c, uint32_t id) {
+    vertices.insert(vertices.end(), {a, b, c});
+    ids.push_back(id);
+  }
+};
+
+// Every triangle tested, the closest kept by CloserThan: the answer any traversal must give.
+Hit BruteIntersect(const Mesh& m, const Ray& ray, Hit hit) {
+  const RayTriangleSetup s(ray);
+  for (uint32_t i = 0; i < m.ids.size(); ++i) {
+    float t, u, v;
+    if (IntersectTriangle(s, m.vertices[3 * i], m.vertices[3 * i + 1], m.vertices[3 * i + 2],
+                          ray.tmin, NextUp(hit.t), &t, &u, &v) &&
+        CloserThan(t, m.ids[i], hit)) {
+      hit.t = t;
+      hit.u = u;
+      hit.v = v;
+      hit.triangle_id = m.ids[i];
+      hit.local_triangle = i;
+    }
+  }
+  return hit;
+}
+
+bool BruteOccluded(const Mesh& m, const Ray& ray) {
+  const RayTriangleSetup s(ray);
+  for (uint32_t i = 0; i < m.ids.size(); ++i) {
+    float t, u, v;
+    if (IntersectTriangle(s, m.vertices[3 * i], m.vertices[3 * i + 1], m.vertices[3 * i + 2],
+                          ray.tmin, ray.tmax, &t, &u, &v))
+      return true;
+  }
+  return false;
+}
+
+void ExpectSameHit(const Hit& expected, const Hit& got) {
+  EXPECT_EQ(0, std::memcmp(&expected.t, &got.t, sizeof(float))) << expected.t << " " << got.t;
+  EXPECT_EQ(expected.u, got.u);
+  EXPECT_EQ(expected.v, got.v);
+  EXPECT_EQ(expected.triangle_id, got.triangle_id);
+  EXPECT_EQ(expected.local_triangle, got.local_triangle);
+}
+
+// Small random triangles in the unit box, some of them repeated under other ids (coplanar
+// duplicates: CloserThan's ties), ids shuffled so the smaller one is not always first.
+Mesh Soup(int n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(0, 1), size(-0.05f, 0.05f);
+  std::vector<uint32_t> ids(static_cast<size_t>(n) + static_cast<size_t>(n) / 10);
+  for (uint32_t i = 0; i < ids.size(); ++i) ids[i] = 3 * i + 1;
+  std::shuffle(ids.begin(), ids.end(), rng);
+  Mesh m;
+  for (int i = 0; i < n; ++i) {
+    const Vec3f c{pos(rng), pos(rng), pos(rng)};
+    const Vec3f a = c + Vec3f{size(rng), size(rng), size(rng)};
+    const Vec3f b = c + Vec3f{size(rng), size(rng), size(rng)};
+    const Vec3f d = c + Vec3f{size(rng), size(rng), size(rng)};
+    m.Add(a, b, d, ids[m.ids.size()]);
+    if (i % 10 == 0) m.Add(a, b, d, ids[m.ids.size()]);
+  }
+  return m;
+}
+
+std::vector<Ray> Rays(int n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> pos(-0.2f, 1.2f), dir(-1, 1);
+  std::vector<Ray> rays;
+  for (int i = 0; i < n; ++i) {
+    Ray r;
+    r.origin = {pos(rng), pos(rng), pos(rng)};
+    r.direction = {dir(rng), dir(rng), dir(rng)};
+    if (i % 7 == 0) r.direction[i % 3] = 0;           // parallel to a slab
+    if (i % 11 == 0) r.direction = {0, 0, i % 2 ? 1.0f : -1.0f};  // along an axis
+    if (i % 5 == 0) r.tmin = 0.1f;
+    if (i % 13 == 0) r.tmax = 0.3f;
+    rays.push_back(r);
+  }
+  return rays;
+}
+
+TEST(Bvh4, RandomSoupMatchesBruteForceBitForBit) {
+  const Mesh m = Soup(3000, 7);
+  const Bvh4 bvh(m.vertices, m.ids);
+  EXPECT_EQ(bvh.triangle_count(), m.ids.size());
+  EXPECT_GT(bvh.node_count(), 10u);
+  int hits = 0, occluded = 0;
+  for (const Ray& ray : Rays(4000, 11)) {
+    Hit start;
+    start.t = ray.tmax;
+    const Hit expected = BruteIntersect(m, ray, start);
+    Hit got = start;
+    EXPECT_EQ(bvh.Intersect(ray, &got), expected.Valid());
+    ExpectSameHit(expected, got);
+    hits += expected.Valid();
+    const bool any = BruteOccluded(m, ray);
+    EXPECT_EQ(bvh.Occluded(ray), any);
+    occluded += any;
+  }
+  // Both answers occur often enough to mean something.
+  EXPECT_GT(hits, 400);
+  EXPECT_LT(hits, 3600);
+  EXPECT_GT(occluded, 400);
+}
+
+TEST(Bvh4, EqualDistanceGoesToTheSmallerIdWhateverTheOrder) {
+  for (bool smaller_first : {true, false}) {
+    Mesh m;
+    const Vec3f a{-1, -1, 2}, b{1, -1, 2}, c{0, 1, 2};
+    m.Add(a, b, c, smaller_first ? 5 : 9);
+    m.Add(a, b, c, smaller_first ? 9 : 5);
+    const Bvh4 bvh(m.vertices, m.ids);
+    Hit h;
+    ASSERT_TRUE(bvh.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
+    EXPECT_EQ(h.t, 2.0f);
+    EXPECT_EQ(h.triangle_id, 5u);
+    EXPECT_EQ(h.local_triangle, smaller_first ? 0u : 1u);
+  }
+}
+
+TEST(Bvh4, StartsFromTheHitItIsGiven) {
+  Mesh m;
+  m.Add({-1, -1, 2}, {1, -1, 2}, {0, 1, 2}, 8);
+  m.Add({-1, -1, 3}, {1, -1, 3}, {0, 1, 3}, 2);
+  const Bvh4 bvh(m.vertices, m.ids);
+  const Ray ray{{0, 0, 0}, {0, 0, 1}};
+  Hit h;
+  h.t = 1.5f;  // found elsewhere, closer than both
+  EXPECT_FALSE(bvh.Intersect(ray, &h));
+  h.t = 2.0f;  // a tie at t = 2 with a larger id: triangle 8 wins it
+  h.triangle_id = 9;
+  ASSERT_TRUE(bvh.Intersect(ray, &h));
+  EXPECT_EQ(h.triangle_id, 8u);
+  h.triangle_id = 7;  // a tie with a smaller id keeps it
+  EXPECT_FALSE(bvh.Intersect(ray, &h));
+  EXPECT_FALSE(bvh.Occluded(Ray{{0, 0, 0}, {0, 0, 1}, 0, 2.0f}));  // open at tmax
+  EXPECT_TRUE(bvh.Occluded(Ray{{0, 0, 0}, {0, 0, 1}, 0, 2.5f}));
+  EXPECT_FALSE(bvh.Occluded(Ray{{0, 0, 0}, {0, 0, 1}, 3.0f, kInf}));  // open at tmin
+}
+
+TEST(Bvh4, EmptyAndSingleTriangleMeshes) {
+  const Bvh4 empty(std::vector<Vec3f>{}, std::vector<uint32_t>{});
+  Hit h;
+  EXPECT_FALSE(empty.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
+  EXPECT_FALSE(empty.Occluded(Ray{{0, 0, 0}, {0, 0, 1}}));
+  Mesh m;
+  m.Add({-1, -1, 2}, {1, -1, 2}, {0, 1, 2}, 4);
+  const Bvh4 one(m.vertices, m.ids);
+  ASSERT_TRUE(one.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
+  EXPECT_EQ(h.triangle_id, 4u);
+  EXPECT_EQ(h.local_triangle, 0u);
+  EXPECT_FALSE(one.Occluded(Ray{{5, 0, 0}, {0, 0, 1}}));
+}
+
+// From inside a closed, bumpy mesh every ray must hit: a box culled by rounding would let one
+// escape through it. The hit is the brute-force one, bit for bit.
+TEST(Bvh4, NoRayEscapesAClosedMesh) {
+  const geometry_test::ClosedMesh closed =
+      geometry_test::MakeClosedMesh(geometry_test::MeshShape::kScan, 24, 1e3, 5e3);
+  Mesh m;
+  for (size_t i = 0; i < closed.triangles.size(); ++i) {
+    const geometry_test::Triangle& t = closed.triangles[i];
+    m.Add(t.p[0], t.p[1], t.p[2], static_cast<uint32_t>(i));
+  }
+  const Bvh4 bvh(m.vertices, m.ids);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> dir(-1, 1);
+  for (int i = 0; i < 3000; ++i) {
+    const Ray ray{closed.center, {dir(rng), dir(rng), dir(rng)}};
+    Hit h;
+    ASSERT_TRUE(bvh.Intersect(ray, &h)) << "ray " << i << " escaped";
+    ExpectSameHit(BruteIntersect(m, ray, Hit{}), h);
+    EXPECT_TRUE(bvh.Occluded(ray));
+  }
+}
+
+}  // namespace
+}  // namespace raystack
