@@ -1,5 +1,5 @@
 #pragma once
-// Every triangle of a store in one Bvh4, for models that fit in memory: the same closest and
+// Every triangle of a store in one WideBvh, for models that fit in memory: the same closest and
 // any hits as StoreTracer (bit for bit: t, u, v and the source triangle), without the octree
 // walk and the per-block trees. A triangle that crosses cells is stored in several blocks;
 // here it is kept once, and a hit names the first block holding it (by block id) and its
@@ -11,7 +11,7 @@
 #include <span>
 #include <vector>
 
-#include "common/geometry/bvh4.h"
+#include "common/geometry/wide_bvh.h"
 #include "common/geometry/ray.h"
 #include "common/store/block_view.h"
 
@@ -27,19 +27,15 @@ class StoreBvh {
   // As BlockView::Intersect over every block: the closest hit in (ray.tmin, hit->t], ties
   // broken by CloserThan; on a closer one, fills `hit` (block and index of a copy included)
   // and returns true.
-  bool Intersect(const Ray& ray, Hit* hit) const;
+  bool Intersect(const Ray& ray, Hit* hit) const { return bvh_.Intersect(ray, hit); }
   // As StoreTracer::Occluded: anything in (ray.tmin, ray.tmax).
   bool Occluded(const Ray& ray) const { return bvh_.Occluded(ray); }
 
   size_t triangle_count() const { return bvh_.triangle_count(); }
-  size_t bytes() const { return bvh_.bytes() + copies_.size() * sizeof(Copy); }
+  size_t bytes() const { return bvh_.bytes(); }
 
  private:
-  struct Copy {
-    uint32_t block, local;
-  };
-  std::vector<Copy> copies_;  // by the triangle's index in the Bvh4's input
-  Bvh4 bvh_;
+  WideBvh bvh_;
 };
 
 }  // namespace raystack::store

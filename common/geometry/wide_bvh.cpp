@@ -1,7 +1,7 @@
-// Bvh4: the binned-SAH binary tree collapsed into 4-wide nodes (the largest child opened first,
-// as in Embree's BVH4 builders), leaves of up to 4 triangles stored lane by lane.
+// WideBvh: the binned-SAH binary tree collapsed into 8-wide nodes (the largest child opened
+// first, as Embree's wide builders do), leaves of up to 4 triangles stored lane by lane.
 
-#include "common/geometry/bvh4.h"
+#include "common/geometry/wide_bvh.h"
 
 #include <algorithm>
 #include <bit>
@@ -17,10 +17,11 @@
 
 namespace raystack {
 
-class Bvh4Builder {
+class WideBvhBuilder {
  public:
-  Bvh4Builder(Bvh4* out, std::span<const Vec3f> vertices, std::span<const uint32_t> ids)
-      : out_(*out), vertices_(vertices), ids_(ids) {}
+  WideBvhBuilder(WideBvh* out, std::span<const Vec3f> vertices, std::span<const uint32_t> ids,
+              std::span<const TriangleOrigin> origins)
+      : out_(*out), vertices_(vertices), ids_(ids), origins_(origins) {}
 
   void Build() {
     std::vector<BvhBuildPrimitive> prims(ids_.size());
@@ -42,7 +43,7 @@ class Bvh4Builder {
       EmitNode(&child, 1);
       return;
     }
-    uint32_t children[4];
+    uint32_t children[WideBvh::kWidth];
     const int n = Gather(0, children);
     EmitNode(children, n);
   }
@@ -50,11 +51,11 @@ class Bvh4Builder {
  private:
   // The binary nodes that become one wide node's children: binary inner node `b`'s two
   // children, then, while fewer than 4, the inner one of largest area replaced by its two.
-  int Gather(uint32_t b, uint32_t out[4]) const {
+  int Gather(uint32_t b, uint32_t out[WideBvh::kWidth]) const {
     out[0] = b + 1;
     out[1] = binary_[b].offset;
     int n = 2;
-    while (n < 4) {
+    while (n < WideBvh::kWidth) {
       int best = -1;
       float best_area = -1;
       for (int k = 0; k < n; ++k) {
@@ -82,13 +83,13 @@ class Bvh4Builder {
   // first); returns its index.
   uint32_t EmitNode(const uint32_t* children, int n) {
     const auto index = static_cast<uint32_t>(out_.nodes_.size());
-    Bvh4::Node node{};
-    for (int k = 0; k < 4; ++k) {
+    WideBvh::Node node{};
+    for (int k = 0; k < WideBvh::kWidth; ++k) {
       for (int a = 0; a < 3; ++a) {
         node.box[a][k] = k < n ? binary_[children[k]].lower[a] : std::numeric_limits<float>::infinity();
         node.box[3 + a][k] = k < n ? binary_[children[k]].upper[a] : -std::numeric_limits<float>::infinity();
       }
-      node.child[k] = Bvh4::kEmpty;
+      node.child[k] = WideBvh::kEmpty;
     }
     out_.nodes_.push_back(node);
     for (int k = 0; k < n; ++k) {
@@ -97,7 +98,7 @@ class Bvh4Builder {
       if (c.count != 0) {
         ref = EmitLeaf(c);
       } else {
-        uint32_t grand[4];
+        uint32_t grand[WideBvh::kWidth];
         const int m = Gather(children[k], grand);
         ref = EmitNode(grand, m);
       }
@@ -110,7 +111,7 @@ class Bvh4Builder {
     CHECK(b.count >= 1 && b.count <= 4);
     const auto group = static_cast<uint32_t>(out_.leaves_.size());
     CHECK(group < (1u << 29));
-    Bvh4::Leaf leaf{};
+    WideBvh::Leaf leaf{};
     for (uint32_t k = 0; k < 4; ++k) {
       const uint32_t tri = order_[b.offset + std::min<uint32_t>(k, b.count - 1u)];
       for (int c = 0; c < 3; ++c) {
@@ -118,28 +119,30 @@ class Bvh4Builder {
         for (int a = 0; a < 3; ++a) leaf.p[c][a][k] = p[a];
       }
       leaf.id[k] = ids_[tri];
-      out_.input_index_.push_back(tri);
+      out_.origins_.push_back(origins_[tri]);
     }
     out_.leaves_.push_back(leaf);
-    return Bvh4::kLeaf | (group << 2) | (b.count - 1u);
+    return WideBvh::kLeaf | (group << 2) | (b.count - 1u);
   }
 
-  Bvh4& out_;
+  WideBvh& out_;
   std::span<const Vec3f> vertices_;
   std::span<const uint32_t> ids_;
+  std::span<const TriangleOrigin> origins_;
   std::vector<BvhNode> binary_;
   std::vector<uint32_t> order_;
 };
 
-Bvh4::Bvh4(std::span<const Vec3f> vertices, std::span<const uint32_t> ids) {
-  CHECK(vertices.size() == 3 * ids.size());
+WideBvh::WideBvh(std::span<const Vec3f> vertices, std::span<const uint32_t> ids,
+           std::span<const TriangleOrigin> origins) {
+  CHECK(vertices.size() == 3 * ids.size() && origins.size() == ids.size());
   triangle_count_ = ids.size();
-  Bvh4Builder(this, vertices, ids).Build();
+  WideBvhBuilder(this, vertices, ids, origins).Build();
 }
 
-size_t Bvh4::bytes() const {
+size_t WideBvh::bytes() const {
   return nodes_.size() * sizeof(Node) + leaves_.size() * sizeof(Leaf) +
-         input_index_.size() * sizeof(uint32_t);
+         origins_.size() * sizeof(TriangleOrigin);
 }
 
 namespace {
@@ -167,7 +170,7 @@ struct Pending {
   float t_enter;
 };
 // A wide node pushes at most 3 entries, and the tree is no deeper than the binary one.
-constexpr int kStackSize = 3 * kBvhMaxDepth + 1;
+constexpr int kStackSize = (WideBvh::kWidth - 1) * kBvhMaxDepth + 1;
 
 }  // namespace
 
@@ -175,25 +178,31 @@ constexpr int kStackSize = 3 * kBvhMaxDepth + 1;
 // IntersectBox lane by lane (the same expressions, NaN handling and far-plane slack).
 template <typename NodeT>
 inline uint32_t NodeHits(const BoxRay& r, const NodeT& node, float tmin, float tmax,
-                         float t_enter[4]) {
+                         float t_enter[WideBvh::kWidth]) {
   constexpr float kFar = bvh_internal::kFarScale;
 #if defined(__SSE2__)
-  __m128 t0 = _mm_set1_ps(tmin);
-  __m128 t1 = _mm_set1_ps(tmax * kFar);
-  for (int a = 0; a < 3; ++a) {
-    const __m128 o = _mm_set1_ps(r.origin[a]);
-    const __m128 inv = _mm_set1_ps(r.inv_dir[a]);
-    const __m128 tn = _mm_mul_ps(_mm_sub_ps(_mm_load_ps(node.box[r.near_row[a]]), o), inv);
-    const __m128 tf = _mm_mul_ps(
-        _mm_mul_ps(_mm_sub_ps(_mm_load_ps(node.box[r.far_row[a]]), o), inv), _mm_set1_ps(kFar));
-    t0 = _mm_max_ps(tn, t0);  // tn > t0 ? tn : t0: a NaN leaves t0 as it was
-    t1 = _mm_min_ps(tf, t1);
+  uint32_t mask = 0;
+  for (int half = 0; half < WideBvh::kWidth; half += 4) {
+    __m128 t0 = _mm_set1_ps(tmin);
+    __m128 t1 = _mm_set1_ps(tmax * kFar);
+    for (int a = 0; a < 3; ++a) {
+      const __m128 o = _mm_set1_ps(r.origin[a]);
+      const __m128 inv = _mm_set1_ps(r.inv_dir[a]);
+      const __m128 tn =
+          _mm_mul_ps(_mm_sub_ps(_mm_load_ps(node.box[r.near_row[a]] + half), o), inv);
+      const __m128 tf = _mm_mul_ps(
+          _mm_mul_ps(_mm_sub_ps(_mm_load_ps(node.box[r.far_row[a]] + half), o), inv),
+          _mm_set1_ps(kFar));
+      t0 = _mm_max_ps(tn, t0);  // tn > t0 ? tn : t0: a NaN leaves t0 as it was
+      t1 = _mm_min_ps(tf, t1);
+    }
+    _mm_storeu_ps(t_enter + half, t0);
+    mask |= static_cast<uint32_t>(_mm_movemask_ps(_mm_cmpngt_ps(t0, t1))) << half;
   }
-  _mm_storeu_ps(t_enter, t0);
-  return static_cast<uint32_t>(_mm_movemask_ps(_mm_cmpngt_ps(t0, t1)));
+  return mask;
 #else
   uint32_t mask = 0;
-  for (int k = 0; k < 4; ++k) {
+  for (int k = 0; k < WideBvh::kWidth; ++k) {
     float t0 = tmin, t1 = tmax * kFar;
     for (int a = 0; a < 3; ++a) {
       const float tn = (node.box[r.near_row[a]][k] - r.origin[a]) * r.inv_dir[a];
@@ -208,7 +217,7 @@ inline uint32_t NodeHits(const BoxRay& r, const NodeT& node, float tmin, float t
 #endif
 }
 
-inline uint32_t Bvh4::EdgeCandidates(const RayTriangleSetup& s, const Leaf& leaf, uint32_t n) {
+inline uint32_t WideBvh::EdgeCandidates(const RayTriangleSetup& s, const Leaf& leaf, uint32_t n) {
 #if defined(__SSE2__)
   // IntersectTriangle's float expressions, lane by lane: p - origin, then the shear, then the
   // edge functions. A lane it drops, IntersectTriangle rejects too; a zero edge value (decided
@@ -250,9 +259,9 @@ inline void Corners(const float (&p)[3][3][4], uint32_t k, Vec3f* p0, Vec3f* p1,
 }
 
 // Pushes the children in `mask` but the nearest, farthest first, and returns the nearest.
-inline uint32_t PushChildren(const uint32_t child[4], uint32_t mask, const float t_enter[4],
+inline uint32_t PushChildren(const uint32_t child[WideBvh::kWidth], uint32_t mask, const float t_enter[WideBvh::kWidth],
                              Pending* stack, int* size) {
-  Pending hit[4];
+  Pending hit[WideBvh::kWidth];
   int n = 0;
   for (; mask; mask &= mask - 1) {  // insertion sort by entry, nearest last
     const int k = std::countr_zero(mask);
@@ -270,18 +279,17 @@ inline uint32_t PushChildren(const uint32_t child[4], uint32_t mask, const float
 // Requests every cache line of the boxes the ray meets at once, so their misses overlap
 // instead of following one another as the traversal reaches each line (node and leaf loads
 // are most of a query's stalls on a model larger than the cache).
-inline void Bvh4::Prefetch(const uint32_t child[4], uint32_t mask) const {
+inline void WideBvh::Prefetch(const uint32_t child[kWidth], uint32_t mask) const {
   for (; mask; mask &= mask - 1) {
     const uint32_t ref = child[std::countr_zero(mask)];
     const char* p = (ref & kLeaf) ? reinterpret_cast<const char*>(&leaves_[(ref & ~kLeaf) >> 2])
                                   : reinterpret_cast<const char*>(&nodes_[ref]);
-    __builtin_prefetch(p);
-    __builtin_prefetch(p + 64);
-    if (ref & kLeaf) __builtin_prefetch(p + 128);
+    const size_t bytes = (ref & kLeaf) ? sizeof(Leaf) : sizeof(Node);
+    for (size_t line = 0; line < bytes; line += 64) __builtin_prefetch(p + line);
   }
 }
 
-bool Bvh4::Intersect(const Ray& ray, Hit* hit) const {
+bool WideBvh::Intersect(const Ray& ray, Hit* hit) const {
   if (nodes_.empty()) return false;
   const RayTriangleSetup tri(ray);
   const BoxRay box(ray);
@@ -294,7 +302,7 @@ bool Bvh4::Intersect(const Ray& ray, Hit* hit) const {
   while (true) {
     if (!(ref & kLeaf)) {
       const Node& node = nodes_[ref];
-      float t_enter[4];
+      float t_enter[kWidth];
       const uint32_t mask = NodeHits(box, node, ray.tmin, tmax, t_enter);
       if (mask != 0) {
         Prefetch(node.child, mask);
@@ -316,7 +324,7 @@ bool Bvh4::Intersect(const Ray& ray, Hit* hit) const {
           hit->u = u;
           hit->v = v;
           hit->triangle_id = leaf.id[k];
-          hit->local_triangle = 4 * group + k;  // the lane; its input index once at the end
+          hit->local_triangle = 4 * group + k;  // the lane; its origin once at the end
           tmax = NextUp(t);
           found = true;
         }
@@ -325,7 +333,11 @@ bool Bvh4::Intersect(const Ray& ray, Hit* hit) const {
     // Next: the nearest pending box the best hit has not passed (the test of NodeHits).
     for (;;) {
       if (size == 0) {
-        if (found) hit->local_triangle = input_index_[hit->local_triangle];
+        if (found) {
+          const TriangleOrigin& o = origins_[hit->local_triangle];
+          hit->block_id = o.block;
+          hit->local_triangle = o.local;
+        }
         return found;
       }
       const Pending& p = stack[--size];
@@ -337,7 +349,7 @@ bool Bvh4::Intersect(const Ray& ray, Hit* hit) const {
   }
 }
 
-bool Bvh4::Occluded(const Ray& ray) const {
+bool WideBvh::Occluded(const Ray& ray) const {
   if (nodes_.empty()) return false;
   const RayTriangleSetup tri(ray);
   const BoxRay box(ray);
@@ -347,7 +359,7 @@ bool Bvh4::Occluded(const Ray& ray) const {
   while (true) {
     if (!(ref & kLeaf)) {
       const Node& node = nodes_[ref];
-      float t_enter[4];
+      float t_enter[kWidth];
       const uint32_t mask = NodeHits(box, node, ray.tmin, ray.tmax, t_enter);
       if (mask != 0) {
         Prefetch(node.child, mask);

@@ -1,4 +1,4 @@
-#include "common/geometry/bvh4.h"
+#include "common/geometry/wide_bvh.h"
 
 #include <gtest/gtest.h>
 
@@ -21,8 +21,10 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 struct Mesh {
   std::vector<Vec3f> vertices;  // 3 per triangle
   std::vector<uint32_t> ids;
+  std::vector<TriangleOrigin> origins;  // (7 i + 1, i) for triangle i
   void Add(Vec3f a, Vec3f b, Vec3f c, uint32_t id) {
     vertices.insert(vertices.end(), {a, b, c});
+    origins.push_back({7 * static_cast<uint32_t>(ids.size()) + 1, static_cast<uint32_t>(ids.size())});
     ids.push_back(id);
   }
 };
@@ -39,7 +41,8 @@ Hit BruteIntersect(const Mesh& m, const Ray& ray, Hit hit) {
       hit.u = u;
       hit.v = v;
       hit.triangle_id = m.ids[i];
-      hit.local_triangle = i;
+      hit.block_id = m.origins[i].block;
+      hit.local_triangle = m.origins[i].local;
     }
   }
   return hit;
@@ -61,6 +64,7 @@ void ExpectSameHit(const Hit& expected, const Hit& got) {
   EXPECT_EQ(expected.u, got.u);
   EXPECT_EQ(expected.v, got.v);
   EXPECT_EQ(expected.triangle_id, got.triangle_id);
+  EXPECT_EQ(expected.block_id, got.block_id);
   EXPECT_EQ(expected.local_triangle, got.local_triangle);
 }
 
@@ -101,9 +105,9 @@ std::vector<Ray> Rays(int n, uint32_t seed) {
   return rays;
 }
 
-TEST(Bvh4, RandomSoupMatchesBruteForceBitForBit) {
+TEST(WideBvh, RandomSoupMatchesBruteForceBitForBit) {
   const Mesh m = Soup(3000, 7);
-  const Bvh4 bvh(m.vertices, m.ids);
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
   EXPECT_EQ(bvh.triangle_count(), m.ids.size());
   EXPECT_GT(bvh.node_count(), 10u);
   int hits = 0, occluded = 0;
@@ -125,26 +129,27 @@ TEST(Bvh4, RandomSoupMatchesBruteForceBitForBit) {
   EXPECT_GT(occluded, 400);
 }
 
-TEST(Bvh4, EqualDistanceGoesToTheSmallerIdWhateverTheOrder) {
+TEST(WideBvh, EqualDistanceGoesToTheSmallerIdWhateverTheOrder) {
   for (bool smaller_first : {true, false}) {
     Mesh m;
     const Vec3f a{-1, -1, 2}, b{1, -1, 2}, c{0, 1, 2};
     m.Add(a, b, c, smaller_first ? 5 : 9);
     m.Add(a, b, c, smaller_first ? 9 : 5);
-    const Bvh4 bvh(m.vertices, m.ids);
+    const WideBvh bvh(m.vertices, m.ids, m.origins);
     Hit h;
     ASSERT_TRUE(bvh.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
     EXPECT_EQ(h.t, 2.0f);
     EXPECT_EQ(h.triangle_id, 5u);
     EXPECT_EQ(h.local_triangle, smaller_first ? 0u : 1u);
+    EXPECT_EQ(h.block_id, smaller_first ? 1u : 8u);
   }
 }
 
-TEST(Bvh4, StartsFromTheHitItIsGiven) {
+TEST(WideBvh, StartsFromTheHitItIsGiven) {
   Mesh m;
   m.Add({-1, -1, 2}, {1, -1, 2}, {0, 1, 2}, 8);
   m.Add({-1, -1, 3}, {1, -1, 3}, {0, 1, 3}, 2);
-  const Bvh4 bvh(m.vertices, m.ids);
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
   const Ray ray{{0, 0, 0}, {0, 0, 1}};
   Hit h;
   h.t = 1.5f;  // found elsewhere, closer than both
@@ -160,23 +165,24 @@ TEST(Bvh4, StartsFromTheHitItIsGiven) {
   EXPECT_FALSE(bvh.Occluded(Ray{{0, 0, 0}, {0, 0, 1}, 3.0f, kInf}));  // open at tmin
 }
 
-TEST(Bvh4, EmptyAndSingleTriangleMeshes) {
-  const Bvh4 empty(std::vector<Vec3f>{}, std::vector<uint32_t>{});
+TEST(WideBvh, EmptyAndSingleTriangleMeshes) {
+  const WideBvh empty(std::vector<Vec3f>{}, std::vector<uint32_t>{}, std::vector<TriangleOrigin>{});
   Hit h;
   EXPECT_FALSE(empty.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
   EXPECT_FALSE(empty.Occluded(Ray{{0, 0, 0}, {0, 0, 1}}));
   Mesh m;
   m.Add({-1, -1, 2}, {1, -1, 2}, {0, 1, 2}, 4);
-  const Bvh4 one(m.vertices, m.ids);
+  const WideBvh one(m.vertices, m.ids, m.origins);
   ASSERT_TRUE(one.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
   EXPECT_EQ(h.triangle_id, 4u);
+  EXPECT_EQ(h.block_id, 1u);
   EXPECT_EQ(h.local_triangle, 0u);
   EXPECT_FALSE(one.Occluded(Ray{{5, 0, 0}, {0, 0, 1}}));
 }
 
 // From inside a closed, bumpy mesh every ray must hit: a box culled by rounding would let one
 // escape through it. The hit is the brute-force one, bit for bit.
-TEST(Bvh4, NoRayEscapesAClosedMesh) {
+TEST(WideBvh, NoRayEscapesAClosedMesh) {
   const geometry_test::ClosedMesh closed =
       geometry_test::MakeClosedMesh(geometry_test::MeshShape::kScan, 24, 1e3, 5e3);
   Mesh m;
@@ -184,7 +190,7 @@ TEST(Bvh4, NoRayEscapesAClosedMesh) {
     const geometry_test::Triangle& t = closed.triangles[i];
     m.Add(t.p[0], t.p[1], t.p[2], static_cast<uint32_t>(i));
   }
-  const Bvh4 bvh(m.vertices, m.ids);
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> dir(-1, 1);
   for (int i = 0; i < 3000; ++i) {
