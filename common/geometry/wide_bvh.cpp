@@ -20,7 +20,7 @@ namespace raystack {
 class WideBvhBuilder {
  public:
   WideBvhBuilder(WideBvh* out, std::span<const Vec3f> vertices, std::span<const uint32_t> ids,
-              std::span<const TriangleOrigin> origins)
+                 std::span<const TriangleOrigin> origins)
       : out_(*out), vertices_(vertices), ids_(ids), origins_(origins) {}
 
   void Build() {
@@ -50,7 +50,7 @@ class WideBvhBuilder {
 
  private:
   // The binary nodes that become one wide node's children: binary inner node `b`'s two
-  // children, then, while fewer than 4, the inner one of largest area replaced by its two.
+  // children, then, while fewer than kWidth, the inner one of largest area replaced by its two.
   int Gather(uint32_t b, uint32_t out[WideBvh::kWidth]) const {
     out[0] = b + 1;
     out[1] = binary_[b].offset;
@@ -147,7 +147,7 @@ size_t WideBvh::bytes() const {
 
 namespace {
 
-// A ray's constants for the 4-box test: IntersectBox's, with the rows of Node::box that hold
+// A ray's constants for the box tests: IntersectBox's, with the rows of Node::box that hold
 // each axis's near and far planes.
 struct BoxRay {
   float origin[3], inv_dir[3];
@@ -169,13 +169,14 @@ struct Pending {
   uint32_t ref;
   float t_enter;
 };
-// A wide node pushes at most 3 entries, and the tree is no deeper than the binary one.
+// A wide node pushes at most kWidth - 1 entries, and the tree is no deeper than the binary one.
 constexpr int kStackSize = (WideBvh::kWidth - 1) * kBvhMaxDepth + 1;
 
 }  // namespace
 
-// Which of a node's 4 boxes the ray meets within [tmin, tmax], and where it enters each:
-// IntersectBox lane by lane (the same expressions, NaN handling and far-plane slack).
+// Which of a node's boxes the ray meets within [tmin, tmax], and where it enters each:
+// IntersectBox lane by lane, 4 boxes at a time (the same expressions, NaN handling and
+// far-plane slack). A template so the private Node type need not be named here.
 template <typename NodeT>
 inline uint32_t NodeHits(const BoxRay& r, const NodeT& node, float tmin, float tmax,
                          float t_enter[WideBvh::kWidth]) {

@@ -8,6 +8,7 @@
 //   then the index body, the octree body, and the rest is blocks.bin's body.
 // Checks beyond "no crash": every error names its file; walks name existing blocks, visit
 // each at most once and end; a run's blocks lie inside the bytes read for it.
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -20,6 +21,7 @@
 #include "common/store/block_codec.h"
 #include "common/store/format.h"
 #include "common/store/store_reader.h"
+#include "common/store/store_bvh.h"
 #include "common/store/store_tracer.h"
 #include "slave/block_source.h"
 #include "slave/block_walk.h"
@@ -96,6 +98,33 @@ void TraceInCore(const StoreReader& store, const std::vector<Ray>& rays) {
   }
 }
 
+// --mode bvh: every block that decodes, in one tree. A hit names a block that holds its
+// triangle. (Hits are not compared with StoreTracer's: a hostile store may give one triangle id
+// different vertices in two blocks.)
+void TraceOneBvh(const StoreReader& store, const std::vector<Ray>& rays) {
+  const uint32_t count = std::min<uint32_t>(static_cast<uint32_t>(store.blocks().size()), kMaxBlocksRead);
+  std::vector<AlignedBuffer> raw(count);
+  std::vector<BlockView> views;
+  std::vector<uint8_t> stored;
+  AlignedBuffer scratch;
+  for (uint32_t id = 0; id < count; ++id) {
+    Expected<BlockView> v = store.Load(id, &stored, &scratch, &raw[id]);
+    ExpectNamesStore(v.status(), store.dir());
+    if (!v.ok()) return;  // the engine's preload ends with this error
+    views.push_back(*v);
+  }
+  const StoreBvh bvh(views);
+  for (const Ray& ray : rays) {
+    const Hit hit = bvh.Intersect(ray);
+    if (hit.Valid()) {
+      CHECK(hit.block_id < views.size());
+      CHECK(hit.local_triangle < views[hit.block_id].triangle_count());
+      CHECK(views[hit.block_id].TriangleId(hit.local_triangle) == hit.triangle_id);
+    }
+    (void)bvh.Occluded(ray);
+  }
+}
+
 // The loader's reads: neighbouring ids as one run, each block found at its offset from the
 // run's first, then decoded.
 void ReadLikeTheLoader(const StoreReader& store) {
@@ -147,6 +176,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::vector<Ray> rays = Rays(store);
   WalkLikeTheRayStack(store, rays);
   TraceInCore(store, rays);
+  TraceOneBvh(store, rays);
   ReadLikeTheLoader(store);
   return 0;
 }
