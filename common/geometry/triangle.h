@@ -11,6 +11,10 @@
 #include "common/geometry/ray.h"
 #include "common/geometry/vec.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace raystack {
 
 // Per-ray constants, computed once per ray and reused for every triangle it meets.
@@ -83,5 +87,26 @@ inline bool IntersectTriangle(const RayTriangleSetup& s, Vec3f p0, Vec3f p1, Vec
   *v_out = w * inv_det;
   return true;
 }
+
+#if defined(__SSE2__)
+// IntersectTriangle's sign test for 4 triangles at once, from their corners c already moved to
+// the ray's origin and sheared, x[c] and y[c] (lane k: triangle k), with the same float
+// operations. Bit k set: IntersectTriangle rejects triangle k too. A zero edge value, which
+// IntersectTriangle decides in double, is never rejected here.
+inline uint32_t EdgeRejected4(const __m128 x[3], const __m128 y[3]) {
+  const __m128 u = _mm_sub_ps(_mm_mul_ps(x[2], y[1]), _mm_mul_ps(y[2], x[1]));
+  const __m128 v = _mm_sub_ps(_mm_mul_ps(x[0], y[2]), _mm_mul_ps(y[0], x[2]));
+  const __m128 w = _mm_sub_ps(_mm_mul_ps(x[1], y[0]), _mm_mul_ps(y[1], x[0]));
+  const __m128 zero = _mm_setzero_ps();
+  const __m128 any_zero = _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(u, zero), _mm_cmpeq_ps(v, zero)),
+                                    _mm_cmpeq_ps(w, zero));
+  const __m128 any_neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(u, zero), _mm_cmplt_ps(v, zero)),
+                                   _mm_cmplt_ps(w, zero));
+  const __m128 any_pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(u, zero), _mm_cmpgt_ps(v, zero)),
+                                   _mm_cmpgt_ps(w, zero));
+  const __m128 rejected = _mm_andnot_ps(any_zero, _mm_and_ps(any_neg, any_pos));
+  return static_cast<uint32_t>(_mm_movemask_ps(rejected));
+}
+#endif
 
 }  // namespace raystack

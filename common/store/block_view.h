@@ -120,18 +120,7 @@ inline uint32_t BlockView::EdgeCandidates(const RayTriangleSetup& s, uint32_t fi
     x[c] = _mm_sub_ps(d[s.kx], _mm_mul_ps(_mm_set1_ps(s.sx), d[s.kz]));
     y[c] = _mm_sub_ps(d[s.ky], _mm_mul_ps(_mm_set1_ps(s.sy), d[s.kz]));
   }
-  const __m128 u = _mm_sub_ps(_mm_mul_ps(x[2], y[1]), _mm_mul_ps(y[2], x[1]));
-  const __m128 v = _mm_sub_ps(_mm_mul_ps(x[0], y[2]), _mm_mul_ps(y[0], x[2]));
-  const __m128 w = _mm_sub_ps(_mm_mul_ps(x[1], y[0]), _mm_mul_ps(y[1], x[0]));
-  const __m128 zero = _mm_setzero_ps();
-  const __m128 any_zero = _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(u, zero), _mm_cmpeq_ps(v, zero)),
-                                    _mm_cmpeq_ps(w, zero));
-  const __m128 any_neg = _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(u, zero), _mm_cmplt_ps(v, zero)),
-                                   _mm_cmplt_ps(w, zero));
-  const __m128 any_pos = _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(u, zero), _mm_cmpgt_ps(v, zero)),
-                                   _mm_cmpgt_ps(w, zero));
-  const __m128 rejected = _mm_andnot_ps(any_zero, _mm_and_ps(any_neg, any_pos));
-  return ~static_cast<uint32_t>(_mm_movemask_ps(rejected)) & ((1u << n) - 1);
+  return ~EdgeRejected4(x, y) & ((1u << n) - 1);
 #else
   (void)s;
   (void)first;
