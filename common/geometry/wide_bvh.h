@@ -9,7 +9,8 @@
 // Hits are bit-identical to the block traversals: the leaves run IntersectTriangle's float edge
 // test 4 triangles at a time with the same operations lane by lane, then IntersectTriangle
 // itself on the triangles that pass, and the closest hit follows CloserThan. Box tests follow
-// IntersectBox's expressions and slack, so no box holding the closest hit is culled.
+// IntersectBox's expressions and slack, with boxes widened by a margin that covers the float
+// triangle test's tolerance (see BoxRay), so no box holding the closest hit is culled.
 //
 // Building allocates; queries never do and may run on several threads at once.
 
@@ -75,6 +76,7 @@ class WideBvh {
   std::vector<Leaf> leaves_;
   std::vector<TriangleOrigin> origins_;  // per leaf lane
   size_t triangle_count_ = 0;
+  float magnitude_ = 0;  // the largest |coordinate| of any vertex: sets the boxes' margin
 
   friend class WideBvhBuilder;
 };

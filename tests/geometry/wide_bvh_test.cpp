@@ -180,6 +180,37 @@ TEST(WideBvh, EmptyAndSingleTriangleMeshes) {
   EXPECT_FALSE(one.Occluded(Ray{{5, 0, 0}, {0, 0, 1}}));
 }
 
+// Found on the conference room: IntersectTriangle, deciding in float relative to a far
+// origin, accepts triangle 76502 at t = 0.999999285, while the tight box of its leaf is entered
+// at t = 1 as computed. A farther hit found first (74017, at 0.999999464) must not prune that
+// leaf.
+TEST(WideBvh, AHitJustOutsideItsBoxIsNotPruned) {
+  const float v[5][9] = {
+      {0x1.9930fcp+10f, 0x1.b743eap-2f, -0x1.f19c64p+9f, 0x1.992f18p+10f, 0x1.17ba02p-1f,
+       -0x1.f1f6c6p+9f, 0x1.993154p+10f, 0x1.b67be6p-2f, -0x1.f19c7p+9f},
+      {0x1.992a44p+10f, 0x1.88fc0ep-2f, -0x1.f19ed8p+9f, 0x1.9929f4p+10f, 0x1.88fc0ep-2f,
+       -0x1.f19e8ap+9f, 0x1.9929fcp+10f, 0x1.8e43eep-2f, -0x1.f19e76p+9f},
+      {0x1.992b2cp+10f, 0x1.96cc1cp-2f, -0x1.f19d34p+9f, 0x1.992b68p+10f, 0x1.930404p-2f,
+       -0x1.f19d5ap+9f, 0x1.992b18p+10f, 0x1.96cc1cp-2f, -0x1.f19d8ep+9f},
+      {0x1.993154p+10f, 0x1.b6ac22p-2f, -0x1.f19cbep+9f, 0x1.99319cp+10f, 0x1.b43bf8p-2f,
+       -0x1.f19cbep+9f, 0x1.99314cp+10f, 0x1.b6ac22p-2f, -0x1.f19cf2p+9f},
+      {0x1.99319cp+10f, 0x1.b43bf8p-2f, -0x1.f19cbep+9f, 0x1.993194p+10f, 0x1.b43bf8p-2f,
+       -0x1.f19d22p+9f, 0x1.99314cp+10f, 0x1.b6ac22p-2f, -0x1.f19cf2p+9f}};
+  const uint32_t ids[5] = {74017, 75321, 75406, 76502, 76503};
+  Mesh m;
+  for (int i = 0; i < 5; ++i)
+    m.Add({v[i][0], v[i][1], v[i][2]}, {v[i][3], v[i][4], v[i][5]}, {v[i][6], v[i][7], v[i][8]},
+          ids[i]);
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
+  const Ray ray{{0x1.6d32d8p+9f, 0x1.13c728p+9f, -0x1.d4653cp+8f},
+                {0x1.c52fccp+9f, -0x1.139052p+9f, -0x1.076a2ep+9f}};
+  const Hit expected = BruteIntersect(m, ray, Hit{});
+  ASSERT_EQ(expected.triangle_id, 76502u);
+  Hit got;
+  ASSERT_TRUE(bvh.Intersect(ray, &got));
+  ExpectSameHit(expected, got);
+}
+
 // From inside a closed, bumpy mesh every ray must hit: a box culled by rounding would let one
 // escape through it. The hit is the brute-force one, bit for bit.
 TEST(WideBvh, NoRayEscapesAClosedMesh) {
