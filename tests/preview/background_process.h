@@ -8,6 +8,9 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -66,6 +69,30 @@ class BackgroundProcess {
 
   void Signal(int sig) {
     if (pid_ > 0 && !exited_) kill(pid_, sig);
+  }
+  // Under mpirun: sends `sig` to the child of this process that is MPI rank `rank` (found by
+  // its OMPI_COMM_WORLD_RANK); false if there is none.
+  bool SignalRank(int rank, int sig) const {
+    const std::string want = "OMPI_COMM_WORLD_RANK=" + std::to_string(rank);
+    for (const auto& entry : std::filesystem::directory_iterator("/proc")) {
+      const std::string name = entry.path().filename();
+      if (name.find_first_not_of("0123456789") != std::string::npos) continue;
+      std::ifstream stat(entry.path() / "stat");
+      std::string line;
+      std::getline(stat, line);
+      const size_t close = line.rfind(')');  // "pid (comm) state ppid ..."
+      if (close == std::string::npos) continue;
+      std::istringstream rest(line.substr(close + 1));
+      std::string state;
+      pid_t ppid = 0;
+      rest >> state >> ppid;
+      if (ppid != pid_) continue;
+      std::ifstream environ(entry.path() / "environ", std::ios::binary);
+      for (std::string var; std::getline(environ, var, '\0');) {
+        if (var == want) return kill(static_cast<pid_t>(std::stoi(name)), sig) == 0;
+      }
+    }
+    return false;
   }
   // Waits for the end; the exit code, or -1 if it was killed by a signal.
   int Wait() {
