@@ -32,6 +32,7 @@ static_assert(sizeof(RayRecord) == 64, "a waiting ray costs 64 bytes; keep it so
 
 inline constexpr uint8_t kHitBackFace = 1;  // the closest hit is on the triangle's back side
 inline constexpr uint8_t kOccluded = 2;     // a shadow ray found a blocker
+inline constexpr uint8_t kPretraced = 4;    // bvh mode: its closest hit was found with its packet
 
 inline RayType TypeOf(const RayRecord& r) { return static_cast<RayType>(r.type); }
 inline bool IsShadow(const RayRecord& r) { return TypeOf(r) == RayType::kShadow; }

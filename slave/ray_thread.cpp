@@ -111,6 +111,7 @@ bool RayThread::FeedNextTile(bool may_wait) {
   AskAhead();
   // Sample by sample, each over all the pixels; pending_ is a LIFO, so push in reverse.
   const int width = shared_->camera->width();
+  const size_t first_fed = pending_.size();
   for (uint32_t s = sample_end; s-- > sample_begin;) {
     for (auto it = feed_pixels_.rbegin(); it != feed_pixels_.rend(); ++it) {
       const uint32_t pixel = static_cast<uint32_t>(it->y * width + it->x);
@@ -119,6 +120,7 @@ bool RayThread::FeedNextTile(bool may_wait) {
       ++counters_.rays[static_cast<int>(RayType::kPrimary)];
     }
   }
+  if (shared_->bvh) PretraceBvh(first_fed, sample_begin, sample_end, tile);
   if (shared_->stack) {
     while (!pending_.empty()) {
       RayRecord r = pending_.back();
@@ -451,7 +453,63 @@ void RayThread::TraceSync(RayRecord ray) {
   }
 }
 
+void RayThread::PretraceBvh(size_t first, uint32_t sample_begin, uint32_t sample_end,
+                            const Tile& tile) {
+  // Sample s of the pixel at feed position p was pushed at (see FeedNextTile):
+  const size_t pixels = feed_pixels_.size();
+  auto pushed_at = [&](uint32_t s, size_t p) {
+    return first + size_t{sample_end - 1 - s} * pixels + (pixels - 1 - p);
+  };
+  const int w = tile.x1 - tile.x0, h = tile.y1 - tile.y0;
+  feed_grid_.assign(static_cast<size_t>(w) * static_cast<size_t>(h), -1);
+  for (size_t p = 0; p < pixels; ++p) {
+    const FeedPixel& f = feed_pixels_[p];
+    feed_grid_[static_cast<size_t>((f.y - tile.y0) * w + (f.x - tile.x0))] = static_cast<int32_t>(p);
+  }
+  // Packets of 4 x 2 pixels: primary rays through neighbouring pixels walk nearly the same
+  // nodes (dragon: 8.3 nodes a packet against 6.6 a ray alone).
+  for (uint32_t s = sample_begin; s < sample_end; ++s) {
+    for (int by = 0; by < h; by += 2) {
+      for (int bx = 0; bx < w; bx += 4) {
+        size_t index[WideBvh::kPacketSize];
+        int n = 0;
+        for (int y = by; y < std::min(by + 2, h); ++y)
+          for (int x = bx; x < std::min(bx + 4, w); ++x)
+            if (const int32_t p = feed_grid_[static_cast<size_t>(y * w + x)]; p >= 0)
+              index[n++] = pushed_at(s, static_cast<size_t>(p));
+        if (n != 0) TracePacket(index, n);
+      }
+    }
+  }
+}
+
+void RayThread::TracePacket(const size_t* index, int n) {
+  Ray rays[WideBvh::kPacketSize];
+  Hit hits[WideBvh::kPacketSize];
+  for (int j = 0; j < n; ++j) {
+    rays[j] = ToRay(pending_[index[j]]);
+    hits[j] = ToHit(pending_[index[j]]);
+  }
+  const auto count = static_cast<size_t>(n);
+  const uint32_t found = shared_->bvh->IntersectPacket({rays, count}, {hits, count});
+  for (int j = 0; j < n; ++j) {
+    RayRecord& ray = pending_[index[j]];
+    if (found >> j & 1) {
+      const store::BlockView* view = shared_->cache->TryAcquire(hits[j].block_id);
+      CHECK(view != nullptr);  // preloaded, and nothing is evicted without a budget
+      RecordHit(*view, hits[j], &ray);
+      shared_->cache->Release(hits[j].block_id);
+    }
+    ray.flags |= kPretraced;
+  }
+}
+
 void RayThread::TraceBvh(RayRecord ray) {
+  if (ray.flags & kPretraced) {
+    ray.flags &= static_cast<uint8_t>(~kPretraced);
+    Finish(ray);
+    return;
+  }
   const store::StoreBvh& bvh = *shared_->bvh;
   if (IsShadow(ray)) {
     if (bvh.Occluded(ToRay(ray))) {

@@ -101,6 +101,10 @@ class RayThread {
   void TraceSync(RayRecord ray);
   // bvh mode: the whole ray at once through the one tree (every block is resident).
   void TraceBvh(RayRecord ray);
+  // bvh mode: the closest hits of the primary rays just fed (pending_[first ..)), found in
+  // packets of neighbouring pixels; each ray is marked kPretraced and finishes when popped.
+  void PretraceBvh(size_t first, uint32_t sample_begin, uint32_t sample_end, const Tile& tile);
+  void TracePacket(const size_t* index, int n);
   const store::BlockView* AcquireSync(uint32_t block);
 
   FrameShared* shared_;
@@ -124,6 +128,7 @@ class RayThread {
     int x, y;
   };
   std::vector<FeedPixel> feed_pixels_;
+  std::vector<int32_t> feed_grid_;  // bvh mode: a tile pixel's index in feed_pixels_, or -1
   ShadeOutput shade_;
   std::vector<RayRecord> pending_;  // rays to route (children, primaries): no recursion
   std::vector<uint32_t> taken_chunks_;

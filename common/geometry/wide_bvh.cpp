@@ -13,10 +13,17 @@
 #endif
 
 #include "common/base/check.h"
+#include "common/geometry/bounds.h"
 #include "common/geometry/bvh.h"
 #include "common/geometry/next_float.h"
+#include "common/geometry/wide_bvh_internal.h"
 
 namespace raystack {
+
+
+using wide_bvh_internal::BoxRay;
+using wide_bvh_internal::Corners;
+using wide_bvh_internal::kStackSize;
 
 class WideBvhBuilder {
  public:
@@ -25,8 +32,15 @@ class WideBvhBuilder {
       : out_(*out), vertices_(vertices), ids_(ids), origins_(origins) {}
 
   void Build() {
-    for (const Vec3f& p : vertices_)
+    Bounds3f model;
+    for (const Vec3f& p : vertices_) {
       for (int a = 0; a < 3; ++a) out_.magnitude_ = std::max(out_.magnitude_, std::fabs(p[a]));
+      model.Extend(p);
+    }
+    if (!vertices_.empty()) {
+      const Vec3f e = model.Extent();
+      out_.extent_ = std::max({e.x, e.y, e.z});
+    }
     std::vector<BvhBuildPrimitive> prims(ids_.size());
     for (size_t i = 0; i < prims.size(); ++i)
       for (int c = 0; c < 3; ++c) prims[i].bounds.Extend(vertices_[3 * i + static_cast<size_t>(c)]);
@@ -148,47 +162,6 @@ size_t WideBvh::bytes() const {
          origins_.size() * sizeof(TriangleOrigin);
 }
 
-namespace {
-
-// A ray's constants for the box tests: IntersectBox's, with the rows of Node::box that hold
-// each axis's near and far planes, and a margin in t per axis.
-//
-// The margin: IntersectTriangle decides inside or outside in float, relative to the ray's
-// origin, so it accepts rays that pass outside a triangle by a few ulps of the coordinates'
-// magnitude. Such a hit can lie before the entry into the triangle's (tight) box, and pruning
-// by the best hit would then cull the box (found on the conference room: a hit 7e-7 before
-// its leaf's computed entry, 7 ulps of the coordinates in space). Every box is therefore
-// widened in space by 2^-17 of the largest magnitude among the ray's origin and the model (64
-// to 128 ulps), turned into distances along each axis (`pad`). It costs 7-10% of the rays/s.
-struct BoxRay {
-  float origin[3], inv_dir[3], pad[3];
-  int near_row[3], far_row[3];
-
-  BoxRay(const Ray& ray, float model_magnitude) {
-    float magnitude = model_magnitude;
-    for (int a = 0; a < 3; ++a) magnitude = std::max(magnitude, std::fabs(ray.origin[a]));
-    const float margin = 2 * magnitude * 0x1p-18f;
-    for (int a = 0; a < 3; ++a) {
-      origin[a] = ray.origin[a];
-      inv_dir[a] = 1.0f / ray.direction[a];
-      const bool negative = inv_dir[a] < 0;
-      near_row[a] = negative ? 3 + a : a;
-      far_row[a] = negative ? a : 3 + a;
-      // A ray parallel to the slabs (infinite inv_dir) keeps IntersectBox's exact test.
-      pad[a] = std::isinf(inv_dir[a]) ? 0.0f : margin * std::fabs(inv_dir[a]);
-    }
-  }
-};
-
-// One entry of the traversal stack: a child reference and where the ray enters its box.
-struct Pending {
-  uint32_t ref;
-  float t_enter;
-};
-// A wide node pushes at most kWidth - 1 entries, and the tree is no deeper than the binary one.
-constexpr int kStackSize = (WideBvh::kWidth - 1) * kBvhMaxDepth + 1;
-
-}  // namespace
 
 // Which of a node's boxes the ray meets within [tmin, tmax], and where it enters each:
 // IntersectBox lane by lane, 4 boxes at a time (the same expressions, NaN handling and
@@ -261,11 +234,11 @@ inline uint32_t WideBvh::EdgeCandidates(const RayTriangleSetup& s, const Leaf& l
 
 namespace {
 
-inline void Corners(const float (&p)[3][3][4], uint32_t k, Vec3f* p0, Vec3f* p1, Vec3f* p2) {
-  *p0 = {p[0][0][k], p[0][1][k], p[0][2][k]};
-  *p1 = {p[1][0][k], p[1][1][k], p[1][2][k]};
-  *p2 = {p[2][0][k], p[2][1][k], p[2][2][k]};
-}
+// One entry of the traversal stack: a child reference and where the ray enters its box.
+struct Pending {
+  uint32_t ref;
+  float t_enter;
+};
 
 // Pushes the children in `mask` but the nearest, farthest first, and returns the nearest.
 inline uint32_t PushChildren(const uint32_t child[WideBvh::kWidth], uint32_t mask, const float t_enter[WideBvh::kWidth],
@@ -284,19 +257,6 @@ inline uint32_t PushChildren(const uint32_t child[WideBvh::kWidth], uint32_t mas
 }
 
 }  // namespace
-
-// Requests every cache line of the boxes the ray meets at once, so their misses overlap
-// instead of following one another as the traversal reaches each line (node and leaf loads
-// are most of a query's stalls on a model larger than the cache).
-inline void WideBvh::Prefetch(const uint32_t child[kWidth], uint32_t mask) const {
-  for (; mask; mask &= mask - 1) {
-    const uint32_t ref = child[std::countr_zero(mask)];
-    const char* p = (ref & kLeaf) ? reinterpret_cast<const char*>(&leaves_[(ref & ~kLeaf) >> 2])
-                                  : reinterpret_cast<const char*>(&nodes_[ref]);
-    const size_t bytes = (ref & kLeaf) ? sizeof(Leaf) : sizeof(Node);
-    for (size_t line = 0; line < bytes; line += 64) __builtin_prefetch(p + line);
-  }
-}
 
 // The walk both queries share: nodes nearest child first, the others kept with their entry
 // distance. `leaf(group, n)` tests leaf `group`'s n triangles, may lower `*tmax` (closest hit),

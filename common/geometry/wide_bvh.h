@@ -46,6 +46,19 @@ class WideBvh {
   // Any hit in (ray.tmin, ray.tmax).
   bool Occluded(const Ray& ray) const;
 
+  // Packets: up to kPacketSize rays walked together, each node's and leaf's loads and tests
+  // shared by the rays that reach it, with the rays in SIMD lanes. Coherent rays (neighbouring
+  // pixels' primary rays, their shadow rays towards one light) walk mostly the same nodes.
+  // Lane by lane, the tests are the single-ray ones, so results are the same bit for bit.
+  // Rays whose direction signs or dominant axis differ from the others' are walked as further
+  // packets (one alone takes the single-ray walk).
+  static constexpr int kPacketSize = 8;
+  // As Intersect(rays[i], &hits[i]) for every i < rays.size() <= kPacketSize; bit i of the
+  // result is set when hits[i] was replaced by a closer hit.
+  uint32_t IntersectPacket(std::span<const Ray> rays, std::span<Hit> hits) const;
+  // Bit i set when Occluded(rays[i]).
+  uint32_t OccludedPacket(std::span<const Ray> rays) const;
+
   size_t triangle_count() const { return triangle_count_; }
   size_t node_count() const { return nodes_.size(); }
   size_t bytes() const;
@@ -79,8 +92,10 @@ class WideBvh {
   std::vector<TriangleOrigin> origins_;  // per leaf lane
   size_t triangle_count_ = 0;
   float magnitude_ = 0;  // the largest |coordinate| of any vertex: sets the boxes' margin
+  float extent_ = 0;     // the model box's largest side: sets how far apart a packet's rays may start
 
   friend class WideBvhBuilder;
+  friend class WideBvhPacketWalk;
 };
 
 }  // namespace raystack

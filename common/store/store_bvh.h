@@ -30,6 +30,12 @@ class StoreBvh {
   bool Intersect(const Ray& ray, Hit* hit) const { return bvh_.Intersect(ray, hit); }
   // As StoreTracer::Occluded: anything in (ray.tmin, ray.tmax).
   bool Occluded(const Ray& ray) const { return bvh_.Occluded(ray); }
+  // The same for up to WideBvh::kPacketSize coherent rays at once (see WideBvh): bit i of the
+  // result set when hits[i] was replaced, or rays[i] is occluded.
+  uint32_t IntersectPacket(std::span<const Ray> rays, std::span<Hit> hits) const {
+    return bvh_.IntersectPacket(rays, hits);
+  }
+  uint32_t OccludedPacket(std::span<const Ray> rays) const { return bvh_.OccludedPacket(rays); }
 
   size_t triangle_count() const { return bvh_.triangle_count(); }
   size_t bytes() const { return bvh_.bytes(); }

@@ -233,5 +233,124 @@ TEST(WideBvh, NoRayEscapesAClosedMesh) {
   }
 }
 
+// Packets of rays through neighbouring pixels of a camera looking at the soup (the coherent
+// case the packet walk is for), some lanes starting from a hit found elsewhere and some with a
+// shorter or later range: every lane as brute force, bit for bit, and the mask says which lanes
+// got a closer hit.
+void ExpectPacketsMatchBruteForce(const Mesh& m, const WideBvh& bvh,
+                                  const std::vector<std::vector<Ray>>& packets) {
+  for (size_t k = 0; k < packets.size(); ++k) {
+    const std::vector<Ray>& rays = packets[k];
+    std::vector<Hit> start(rays.size()), got(rays.size());
+    for (size_t i = 0; i < rays.size(); ++i) {
+      start[i].t = rays[i].tmax;
+      if ((k + i) % 9 == 4) {  // a hit found elsewhere, halfway to the nearest
+        const Hit near = BruteIntersect(m, rays[i], start[i]);
+        if (near.Valid()) start[i] = {near.t * 0.5f + rays[i].tmin * 0.5f, 0, 0, 1u << 30, 0, 0};
+      }
+      got[i] = start[i];
+    }
+    const uint32_t found = bvh.IntersectPacket(rays, got);
+    uint32_t occluded = bvh.OccludedPacket(rays);
+    for (size_t i = 0; i < rays.size(); ++i) {
+      SCOPED_TRACE(testing::Message() << "packet " << k << " lane " << i);
+      const Hit expected = BruteIntersect(m, rays[i], start[i]);
+      ExpectSameHit(expected, got[i]);
+      EXPECT_EQ((found >> i) & 1, expected.triangle_id != start[i].triangle_id ? 1u : 0u);
+      EXPECT_EQ((occluded >> i) & 1, BruteOccluded(m, rays[i]) ? 1u : 0u);
+    }
+    EXPECT_EQ(found >> rays.size(), 0u);
+    EXPECT_EQ(occluded >> rays.size(), 0u);
+  }
+}
+
+std::vector<std::vector<Ray>> CameraPackets(Vec3f eye, int width, int height, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::vector<std::vector<Ray>> packets;
+  for (int by = 0; by < height; by += 2) {
+    for (int bx = 0; bx < width; bx += 4) {
+      std::vector<Ray> rays;
+      const int lanes = 1 + static_cast<int>(rng() % 8);  // partly filled packets too
+      for (int j = 0; j < lanes; ++j) {
+        const float x = (static_cast<float>(bx + j % 4) + 0.5f) / static_cast<float>(width);
+        const float y = (static_cast<float>(by + j / 4) + 0.5f) / static_cast<float>(height);
+        Ray r{eye, Vec3f{x, y, 0.5f} - eye};
+        if (rng() % 5 == 0) r.tmin = 0.9f;
+        if (rng() % 7 == 0) r.tmax = 1.2f;
+        rays.push_back(r);
+      }
+      packets.push_back(rays);
+    }
+  }
+  return packets;
+}
+
+TEST(WideBvh, PacketsOfCameraRaysMatchBruteForceBitForBit) {
+  const Mesh m = Soup(3000, 5);
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
+  // Looking along +z from in front of the box, then from a corner (other shear axes and signs).
+  ExpectPacketsMatchBruteForce(m, bvh, CameraPackets({0.5f, 0.5f, -1.0f}, 64, 48, 1));
+  ExpectPacketsMatchBruteForce(m, bvh, CameraPackets({1.6f, 1.7f, -0.8f}, 48, 32, 2));
+}
+
+// Shadow-like packets: nearby origins on a patch, towards one point (a light).
+TEST(WideBvh, PacketsFromNearbyOriginsMatchBruteForceBitForBit) {
+  const Mesh m = Soup(3000, 6);
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<float> pos(0, 1), jitter(0, 0.01f);
+  std::vector<std::vector<Ray>> packets;
+  for (int k = 0; k < 600; ++k) {
+    const Vec3f base{pos(rng), pos(rng), pos(rng)};
+    const Vec3f light = k % 2 ? Vec3f{0.5f, 2.0f, 0.5f} : Vec3f{-1.0f, 0.3f, 1.5f};
+    std::vector<Ray> rays;
+    for (int i = 0; i < 8; ++i) {
+      const Vec3f o = base + Vec3f{jitter(rng), jitter(rng), jitter(rng)};
+      rays.push_back(Ray{o, light - o, 1e-4f, 1.0f - 1e-4f});
+    }
+    packets.push_back(rays);
+  }
+  ExpectPacketsMatchBruteForce(m, bvh, packets);
+}
+
+// Rays that cannot share a walk (other direction signs or shear axes, directions parallel to
+// a slab, far-apart origins or directions) in one call: each as brute force.
+TEST(WideBvh, PacketsOfUnrelatedRaysMatchBruteForceBitForBit) {
+  const Mesh m = Soup(3000, 7);
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
+  const std::vector<Ray> rays = Rays(4000, 12);
+  std::vector<std::vector<Ray>> packets;
+  for (size_t i = 0; i < rays.size(); i += 8)
+    packets.emplace_back(rays.begin() + static_cast<ptrdiff_t>(i),
+                         rays.begin() + static_cast<ptrdiff_t>(std::min(rays.size(), i + 8)));
+  ExpectPacketsMatchBruteForce(m, bvh, packets);
+  Hit none[1];
+  EXPECT_EQ(bvh.IntersectPacket({}, none), 0u);
+  EXPECT_EQ(bvh.OccludedPacket({}), 0u);
+}
+
+// From inside a closed mesh, packets of close directions: no lane may escape.
+TEST(WideBvh, NoPacketRayEscapesAClosedMesh) {
+  const geometry_test::ClosedMesh closed =
+      geometry_test::MakeClosedMesh(geometry_test::MeshShape::kScan, 24, 1e3, 5e3);
+  Mesh m;
+  for (size_t i = 0; i < closed.triangles.size(); ++i) {
+    const geometry_test::Triangle& t = closed.triangles[i];
+    m.Add(t.p[0], t.p[1], t.p[2], static_cast<uint32_t>(i));
+  }
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> dir(-1, 1), near(-0.02f, 0.02f);
+  for (int k = 0; k < 400; ++k) {
+    const Vec3f d{dir(rng), dir(rng), dir(rng)};
+    Ray rays[WideBvh::kPacketSize];
+    Hit hits[WideBvh::kPacketSize];
+    for (Ray& r : rays) r = Ray{closed.center, d + Vec3f{near(rng), near(rng), near(rng)}};
+    EXPECT_EQ(bvh.IntersectPacket(rays, hits), 0xffu) << "packet " << k;
+    EXPECT_EQ(bvh.OccludedPacket(rays), 0xffu) << "packet " << k;
+    for (int i = 0; i < WideBvh::kPacketSize; ++i) ExpectSameHit(BruteIntersect(m, rays[i], Hit{}), hits[i]);
+  }
+}
+
 }  // namespace
 }  // namespace raystack
