@@ -13,7 +13,7 @@
 #include <cstring>
 #include <limits>
 
-#if defined(__SSE2__)
+#if defined(__SSE2__)  // every x86-64; elsewhere a packet's rays take the single-ray walk
 #include <immintrin.h>
 #endif
 
@@ -28,9 +28,11 @@ using wide_bvh_internal::BoxRay;
 using wide_bvh_internal::Corners;
 using wide_bvh_internal::kStackSize;
 
+constexpr int kLanes = WideBvh::kPacketSize;
+
+#if defined(__SSE2__)
 namespace {
 
-constexpr int kLanes = WideBvh::kPacketSize;
 // The leaves test the lanes in halves of 4, one SSE register each.
 using VF = float __attribute__((vector_size(16)));
 using VI = int32_t __attribute__((vector_size(16)));
@@ -329,11 +331,11 @@ namespace {
 // rays are walked apart.
 constexpr float kPacketCone = 0.995f;  // cosine: about 6 degrees
 constexpr float kPacketSpread = 1.0f / 64;
+
 template <typename Walk, typename Single>
 uint32_t ForEachPacket(std::span<const Ray> rays, float magnitude, float extent, Walk&& walk,
                        Single&& single) {
   const float spread = extent * kPacketSpread;
-  CHECK(rays.size() <= static_cast<size_t>(kLanes));
   BoxRay box[kLanes];
   RayTriangleSetup tri[kLanes];
   uint32_t key[kLanes];
@@ -370,23 +372,38 @@ uint32_t ForEachPacket(std::span<const Ray> rays, float magnitude, float extent,
 
 }  // namespace
 
+#endif  // __SSE2__
+
 uint32_t WideBvh::IntersectPacket(std::span<const Ray> rays, std::span<Hit> hits) const {
-  CHECK(hits.size() >= rays.size());
+  CHECK(hits.size() >= rays.size() && rays.size() <= static_cast<size_t>(kLanes));
+#if defined(__SSE2__)
   return ForEachPacket(
       rays, magnitude_, extent_,
       [&](uint32_t lanes, const PacketRays& p) {
         return WideBvhPacketWalk::Intersect(*this, hits, lanes, p);
       },
       [&](int i) { return Intersect(rays[static_cast<size_t>(i)], &hits[static_cast<size_t>(i)]); });
+#else
+  uint32_t found = 0;
+  for (size_t i = 0; i < rays.size(); ++i) found |= uint32_t{Intersect(rays[i], &hits[i])} << i;
+  return found;
+#endif
 }
 
 uint32_t WideBvh::OccludedPacket(std::span<const Ray> rays) const {
+  CHECK(rays.size() <= static_cast<size_t>(kLanes));
+#if defined(__SSE2__)
   return ForEachPacket(
       rays, magnitude_, extent_,
       [&](uint32_t lanes, PacketRays p) {
         return WideBvhPacketWalk::Occluded(*this, rays, lanes, p);
       },
       [&](int i) { return Occluded(rays[static_cast<size_t>(i)]); });
+#else
+  uint32_t occluded = 0;
+  for (size_t i = 0; i < rays.size(); ++i) occluded |= uint32_t{Occluded(rays[i])} << i;
+  return occluded;
+#endif
 }
 
 }  // namespace raystack
