@@ -211,16 +211,25 @@ TEST(WideBvh, AHitJustOutsideItsBoxIsNotPruned) {
   ExpectSameHit(expected, got);
 }
 
-// From inside a closed, bumpy mesh every ray must hit: a box culled by rounding would let one
-// escape through it. The hit is the brute-force one, bit for bit.
-TEST(WideBvh, NoRayEscapesAClosedMesh) {
-  const geometry_test::ClosedMesh closed =
-      geometry_test::MakeClosedMesh(geometry_test::MeshShape::kScan, 24, 1e3, 5e3);
+// A closed, bumpy mesh far from the origin, and the same triangles as a Mesh.
+geometry_test::ClosedMesh BumpyClosedMesh() {
+  return geometry_test::MakeClosedMesh(geometry_test::MeshShape::kScan, 24, 1e3, 5e3);
+}
+
+Mesh MeshOf(const geometry_test::ClosedMesh& closed) {
   Mesh m;
   for (size_t i = 0; i < closed.triangles.size(); ++i) {
     const geometry_test::Triangle& t = closed.triangles[i];
     m.Add(t.p[0], t.p[1], t.p[2], static_cast<uint32_t>(i));
   }
+  return m;
+}
+
+// From inside a closed, bumpy mesh every ray must hit: a box culled by rounding would let one
+// escape through it. The hit is the brute-force one, bit for bit.
+TEST(WideBvh, NoRayEscapesAClosedMesh) {
+  const geometry_test::ClosedMesh closed = BumpyClosedMesh();
+  const Mesh m = MeshOf(closed);
   const WideBvh bvh(m.vertices, m.ids, m.origins);
   std::mt19937 rng(3);
   std::uniform_real_distribution<float> dir(-1, 1);
@@ -331,13 +340,8 @@ TEST(WideBvh, PacketsOfUnrelatedRaysMatchBruteForceBitForBit) {
 
 // From inside a closed mesh, packets of close directions: no lane may escape.
 TEST(WideBvh, NoPacketRayEscapesAClosedMesh) {
-  const geometry_test::ClosedMesh closed =
-      geometry_test::MakeClosedMesh(geometry_test::MeshShape::kScan, 24, 1e3, 5e3);
-  Mesh m;
-  for (size_t i = 0; i < closed.triangles.size(); ++i) {
-    const geometry_test::Triangle& t = closed.triangles[i];
-    m.Add(t.p[0], t.p[1], t.p[2], static_cast<uint32_t>(i));
-  }
+  const geometry_test::ClosedMesh closed = BumpyClosedMesh();
+  const Mesh m = MeshOf(closed);
   const WideBvh bvh(m.vertices, m.ids, m.origins);
   std::mt19937 rng(4);
   std::uniform_real_distribution<float> dir(-1, 1), near(-0.02f, 0.02f);
