@@ -104,6 +104,7 @@ class RayThread {
   // bvh mode: the closest hits of the primary rays just fed (pending_[first ..)), found in
   // packets of neighbouring pixels; each ray is marked kPretraced and finishes when popped.
   void PretraceBvh(size_t first, uint32_t sample_begin, uint32_t sample_end, const Tile& tile);
+  // One packet of those rays, pending_[index[0 .. n)], n <= WideBvh::kPacketSize.
   void TracePacket(const size_t* index, int n);
   const store::BlockView* AcquireSync(uint32_t block);
 

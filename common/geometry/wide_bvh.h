@@ -50,8 +50,9 @@ class WideBvh {
   // shared by the rays that reach it, with the rays in SIMD lanes. Coherent rays (neighbouring
   // pixels' primary rays, their shadow rays towards one light) walk mostly the same nodes.
   // Lane by lane, the tests are the single-ray ones, so results are the same bit for bit.
-  // Rays whose direction signs or dominant axis differ from the others' are walked as further
-  // packets (one alone takes the single-ray walk).
+  // Rays whose direction signs or dominant axis differ from the others', or that point or start
+  // far from them, are walked as further packets (one alone takes the single-ray walk), so
+  // incoherent rays cost about what they cost alone. Implemented in wide_bvh_packet.cpp.
   static constexpr int kPacketSize = 8;
   // As Intersect(rays[i], &hits[i]) for every i < rays.size() <= kPacketSize; bit i of the
   // result is set when hits[i] was replaced by a closer hit.
