@@ -23,7 +23,6 @@ namespace raystack {
 
 using wide_bvh_internal::BoxRay;
 using wide_bvh_internal::Corners;
-using wide_bvh_internal::kStackSize;
 
 class WideBvhBuilder {
  public:
@@ -232,72 +231,16 @@ inline uint32_t WideBvh::EdgeCandidates(const RayTriangleSetup& s, const Leaf& l
 #endif
 }
 
-namespace {
-
-// One entry of the traversal stack: a child reference and where the ray enters its box.
-struct Pending {
-  uint32_t ref;
-  float t_enter;
-};
-
-// Pushes the children in `mask` but the nearest, farthest first, and returns the nearest.
-inline uint32_t PushChildren(const uint32_t child[WideBvh::kWidth], uint32_t mask, const float t_enter[WideBvh::kWidth],
-                             Pending* stack, int* size) {
-  Pending hit[WideBvh::kWidth];
-  int n = 0;
-  for (; mask; mask &= mask - 1) {  // insertion sort by entry, nearest last
-    const int k = std::countr_zero(mask);
-    int j = n++;
-    for (; j > 0 && hit[j - 1].t_enter < t_enter[k]; --j) hit[j] = hit[j - 1];
-    hit[j] = {child[k], t_enter[k]};
-  }
-  DCHECK(*size + n - 1 <= kStackSize);
-  for (int j = 0; j < n - 1; ++j) stack[(*size)++] = hit[j];
-  return hit[n - 1].ref;
-}
-
-}  // namespace
-
-// The walk both queries share: nodes nearest child first, the others kept with their entry
-// distance. `leaf(group, n)` tests leaf `group`'s n triangles, may lower `*tmax` (closest hit),
-// and returns true to stop (any hit). A pending box the best hit has since passed is dropped
-// when popped, with NodeHits' test. Forced inline: as a call, the best hit's distance lives
-// in memory behind `tmax` and primary rays lose 2%.
-template <typename LeafFn>
-__attribute__((always_inline)) inline void WideBvh::Traverse(const Ray& ray, const float* tmax,
-                                                          LeafFn&& leaf) const {
-  if (nodes_.empty()) return;
-  const BoxRay box(ray, magnitude_);
-  Pending stack[kStackSize];
-  int size = 0;
-  uint32_t ref = 0;
-  while (true) {
-    if (!(ref & kLeaf)) {
-      const Node& node = nodes_[ref];
-      float t_enter[kWidth];
-      const uint32_t mask = NodeHits(box, node, ray.tmin, *tmax, t_enter);
-      if (mask != 0) {
-        Prefetch(node.child, mask);
-        ref = (mask & (mask - 1)) == 0 ? node.child[std::countr_zero(mask)]
-                                       : PushChildren(node.child, mask, t_enter, stack, &size);
-        continue;
-      }
-    } else if (leaf((ref & ~kLeaf) >> 2, (ref & 3u) + 1)) {
-      return;
-    }
-    do {
-      if (size == 0) return;
-      ref = stack[--size].ref;
-    } while (stack[size].t_enter > *tmax * bvh_internal::kFarScale);
-  }
-}
-
 bool WideBvh::Intersect(const Ray& ray, Hit* hit) const {
   const RayTriangleSetup tri(ray);
   // Hits equal to the best t must still be tested (the smaller id wins a tie).
   float tmax = NextUp(hit->t);
   bool found = false;
-  Traverse(ray, &tmax, [&](uint32_t group, uint32_t n) {
+  const BoxRay box(ray, magnitude_);
+  auto node_hits = [&](const Node& node, float bound, float* t_enter) {
+    return NodeHits(box, node, ray.tmin, bound, t_enter);
+  };
+  Traverse(node_hits, &tmax, [&](uint32_t group, uint32_t n) {
     const Leaf& leaf = leaves_[group];
     for (uint32_t keep = EdgeCandidates(tri, leaf, n); keep; keep &= keep - 1) {
       const auto k = static_cast<uint32_t>(std::countr_zero(keep));
@@ -328,7 +271,11 @@ bool WideBvh::Intersect(const Ray& ray, Hit* hit) const {
 bool WideBvh::Occluded(const Ray& ray) const {
   const RayTriangleSetup tri(ray);
   bool occluded = false;
-  Traverse(ray, &ray.tmax, [&](uint32_t group, uint32_t n) {
+  const BoxRay box(ray, magnitude_);
+  auto node_hits = [&](const Node& node, float bound, float* t_enter) {
+    return NodeHits(box, node, ray.tmin, bound, t_enter);
+  };
+  Traverse(node_hits, &ray.tmax, [&](uint32_t group, uint32_t n) {
     const Leaf& leaf = leaves_[group];
     for (uint32_t keep = EdgeCandidates(tri, leaf, n); keep; keep &= keep - 1) {
       Vec3f p0, p1, p2;

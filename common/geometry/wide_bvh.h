@@ -81,8 +81,8 @@ class WideBvh {
   static constexpr uint32_t kLeaf = 0x80000000u;
   static constexpr uint32_t kEmpty = 0xffffffffu;
 
-  template <typename LeafFn>
-  void Traverse(const Ray& ray, const float* tmax, LeafFn&& leaf) const;
+  template <typename NodeHitsFn, typename LeafFn>
+  void Traverse(NodeHitsFn&& node_hits, const float* tmax, LeafFn&& leaf) const;
   // Requests the cache lines of the children in `mask`.
   void Prefetch(const uint32_t child[kWidth], uint32_t mask) const;
   // Bit k set: triangle k of `leaf` (k < n) passes the float edge test.

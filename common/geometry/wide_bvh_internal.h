@@ -1,6 +1,6 @@
 #pragma once
-// What WideBvh's single-ray and packet walks share: a ray's box-test constants with the
-// margin that keeps them conservative, the stack bound, and a leaf lane's corners. Internal to
+// What WideBvh's single-ray and packet walks share: the walk itself, a ray's box-test
+// constants with the margin that keeps them conservative, and a leaf lane's corners. Internal to
 // common/geometry/wide_bvh*.cpp.
 
 #include <algorithm>
@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "common/base/check.h"
 #include "common/geometry/bvh.h"
 #include "common/geometry/ray.h"
 #include "common/geometry/vec.h"
@@ -26,6 +27,75 @@ inline void WideBvh::Prefetch(const uint32_t child[kWidth], uint32_t mask) const
                                   : reinterpret_cast<const char*>(&nodes_[ref]);
     const size_t bytes = (ref & kLeaf) ? sizeof(Leaf) : sizeof(Node);
     for (size_t line = 0; line < bytes; line += 64) __builtin_prefetch(p + line);
+  }
+}
+
+namespace wide_bvh_internal {
+
+// One entry of the traversal stack: a child reference and where the ray (or, for a packet, the
+// nearest of its rays) enters its box.
+struct Pending {
+  uint32_t ref;
+  float t_enter;
+};
+
+// Stack entries: a wide node pushes at most kWidth - 1, and the tree is no deeper than the
+// binary one.
+constexpr int kStackSize = (WideBvh::kWidth - 1) * kBvhMaxDepth + 1;
+
+// Pushes the children in `mask` but the nearest, farthest first, and returns the nearest.
+inline uint32_t PushChildren(const uint32_t child[WideBvh::kWidth], uint32_t mask,
+                             const float t_enter[WideBvh::kWidth], Pending* stack, int* size) {
+  Pending hit[WideBvh::kWidth];
+  int n = 0;
+  for (; mask; mask &= mask - 1) {  // insertion sort by entry, nearest last
+    const int k = std::countr_zero(mask);
+    int j = n++;
+    for (; j > 0 && hit[j - 1].t_enter < t_enter[k]; --j) hit[j] = hit[j - 1];
+    hit[j] = {child[k], t_enter[k]};
+  }
+  DCHECK(*size + n - 1 <= kStackSize);
+  for (int j = 0; j < n - 1; ++j) stack[(*size)++] = hit[j];
+  return hit[n - 1].ref;
+}
+
+}  // namespace wide_bvh_internal
+
+// The walk every query shares, one ray or a packet: nodes nearest child first, the others kept
+// with their entry distance. `node_hits(node, tmax, t_enter)` says which of a node's boxes are
+// met within tmax and where each is entered (a ray's test, or a packet's bounds).
+// `leaf(group, n)` tests leaf `group`'s n triangles, may lower `*tmax` (closest hit), and
+// returns true to stop (any hit). A pending box the best hit has since passed is dropped when
+// popped. Forced inline: as a call, the best hit's distance lives in memory behind `tmax` and
+// primary rays lose 2%.
+template <typename NodeHitsFn, typename LeafFn>
+__attribute__((always_inline)) inline void WideBvh::Traverse(NodeHitsFn&& node_hits,
+                                                          const float* tmax,
+                                                          LeafFn&& leaf) const {
+  using wide_bvh_internal::Pending;
+  using wide_bvh_internal::PushChildren;
+  if (nodes_.empty()) return;
+  Pending stack[wide_bvh_internal::kStackSize];
+  int size = 0;
+  uint32_t ref = 0;
+  while (true) {
+    if (!(ref & kLeaf)) {
+      const Node& node = nodes_[ref];
+      float t_enter[kWidth];
+      const uint32_t mask = node_hits(node, *tmax, t_enter);
+      if (mask != 0) {
+        Prefetch(node.child, mask);
+        ref = (mask & (mask - 1)) == 0 ? node.child[std::countr_zero(mask)]
+                                       : PushChildren(node.child, mask, t_enter, stack, &size);
+        continue;
+      }
+    } else if (leaf((ref & ~kLeaf) >> 2, (ref & 3u) + 1)) {
+      return;
+    }
+    do {
+      if (size == 0) return;
+      ref = stack[--size].ref;
+    } while (stack[size].t_enter > *tmax * bvh_internal::kFarScale);
   }
 }
 
@@ -61,10 +131,6 @@ struct BoxRay {
     }
   }
 };
-
-// Stack entries: a wide node pushes at most kWidth - 1, and the tree is no deeper than the
-// binary one.
-constexpr int kStackSize = (WideBvh::kWidth - 1) * kBvhMaxDepth + 1;
 
 // Triangle k's corners in a leaf's lane-by-lane layout.
 inline void Corners(const float (&p)[3][3][4], uint32_t k, Vec3f* p0, Vec3f* p1, Vec3f* p2) {

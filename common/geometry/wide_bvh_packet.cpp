@@ -26,7 +26,6 @@ namespace raystack {
 
 using wide_bvh_internal::BoxRay;
 using wide_bvh_internal::Corners;
-using wide_bvh_internal::kStackSize;
 
 constexpr int kLanes = WideBvh::kPacketSize;
 
@@ -166,12 +165,6 @@ inline uint32_t PacketNodeHits(const PacketRays& p, const NodeT& node, float tma
   return mask;
 }
 
-// One entry of the traversal stack: a child reference and a lower bound of where any ray of
-// the packet enters its box.
-struct PacketPending {
-  uint32_t ref;
-  float t_enter;
-};
 
 }  // namespace
 
@@ -204,44 +197,13 @@ class WideBvhPacketWalk {
     return keep & lanes;
   }
 
-  // The walk both packet queries share, as WideBvh::Traverse with the packet's bounds in
-  // place of one ray: `leaf(group, n)` tests leaf `group`'s n triangles for the searching
-  // lanes, may lower `*tmax` (the largest bound among them), and returns true to stop.
+  // WideBvh's walk with the packet's bounds in place of one ray; `*tmax` is the largest
+  // bound among the lanes still searching.
   template <typename LeafFn>
   static void Traverse(const WideBvh& bvh, const PacketRays& p, const float* tmax, LeafFn&& leaf) {
-    if (bvh.nodes_.empty()) return;
-    constexpr float kFar = bvh_internal::kFarScale;
-    PacketPending stack[kStackSize];
-    int size = 0;
-    uint32_t ref = 0;
-    while (true) {
-      if (!(ref & WideBvh::kLeaf)) {
-        const Node& node = bvh.nodes_[ref];
-        float t_enter[WideBvh::kWidth];
-        uint32_t mask = PacketNodeHits(p, node, *tmax, t_enter);
-        if (mask != 0) {
-          bvh.Prefetch(node.child, mask);
-          PacketPending hit[WideBvh::kWidth];
-          int n = 0;
-          for (; mask; mask &= mask - 1) {  // insertion sort by entry, nearest last
-            const int k = std::countr_zero(mask);
-            int j = n++;
-            for (; j > 0 && hit[j - 1].t_enter < t_enter[k]; --j) hit[j] = hit[j - 1];
-            hit[j] = {node.child[k], t_enter[k]};
-          }
-          DCHECK(size + n - 1 <= kStackSize);
-          for (int j = 0; j < n - 1; ++j) stack[size++] = hit[j];
-          ref = hit[n - 1].ref;
-          continue;
-        }
-      } else if (leaf((ref & ~WideBvh::kLeaf) >> 2, (ref & 3u) + 1)) {
-        return;
-      }
-      do {
-        if (size == 0) return;
-        ref = stack[--size].ref;
-      } while (stack[size].t_enter > *tmax * kFar);
-    }
+    bvh.Traverse([&](const Node& node, float bound, float* t_enter) {
+      return PacketNodeHits(p, node, bound, t_enter);
+    }, tmax, leaf);
   }
 
   static uint32_t Intersect(const WideBvh& bvh, std::span<Hit> hits, uint32_t lanes,
