@@ -135,7 +135,7 @@ class WideBvhBuilder {
         for (int a = 0; a < 3; ++a) leaf.p[c][a][k] = p[a];
       }
       leaf.id[k] = ids_[tri];
-      out_.origins_.push_back(origins_[tri]);
+      leaf.origin[k] = origins_[tri];
     }
     out_.leaves_.push_back(leaf);
     return WideBvh::kLeaf | (group << 2) | (b.count - 1u);
@@ -157,8 +157,7 @@ WideBvh::WideBvh(std::span<const Vec3f> vertices, std::span<const uint32_t> ids,
 }
 
 size_t WideBvh::bytes() const {
-  return nodes_.size() * sizeof(Node) + leaves_.size() * sizeof(Leaf) +
-         origins_.size() * sizeof(TriangleOrigin);
+  return nodes_.size() * sizeof(Node) + leaves_.size() * sizeof(Leaf);
 }
 
 
@@ -253,18 +252,14 @@ bool WideBvh::Intersect(const Ray& ray, Hit* hit) const {
         hit->u = u;
         hit->v = v;
         hit->triangle_id = leaf.id[k];
-        hit->local_triangle = 4 * group + k;  // the lane; its origin once at the end
+        hit->block_id = leaf.origin[k].block;
+        hit->local_triangle = leaf.origin[k].local;
         tmax = NextUp(t);
         found = true;
       }
     }
     return false;  // every leaf the best hit has not passed: a later one may be closer
   });
-  if (found) {
-    const TriangleOrigin& o = origins_[hit->local_triangle];
-    hit->block_id = o.block;
-    hit->local_triangle = o.local;
-  }
   return found;
 }
 

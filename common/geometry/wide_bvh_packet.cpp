@@ -231,7 +231,7 @@ class WideBvhPacketWalk {
           float t, u, v;
           if (IntersectTriangle(p.setup[i], p0, p1, p2, p.ray_tmin[i], tmax[i], &t, &u, &v) &&
               CloserThan(t, leaf.id[k], h)) {
-            h = {t, u, v, leaf.id[k], kInvalidId, 4 * group + k};  // origin once at the end
+            h = {t, u, v, leaf.id[k], leaf.origin[k].block, leaf.origin[k].local};
             tmax[i] = NextUp(t);
             found |= 1u << i;
             closer = true;
@@ -244,12 +244,6 @@ class WideBvhPacketWalk {
       }
       return false;  // every leaf no lane's best hit has passed: a later one may be closer
     });
-    for (uint32_t f = found; f; f &= f - 1) {
-      Hit& h = hits[static_cast<size_t>(std::countr_zero(f))];
-      const TriangleOrigin& o = bvh.origins_[h.local_triangle];
-      h.block_id = o.block;
-      h.local_triangle = o.local;
-    }
     return found;
   }
 
