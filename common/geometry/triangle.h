@@ -42,6 +42,54 @@ struct RayTriangleSetup {
   }
 };
 
+// IntersectTriangle's inside test on the edge values: false when they have mixed signs.
+inline bool EdgesAccept(float u, float v, float w) {
+  return !((u < 0 || v < 0 || w < 0) && (u > 0 || v > 0 || w > 0));
+}
+
+// A triangle's plane in double, for IntersectTriangle's distance: corner p0 and the normal
+// (p1 - p0) x (p2 - p0). Shared by every ray tested against the triangle (packets).
+struct TrianglePlane {
+  double x0, y0, z0, nx, ny, nz;
+
+  TrianglePlane(Vec3f p0, Vec3f p1, Vec3f p2) : x0(p0.x), y0(p0.y), z0(p0.z) {
+    using D = double;
+    const D e1x = D{p1.x} - x0, e1y = D{p1.y} - y0, e1z = D{p1.z} - z0;
+    const D e2x = D{p2.x} - x0, e2y = D{p2.y} - y0, e2z = D{p2.z} - z0;
+    nx = e1y * e2z - e1z * e2y;
+    ny = e1z * e2x - e1x * e2z;
+    nz = e1x * e2y - e1y * e2x;
+  }
+};
+
+// IntersectTriangle once the ray is known to pass inside (EdgesAccept on its final edge values
+// u, v, w): the distance, its range check, and the barycentrics.
+//
+// Distance from the plane equation in double. The sheared form (sum of weighted z over det)
+// cancels badly when the hit is close relative to the triangle's size or distance from the
+// origin (1-2% off on a wall of the conference room), which is enough for a box test to cull
+// an equal or closer hit. In double the result is the correctly rounded distance to the exact
+// plane, so every traversal order finds the same closest hit.
+inline bool FinishTriangleHit(const RayTriangleSetup& s, const TrianglePlane& plane, float u,
+                              float v, float w, float tmin, float tmax, float* t_out,
+                              float* u_out, float* v_out) {
+  const float det = u + v + w;
+  if (det == 0.0f) return false;
+  using D = double;
+  const D denominator =
+      plane.nx * D{s.direction.x} + plane.ny * D{s.direction.y} + plane.nz * D{s.direction.z};
+  if (denominator == 0.0) return false;
+  const D numerator = plane.nx * (plane.x0 - D{s.origin.x}) +
+                      plane.ny * (plane.y0 - D{s.origin.y}) + plane.nz * (plane.z0 - D{s.origin.z});
+  const float t = static_cast<float>(numerator / denominator);
+  if (!(t > tmin && t < tmax)) return false;  // also rejects NaN
+  const float inv_det = 1.0f / det;
+  *t_out = t;
+  *u_out = v * inv_det;
+  *v_out = w * inv_det;
+  return true;
+}
+
 // Returns true and fills t (in (tmin, tmax)), u, v (barycentrics of p1, p2) on a hit. Both
 // faces count (no culling). A triangle with coincident vertices never hits. One with distinct
 // but collinear vertices can, on its segment: the float shear makes it a sliver of rounding
@@ -62,30 +110,9 @@ inline bool IntersectTriangle(const RayTriangleSetup& s, Vec3f p0, Vec3f p1, Vec
     v = static_cast<float>(dax * dcy - day * dcx);
     w = static_cast<float>(dbx * day - dby * dax);
   }
-  if ((u < 0 || v < 0 || w < 0) && (u > 0 || v > 0 || w > 0)) return false;
-  const float det = u + v + w;
-  if (det == 0.0f) return false;
-
-  // Distance from the plane equation in double. The sheared form (sum of weighted z over
-  // det) cancels badly when the hit is close relative to the triangle's size or distance from
-  // the origin (1-2% off on a wall of the conference room), which is enough for a box test to
-  // cull an equal or closer hit. In double the result is the correctly rounded distance to the
-  // exact plane, so every traversal order finds the same closest hit.
-  using D = double;
-  const D x0 = p0.x, y0 = p0.y, z0 = p0.z;
-  const D e1x = D{p1.x} - x0, e1y = D{p1.y} - y0, e1z = D{p1.z} - z0;
-  const D e2x = D{p2.x} - x0, e2y = D{p2.y} - y0, e2z = D{p2.z} - z0;
-  const D nx = e1y * e2z - e1z * e2y, ny = e1z * e2x - e1x * e2z, nz = e1x * e2y - e1y * e2x;
-  const D denominator = nx * D{s.direction.x} + ny * D{s.direction.y} + nz * D{s.direction.z};
-  if (denominator == 0.0) return false;
-  const D numerator = nx * (x0 - D{s.origin.x}) + ny * (y0 - D{s.origin.y}) + nz * (z0 - D{s.origin.z});
-  const float t = static_cast<float>(numerator / denominator);
-  if (!(t > tmin && t < tmax)) return false;  // also rejects NaN
-  const float inv_det = 1.0f / det;
-  *t_out = t;
-  *u_out = v * inv_det;
-  *v_out = w * inv_det;
-  return true;
+  if (!EdgesAccept(u, v, w)) return false;
+  return FinishTriangleHit(s, TrianglePlane(p0, p1, p2), u, v, w, tmin, tmax, t_out, u_out,
+                           v_out);
 }
 
 #if defined(__SSE2__)

@@ -1,7 +1,8 @@
 // WideBvh's packet walk: up to 8 coherent rays walk the tree as one, with bounds in place of
 // a ray (see PacketRays), so a node is loaded and tested once for the packet. At a leaf each
-// triangle's edge pre-test runs across the rays, 4 lanes at a time, and IntersectTriangle
-// itself on the rays that pass.
+// triangle's edge values are computed across the rays, 4 lanes at a time, and the rays inside
+// take IntersectTriangle's last step (FinishTriangleHit) from them, with the triangle's plane
+// computed once for all of them; a ray with a zero edge value takes IntersectTriangle itself.
 //
 // Results equal the single-ray walk's (wide_bvh.cpp) bit for bit: the bounds meet every box
 // any of the rays meets there, the leaf tests are the single-ray ones lane by lane (the same
@@ -173,10 +174,19 @@ class WideBvhPacketWalk {
   using Node = WideBvh::Node;
   using Leaf = WideBvh::Leaf;
 
-  // The lanes (of `lanes`) whose rays IntersectTriangle may accept on triangle k of `leaf`:
-  // EdgeCandidates' operations, across rays instead of across triangles.
-  static uint32_t EdgeCandidates(const PacketRays& p, const Leaf& leaf, uint32_t k, uint32_t lanes) {
-    uint32_t keep = 0;
+  // IntersectTriangle's edge values of every lane's ray on one triangle, computed across the
+  // rays with its float operations: u, v, w are what it computes before its double fallback.
+  struct Edges {
+    alignas(16) float u[kLanes], v[kLanes], w[kLanes];
+    uint32_t inside;  // the lanes whose u, v, w are all nonzero and of one sign
+    uint32_t exact;   // the lanes with a zero among them, which IntersectTriangle decides in double
+  };
+
+  // The edge values of the rays in `lanes` on triangle k of `leaf` (other lanes: in neither
+  // mask).
+  static Edges EdgeValues(const PacketRays& p, const Leaf& leaf, uint32_t k, uint32_t lanes) {
+    Edges e;
+    uint32_t inside = 0, exact = 0;
     for (int h = 0; h < kHalves; ++h) {
       if ((lanes >> (4 * h) & 0xfu) == 0) continue;
       VF x[3], y[3];
@@ -188,13 +198,28 @@ class WideBvhPacketWalk {
       const VF u = x[2] * y[1] - y[2] * x[1];
       const VF v = x[0] * y[2] - y[0] * x[2];
       const VF w = x[1] * y[0] - y[1] * x[0];
+      std::memcpy(e.u + 4 * h, &u, sizeof(u));
+      std::memcpy(e.v + 4 * h, &v, sizeof(v));
+      std::memcpy(e.w + 4 * h, &w, sizeof(w));
       const VF zero{};
       const VI any_zero = (u == zero) | (v == zero) | (w == zero);
       const VI any_neg = (u < zero) | (v < zero) | (w < zero);
       const VI any_pos = (u > zero) | (v > zero) | (w > zero);
-      keep |= (~Lanes(~any_zero & any_neg & any_pos) & 0xfu) << (4 * h);
+      inside |= Lanes(~any_zero & ~(any_neg & any_pos)) << (4 * h);
+      exact |= Lanes(any_zero) << (4 * h);
     }
-    return keep & lanes;
+    e.inside = inside & lanes;
+    e.exact = exact & lanes;
+    return e;
+  }
+
+  // IntersectTriangle for lane i on triangle k, from its edge values: the exact lanes take
+  // IntersectTriangle itself, the inside ones its last step with the triangle's plane.
+  static bool LaneHit(const PacketRays& p, const Edges& e, int i, Vec3f p0, Vec3f p1, Vec3f p2,
+                      const TrianglePlane& plane, float tmin, float tmax, float* t, float* u,
+                      float* v) {
+    if (e.exact >> i & 1) return IntersectTriangle(p.setup[i], p0, p1, p2, tmin, tmax, t, u, v);
+    return FinishTriangleHit(p.setup[i], plane, e.u[i], e.v[i], e.w[i], tmin, tmax, t, u, v);
   }
 
   // WideBvh's walk with the packet's bounds in place of one ray; `*tmax` is the largest
@@ -221,15 +246,16 @@ class WideBvhPacketWalk {
       const Leaf& leaf = bvh.leaves_[group];
       bool closer = false;
       for (uint32_t k = 0; k < n; ++k) {
-        const uint32_t candidates = EdgeCandidates(p, leaf, k, lanes);
-        if (candidates == 0) continue;
+        const Edges e = EdgeValues(p, leaf, k, lanes);
+        if ((e.inside | e.exact) == 0) continue;
         Vec3f p0, p1, p2;
         Corners(leaf.p, k, &p0, &p1, &p2);
-        for (uint32_t c = candidates; c; c &= c - 1) {
+        const TrianglePlane plane(p0, p1, p2);
+        for (uint32_t c = e.inside | e.exact; c; c &= c - 1) {
           const int i = std::countr_zero(c);
           Hit& h = hits[static_cast<size_t>(i)];
           float t, u, v;
-          if (IntersectTriangle(p.setup[i], p0, p1, p2, p.ray_tmin[i], tmax[i], &t, &u, &v) &&
+          if (LaneHit(p, e, i, p0, p1, p2, plane, p.ray_tmin[i], tmax[i], &t, &u, &v) &&
               CloserThan(t, leaf.id[k], h)) {
             h = {t, u, v, leaf.id[k], leaf.origin[k].block, leaf.origin[k].local};
             tmax[i] = NextUp(t);
@@ -256,15 +282,16 @@ class WideBvhPacketWalk {
       const Leaf& leaf = bvh.leaves_[group];
       const uint32_t before = searching;
       for (uint32_t k = 0; k < n && searching != 0; ++k) {
-        const uint32_t candidates = EdgeCandidates(p, leaf, k, searching);
-        if (candidates == 0) continue;
+        const Edges e = EdgeValues(p, leaf, k, searching);
+        if ((e.inside | e.exact) == 0) continue;
         Vec3f p0, p1, p2;
         Corners(leaf.p, k, &p0, &p1, &p2);
-        for (uint32_t c = candidates; c; c &= c - 1) {
+        const TrianglePlane plane(p0, p1, p2);
+        for (uint32_t c = e.inside | e.exact; c; c &= c - 1) {
           const int i = std::countr_zero(c);
           const Ray& r = rays[static_cast<size_t>(i)];
           float t, u, v;
-          if (IntersectTriangle(p.setup[i], p0, p1, p2, r.tmin, r.tmax, &t, &u, &v)) searching &= ~(1u << i);
+          if (LaneHit(p, e, i, p0, p1, p2, plane, r.tmin, r.tmax, &t, &u, &v)) searching &= ~(1u << i);
         }
       }
       if (searching != before && searching != 0) {

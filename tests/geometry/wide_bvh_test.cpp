@@ -338,6 +338,40 @@ TEST(WideBvh, PacketsOfUnrelatedRaysMatchBruteForceBitForBit) {
   EXPECT_EQ(bvh.OccludedPacket({}), 0u);
 }
 
+// Packets aimed exactly at the shared edges and corners of a grid of triangles, where
+// IntersectTriangle finds an edge value of zero and decides in double: every lane must hit
+// (the test is watertight) and equal brute force. The coordinates make the sheared values
+// exact: the eye is 32 from the plane, the targets on a grid of halves.
+TEST(WideBvh, PacketsThroughSharedEdgesAndCornersHit) {
+  Mesh m;
+  uint32_t id = 0;
+  for (int y = -4; y < 4; ++y) {
+    for (int x = -4; x < 4; ++x) {
+      const auto fx = static_cast<float>(x), fy = static_cast<float>(y);
+      m.Add({fx, fy, 0}, {fx + 1, fy, 0}, {fx + 1, fy + 1, 0}, id++);
+      m.Add({fx, fy, 0}, {fx + 1, fy + 1, 0}, {fx, fy + 1, 0}, id++);
+    }
+  }
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
+  const Vec3f eye{0, 0, -32};
+  std::vector<std::vector<Ray>> packets;
+  for (int by = -6; by < 6; by += 2) {
+    for (int bx = -6; bx < 6; bx += 4) {
+      std::vector<Ray> rays;
+      for (int j = 0; j < 8; ++j) {
+        const Vec3f target{0.5f * static_cast<float>(bx + j % 4), 0.5f * static_cast<float>(by + j / 4), 0};
+        rays.push_back(Ray{eye, target - eye});
+      }
+      packets.push_back(rays);
+    }
+  }
+  ExpectPacketsMatchBruteForce(m, bvh, packets);
+  for (const std::vector<Ray>& rays : packets) {
+    Hit hits[WideBvh::kPacketSize];
+    EXPECT_EQ(bvh.IntersectPacket(rays, hits), 0xffu);
+  }
+}
+
 // From inside a closed mesh, packets of close directions: no lane may escape.
 TEST(WideBvh, NoPacketRayEscapesAClosedMesh) {
   const geometry_test::ClosedMesh closed = BumpyClosedMesh();
