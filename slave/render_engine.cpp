@@ -100,7 +100,7 @@ void RenderEngine::BuildBvh(double* seconds) {
     CHECK(v != nullptr);
     views[id] = *v;
   }
-  bvh_ = std::make_unique<store::StoreBvh>(views);
+  bvh_ = std::make_unique<store::StoreBvh>(views, options_.threads);  // the ray threads' cores
   for (uint32_t id = 0; id < views.size(); ++id) cache_->Release(id);
   *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   LOG_INFO("engine", "bvh mode: %zu triangles in one tree (%.1f MB), built in %.2f s",

@@ -7,8 +7,10 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <limits>
+#include <thread>
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -147,32 +149,55 @@ struct SplitChoice {
   float cost = std::numeric_limits<float>::infinity();  // sum of area * count over both sides
 };
 
-class BvhBuilder {
- public:
-  BvhBuilder(std::span<const BvhBuildPrimitive> prims, const BvhBuildOptions& options,
-             std::vector<uint32_t>* order, std::vector<BvhNode>* nodes)
-      : options_(options), order_(*order), nodes_(*nodes) {
-    boxes_.reserve(prims.size());
-    centroids_.reserve(prims.size());
+// What every builder of one tree shares: the primitives' boxes and centroids (read only) and
+// the order (each builder permutes only the ranges of its own tasks).
+struct BuildInput {
+  BuildInput(std::span<const BvhBuildPrimitive> prims, const BvhBuildOptions& build_options,
+             std::vector<uint32_t>* build_order)
+      : options(build_options), order(*build_order) {
+    boxes.reserve(prims.size());
+    centroids.reserve(prims.size());
     for (const BvhBuildPrimitive& p : prims) {
-      boxes_.push_back(Box4::Load(p.bounds));
-      centroids_.push_back(Centroid(boxes_.back()));
+      boxes.push_back(Box4::Load(p.bounds));
+      centroids.push_back(Centroid(boxes.back()));
     }
   }
 
-  void Build() {
-    const auto count = static_cast<uint32_t>(boxes_.size());
+  const BvhBuildOptions& options;
+  std::vector<uint32_t>& order;
+  std::vector<Box4> boxes;    // primitive bounds, by primitive index
+  std::vector<F4> centroids;  // by primitive index, computed once
+};
+
+class BvhBuilder {
+ public:
+  BvhBuilder(BuildInput& input, std::vector<BvhNode>* nodes)
+      : options_(input.options), order_(input.order), nodes_(*nodes), boxes_(input.boxes),
+        centroids_(input.centroids) {}
+
+  // The task covering every primitive.
+  BuildTask Root() const {
+    BuildTask root;
+    root.end = static_cast<uint32_t>(boxes_.size());
+    RangeBounds(&root);
+    return root;
+  }
+
+  // Appends the subtree of `task` to the nodes, depth first (a node, its first child's
+  // subtree, its second's), numbered from where the nodes end. A task for which `defer(task)`
+  // returns true, the root's excepted, gets a node left empty for the caller to replace by its
+  // subtree, built elsewhere.
+  template <typename Defer>
+  void Build(const BuildTask& top, Defer&& defer) {
     std::array<BuildTask, kBvhMaxDepth + 2> stack;  // pending tasks never exceed depth + 1
     int size = 0;
-    BuildTask& root = stack[size++];
-    root.begin = 0;
-    root.end = count;
-    RangeBounds(&root);
+    stack[size++] = top;
     while (size > 0) {
       const BuildTask task = stack[--size];
       const auto index = static_cast<uint32_t>(nodes_.size());
       if (task.patch != kNoParent) nodes_[task.patch].offset = index;
       nodes_.push_back(BvhNode{});
+      if (index != 0 && defer(task)) continue;
       BuildTask left, right;
       if (!BuildNode(task, index, &left, &right)) continue;  // leaf
       left.depth = right.depth = task.depth + 1;
@@ -367,12 +392,81 @@ class BvhBuilder {
   const BvhBuildOptions& options_;
   std::vector<uint32_t>& order_;
   std::vector<BvhNode>& nodes_;
-  std::vector<Box4> boxes_;     // primitive bounds, by primitive index
-  std::vector<F4> centroids_;   // by primitive index, computed once
+  const std::vector<Box4>& boxes_;
+  const std::vector<F4>& centroids_;
   // Reused by every node; only the first options_.bins entries per axis are ever touched.
   std::array<std::array<Bin, kBvhMaxBins>, 3> bins_;
   std::array<std::array<uint32_t, kBvhMaxBins>, 3> bin_counts_;
 };
+
+// Below this many primitives a tree is built on one thread: the converter's block trees, and
+// anything that builds in a few milliseconds.
+constexpr size_t kParallelBuildMin = 1 << 16;
+
+// The same tree as one builder makes, bit for bit, on `threads` threads. The top of the tree is
+// built first, down to subtrees of at most 1/(4 x threads) of the primitives; the threads then
+// build those subtrees, the largest first, each into nodes of its own (their ranges of the
+// order are disjoint); and the subtrees are moved into the empty nodes the top left for them,
+// which is where one builder, going depth first, would have put them.
+void BuildInParallel(BuildInput& input, const BuildTask& root, uint32_t threads,
+                     std::vector<BvhNode>* nodes) {
+  const uint32_t cutoff = std::max<uint32_t>(root.end / (4 * threads), 1024);
+  struct Deferred {
+    uint32_t slot;  // the top's empty node
+    BuildTask task;
+    std::vector<BvhNode> nodes;
+  };
+  std::vector<Deferred> deferred;
+  std::vector<BvhNode> top;
+  BvhBuilder(input, &top).Build(root, [&](const BuildTask& task) {
+    if (task.end - task.begin > cutoff) return false;
+    deferred.push_back({static_cast<uint32_t>(top.size() - 1), task, {}});
+    return true;
+  });
+
+  std::vector<uint32_t> largest_first(deferred.size());
+  for (uint32_t k = 0; k < largest_first.size(); ++k) largest_first[k] = k;
+  std::sort(largest_first.begin(), largest_first.end(), [&](uint32_t a, uint32_t b) {
+    return deferred[a].task.end - deferred[a].task.begin > deferred[b].task.end - deferred[b].task.begin;
+  });
+  std::atomic<size_t> next{0};
+  auto work = [&] {
+    for (size_t k; (k = next.fetch_add(1)) < largest_first.size();) {
+      Deferred& d = deferred[largest_first[k]];
+      BuildTask task = d.task;
+      task.patch = kNoParent;
+      BvhBuilder(input, &d.nodes).Build(task, [](const BuildTask&) { return false; });
+    }
+  };
+  std::vector<std::thread> pool;
+  for (uint32_t t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+
+  // Where each top node lands: after the subtrees that replace the empty nodes before it.
+  std::vector<uint32_t> moved(top.size());
+  uint32_t shift = 0;
+  size_t d = 0;
+  for (uint32_t i = 0; i < top.size(); ++i) {
+    moved[i] = i + shift;
+    if (d < deferred.size() && deferred[d].slot == i)
+      shift += static_cast<uint32_t>(deferred[d++].nodes.size()) - 1;
+  }
+  d = 0;
+  for (uint32_t i = 0; i < top.size(); ++i) {
+    if (d < deferred.size() && deferred[d].slot == i) {
+      const auto base = static_cast<uint32_t>(nodes->size());
+      for (BvhNode n : deferred[d++].nodes) {
+        if (n.count == 0) n.offset += base;  // inner: its second child; a leaf's is the order's
+        nodes->push_back(n);
+      }
+    } else {
+      BvhNode n = top[i];
+      if (n.count == 0) n.offset = moved[n.offset];
+      nodes->push_back(n);
+    }
+  }
+}
 
 }  // namespace
 
@@ -391,7 +485,15 @@ std::vector<BvhNode> BuildBvh(std::span<const BvhBuildPrimitive> prims,
   std::vector<BvhNode> nodes;
   if (prims.empty()) return nodes;
   nodes.reserve(2 * prims.size() - 1);
-  BvhBuilder(prims, options, order, &nodes).Build();
+  BuildInput input(prims, options, order);
+  BvhBuilder builder(input, &nodes);
+  const BuildTask root = builder.Root();
+  const auto threads = static_cast<uint32_t>(std::max(options.threads, 1));
+  if (threads == 1 || prims.size() < kParallelBuildMin) {
+    builder.Build(root, [](const BuildTask&) { return false; });
+    return nodes;
+  }
+  BuildInParallel(input, root, threads, &nodes);
   return nodes;
 }
 

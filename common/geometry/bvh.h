@@ -40,6 +40,9 @@ struct BvhBuildOptions {
   int bins = 16;          // SAH bins per axis (2..kBvhMaxBins)
   float traversal_cost = 1.0f;
   float intersection_cost = 1.0f;
+  // Threads that build subtrees at once, for trees of at least 65,536 primitives (smaller
+  // ones are built on the calling thread). The tree does not depend on it.
+  int threads = 1;
 };
 
 // Builds the BVH. On return, leaf primitives are `order[offset .. offset + count)`, where

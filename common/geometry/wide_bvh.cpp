@@ -27,8 +27,8 @@ using wide_bvh_internal::Corners;
 class WideBvhBuilder {
  public:
   WideBvhBuilder(WideBvh* out, std::span<const Vec3f> vertices, std::span<const uint32_t> ids,
-                 std::span<const TriangleOrigin> origins)
-      : out_(*out), vertices_(vertices), ids_(ids), origins_(origins) {}
+                 std::span<const TriangleOrigin> origins, int threads)
+      : out_(*out), vertices_(vertices), ids_(ids), origins_(origins), threads_(threads) {}
 
   void Build() {
     Bounds3f model;
@@ -50,6 +50,7 @@ class WideBvhBuilder {
     // a node (dragon: 0.25 against 1 gives 3.0 triangles a leaf instead of 1.8, 75 against
     // 120 MB, and 10-20% more rays/s).
     options.intersection_cost = 0.25f;
+    options.threads = threads_;
     binary_ = BuildBvh(prims, options, &order_);
     if (binary_.empty()) return;
     out_.nodes_.reserve(binary_.size() / 3 + 1);
@@ -145,15 +146,16 @@ class WideBvhBuilder {
   std::span<const Vec3f> vertices_;
   std::span<const uint32_t> ids_;
   std::span<const TriangleOrigin> origins_;
+  int threads_;
   std::vector<BvhNode> binary_;
   std::vector<uint32_t> order_;
 };
 
 WideBvh::WideBvh(std::span<const Vec3f> vertices, std::span<const uint32_t> ids,
-           std::span<const TriangleOrigin> origins) {
+                 std::span<const TriangleOrigin> origins, int threads) {
   CHECK(vertices.size() == 3 * ids.size() && origins.size() == ids.size());
   triangle_count_ = ids.size();
-  WideBvhBuilder(this, vertices, ids, origins).Build();
+  WideBvhBuilder(this, vertices, ids, origins, threads).Build();
 }
 
 size_t WideBvh::bytes() const {

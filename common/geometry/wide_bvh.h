@@ -35,9 +35,10 @@ class WideBvh {
 
   WideBvh() = default;
   // Triangle i has corners vertices[3i .. 3i+2], source id ids[i] (the tie-breaker of
-  // CloserThan) and origin origins[i]. Every vertex must be finite.
+  // CloserThan) and origin origins[i]. Every vertex must be finite. The binary tree is built
+  // on `threads` threads (BvhBuildOptions::threads); the tree does not depend on it.
   WideBvh(std::span<const Vec3f> vertices, std::span<const uint32_t> ids,
-       std::span<const TriangleOrigin> origins);
+          std::span<const TriangleOrigin> origins, int threads = 1);
 
   // Closest hit in (ray.tmin, hit->t], ties broken by CloserThan, as BlockView::Intersect.
   // On a closer hit, fills t, u, v, triangle_id, and block_id and local_triangle from the

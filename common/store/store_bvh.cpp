@@ -4,7 +4,7 @@
 
 namespace raystack::store {
 
-StoreBvh::StoreBvh(std::span<const BlockView> blocks) {
+StoreBvh::StoreBvh(std::span<const BlockView> blocks, int threads) {
   // Each source triangle once: its copy in the lowest block id.
   std::vector<Vec3f> vertices;
   std::vector<uint32_t> ids;
@@ -23,7 +23,7 @@ StoreBvh::StoreBvh(std::span<const BlockView> blocks) {
       origins.push_back({b.id(), t});
     }
   }
-  bvh_ = WideBvh(vertices, ids, origins);
+  bvh_ = WideBvh(vertices, ids, origins, threads);
 }
 
 Hit StoreBvh::Intersect(const Ray& ray) const {

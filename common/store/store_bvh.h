@@ -19,8 +19,9 @@ namespace raystack::store {
 
 class StoreBvh {
  public:
-  // `blocks[id]` is block `id`, every one of them parsed; they need not outlive this.
-  explicit StoreBvh(std::span<const BlockView> blocks);
+  // `blocks[id]` is block `id`, every one of them parsed; they need not outlive this. The tree
+  // is built on `threads` threads, and does not depend on how many.
+  explicit StoreBvh(std::span<const BlockView> blocks, int threads = 1);
 
   // As StoreTracer::Intersect: the closest hit in (ray.tmin, ray.tmax], invalid on a miss.
   Hit Intersect(const Ray& ray) const;

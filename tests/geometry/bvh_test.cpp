@@ -460,6 +460,33 @@ TEST(BuildBvh, IsDeterministic) {
   EXPECT_EQ(order_a, order_b);
 }
 
+// Large enough for the parallel build (at least 65,536 primitives): on any number of threads
+// the tree and the order are the ones one thread builds, bit for bit, on SAH splits, on median
+// splits (identical boxes) and on leaves larger than the subtrees the threads take.
+TEST(BuildBvh, ThreadsBuildTheSameTree) {
+  const std::vector<std::vector<BvhBuildPrimitive>> inputs = {
+      PrimitivesOf(UniformSoup(150000, 3)), PrimitivesOf(ClusteredSoup(100000, 4)),
+      std::vector<BvhBuildPrimitive>(70000, {{{1, 1, 1}, {2, 2, 2}}})};
+  for (size_t k = 0; k < inputs.size(); ++k) {
+    for (int leaf : {4, 30000}) {
+      BvhBuildOptions options;
+      options.max_leaf_size = leaf;
+      std::vector<uint32_t> order_one;
+      const std::vector<BvhNode> one = BuildBvh(inputs[k], options, &order_one);
+      for (int threads : {2, 3, 8}) {
+        SCOPED_TRACE(testing::Message() << "input " << k << ", leaves of " << leaf << ", "
+                                        << threads << " threads");
+        options.threads = threads;
+        std::vector<uint32_t> order;
+        const std::vector<BvhNode> nodes = BuildBvh(inputs[k], options, &order);
+        ASSERT_EQ(nodes.size(), one.size());
+        EXPECT_EQ(std::memcmp(nodes.data(), one.data(), one.size() * sizeof(BvhNode)), 0);
+        EXPECT_EQ(order, order_one);
+      }
+    }
+  }
+}
+
 TEST(BuildBvh, SeparatesTwoDistantClusters) {
   // SAH must put the split between the clusters: the root's children are the two clusters.
   std::vector<Triangle> tris = ClusteredSoup(64, 5);
