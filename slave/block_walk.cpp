@@ -3,7 +3,8 @@
 namespace raystack::slave {
 
 BlockWalk::BlockWalk(const store::OctreeView& octree, std::span<const store::BlockEntry> blocks)
-    : nodes_(octree.nodes()), node_bounds_(octree.bounds()), blocks_(blocks), parent_(octree.nodes().size(), 0) {
+    : nodes_(octree.nodes()), node_bounds_(octree.bounds()), blocks_(blocks),
+      magnitude_(octree.magnitude()), parent_(octree.nodes().size(), 0) {
   const Bounds3f r = octree.root_cell();
   root_ = {{r.lower.x, r.lower.y, r.lower.z}, {r.upper.x, r.upper.y, r.upper.z}};
   // The store reader has checked the tree (children in range, one parent each, bounded depth).

@@ -19,6 +19,7 @@
 //
 // Thread-safe after construction (read-only).
 
+#include <algorithm>
 #include <bit>
 #include <cstdint>
 #include <limits>
@@ -80,6 +81,7 @@ class BlockWalk {
   store::NodeBounds node_bounds_;
   std::span<const store::BlockEntry> blocks_;
   Cell root_;
+  float magnitude_;               // the octree's, for the box tests' margin
   std::vector<uint32_t> parent_;  // by node; the root's is itself
   std::vector<Cell> cells_;       // by node: its cell (ChildCell's arithmetic from the root)
 };
@@ -87,8 +89,9 @@ class BlockWalk {
 // ---------------------------------------------------------------------------------------------
 
 struct BlockWalk::Slabs {
-  explicit Slabs(const Ray& ray)
-      : box(ray), tmin(ray.tmin), t1(ray.tmax * bvh_internal::kFarScale), t_best(ray.tmax) {}
+  Slabs(const Ray& ray, float magnitude)
+      : box(ray, magnitude), tmin(ray.tmin), t1(ray.tmax * bvh_internal::kFarScale),
+        t_best(ray.tmax) {}
   RayBoxSetup box;
   float tmin, t1;
   float t_best;  // the closest hit so far, for store::MayHit
@@ -170,13 +173,14 @@ inline uint32_t BlockWalk::Descend(const Slabs& s, Frame* frames, int depth) con
 
 inline uint32_t BlockWalk::First(const Ray& ray) const {
   if (nodes_.empty()) return kInvalidId;
-  const Slabs s(ray);
+  const Slabs s(ray, magnitude_);
   float enter = s.tmin, exit = std::numeric_limits<float>::infinity();
   for (int a = 0; a < 3; ++a) {  // the root cell, with IntersectBox's expressions
     const float near_plane = s.box.dir_is_neg[a] ? root_.upper[a] : root_.lower[a];
     const float far_plane = s.box.dir_is_neg[a] ? root_.lower[a] : root_.upper[a];
-    const float tn = (near_plane - s.box.origin[a]) * s.box.inv_dir[a];
-    const float tf = (far_plane - s.box.origin[a]) * s.box.inv_dir[a] * bvh_internal::kFarScale;
+    const float tn = (near_plane - s.box.origin[a]) * s.box.inv_dir[a] - s.box.pad[a];
+    const float tf =
+        (far_plane - s.box.origin[a]) * s.box.inv_dir[a] * bvh_internal::kFarScale + s.box.pad[a];
     enter = tn > enter ? tn : enter;
     exit = tf < exit ? tf : exit;
   }
@@ -195,7 +199,7 @@ inline uint32_t BlockWalk::First(const Ray& ray) const {
 
 inline uint32_t BlockWalk::Next(const Ray& ray, uint32_t block) const {
   const uint32_t leaf = blocks_[block].octree_leaf;
-  const Slabs s(ray);
+  const Slabs s(ray, magnitude_);
   const uint32_t mate = FirstMet(s, nodes_[leaf], block + 1);
   if (mate != kInvalidId) return mate;
   // Climb: at each ancestor, the children visited after the one we come from, in order. The
@@ -228,12 +232,17 @@ inline bool BlockWalk::DoneAfter(const Ray& ray, uint32_t block) const {
   const store::OctreeNode& leaf = nodes_[e.octree_leaf];
   if (block + 1 != leaf.first + leaf.count) return false;
   float exit = std::numeric_limits<float>::infinity();
+  Vec3f inv;
   for (int a = 0; a < 3; ++a) {
-    const float inv = 1.0f / ray.direction[a];
-    const float far_plane = inv < 0 ? e.cell_lower[a] : e.cell_upper[a];
-    const float tf = (far_plane - ray.origin[a]) * inv;
+    inv[a] = 1.0f / ray.direction[a];
+    const float far_plane = inv[a] < 0 ? e.cell_lower[a] : e.cell_upper[a];
+    const float tf = (far_plane - ray.origin[a]) * inv[a];
     exit = tf < exit ? tf : exit;
   }
+  // Later cells are entered up to the box tests' margin before this one's exit.
+  float pad[3];
+  BoxMarginPads(ray, inv, magnitude_, pad);
+  exit -= std::max({pad[0], pad[1], pad[2]});
   constexpr float kMargin = 1.0f - 1e-5f;
   return exit > 0 && ray.tmax * bvh_internal::kFarScale < exit * kMargin;
 }

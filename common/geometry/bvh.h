@@ -3,6 +3,7 @@
 // Nodes are 32-byte PODs in depth-first order, stored as-is inside blocks on disk, so a
 // decompressed block is traversed in place. Building allocates; traversal never does.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <span>
@@ -53,25 +54,47 @@ struct BvhBuildOptions {
 std::vector<BvhNode> BuildBvh(std::span<const BvhBuildPrimitive> prims,
                               const BvhBuildOptions& options, std::vector<uint32_t>* order);
 
-// Per-ray constants for box tests.
+// The margin every box test that guards triangles needs, as distances along each axis.
+//
+// IntersectTriangle decides inside or outside in float, relative to the ray's origin, so it
+// accepts rays that pass outside a triangle by a few ulps of the coordinates' magnitude. Such a
+// hit can lie before the entry into the triangle's tight box, or outside it altogether, and a
+// box test would then cull the box, or pruning by a farther hit found first would (found on the
+// conference room: a hit 7e-7 before its box's computed entry, 7 ulps of the coordinates in
+// space; every binary tree over those 5 triangles then returned the farther hit). Boxes are
+// therefore widened in space by 2^-17 of the largest magnitude among the ray's origin and the
+// triangles the box may hold (`magnitude`; 64 to 128 ulps), turned into distances along each
+// axis. A ray parallel to an axis (infinite 1 / direction) keeps the exact test on it.
+inline void BoxMarginPads(const Ray& ray, Vec3f inv_dir, float magnitude, float pad[3]) {
+  float m = magnitude;
+  for (int a = 0; a < 3; ++a) m = std::max(m, std::fabs(ray.origin[a]));
+  const float margin = 2 * m * 0x1p-18f;
+  for (int a = 0; a < 3; ++a) pad[a] = std::isinf(inv_dir[a]) ? 0.0f : margin * std::fabs(inv_dir[a]);
+}
+
+// Per-ray constants for box tests. `magnitude`: the largest |coordinate| of any vertex of the
+// triangles the tested boxes hold (a block's, a model's), for the margin (BoxMarginPads).
 struct RayBoxSetup {
   Vec3f origin;
   Vec3f inv_dir;
   int dir_is_neg[3];
+  float pad[3];
 
-  explicit RayBoxSetup(const Ray& ray);
+  RayBoxSetup(const Ray& ray, float magnitude);
 };
 
 // Slab test, robust in the sense of Ize 2013: the far distance is enlarged by 2 ulp-ish so a ray
-// grazing a box edge is never culled by rounding. Returns true if [tmin, tmax] meets the box.
+// grazing a box edge is never culled by rounding, and both by the setup's margin. Returns true
+// if [tmin, tmax] meets the box so widened.
 bool IntersectBox(const RayBoxSetup& s, const float lower[3], const float upper[3], float tmin,
                   float tmax, float* t_enter);
 
 // Visits the leaves a ray may hit, near child first. `leaf(first, count)` tests primitives
 // [first, first + count) and returns true to stop the traversal (any-hit). It may lower
-// `*tmax` (closest-hit) so farther subtrees are pruned.
+// `*tmax` (closest-hit) so farther subtrees are pruned. `magnitude`: as RayBoxSetup's.
 template <typename LeafFn>
-void TraverseBvh(std::span<const BvhNode> nodes, const Ray& ray, float* tmax, LeafFn&& leaf);
+void TraverseBvh(std::span<const BvhNode> nodes, const Ray& ray, float magnitude, float* tmax,
+                 LeafFn&& leaf);
 
 }  // namespace raystack
 

@@ -23,11 +23,12 @@ inline constexpr float kFarScale = 1.0f + 2.0f * kGamma3;
 
 // A zero direction component gives inv_dir = +inf or -inf (the sign of the zero), which keeps
 // the slab distances of that axis at +-inf, and the sign picks which plane is near.
-inline RayBoxSetup::RayBoxSetup(const Ray& ray) : origin(ray.origin) {
+inline RayBoxSetup::RayBoxSetup(const Ray& ray, float magnitude) : origin(ray.origin) {
   for (int a = 0; a < 3; ++a) {
     inv_dir[a] = 1.0f / ray.direction[a];
     dir_is_neg[a] = inv_dir[a] < 0 ? 1 : 0;
   }
+  BoxMarginPads(ray, inv_dir, magnitude, pad);
 }
 
 inline bool IntersectBox(const RayBoxSetup& s, const float lower[3], const float upper[3],
@@ -40,8 +41,8 @@ inline bool IntersectBox(const RayBoxSetup& s, const float lower[3], const float
   for (int a = 0; a < 3; ++a) {
     const float near_plane = s.dir_is_neg[a] ? upper[a] : lower[a];
     const float far_plane = s.dir_is_neg[a] ? lower[a] : upper[a];
-    const float t_near = (near_plane - s.origin[a]) * s.inv_dir[a];
-    const float t_far = (far_plane - s.origin[a]) * s.inv_dir[a] * bvh_internal::kFarScale;
+    const float t_near = (near_plane - s.origin[a]) * s.inv_dir[a] - s.pad[a];
+    const float t_far = (far_plane - s.origin[a]) * s.inv_dir[a] * bvh_internal::kFarScale + s.pad[a];
     // 0 * inf = NaN happens only for a ray lying in a slab plane, which is inside the closed
     // slab: the comparisons are written so a NaN leaves the interval unchanged.
     t0 = t_near > t0 ? t_near : t0;
@@ -53,9 +54,10 @@ inline bool IntersectBox(const RayBoxSetup& s, const float lower[3], const float
 }
 
 template <typename LeafFn>
-void TraverseBvh(std::span<const BvhNode> nodes, const Ray& ray, float* tmax, LeafFn&& leaf) {
+void TraverseBvh(std::span<const BvhNode> nodes, const Ray& ray, float magnitude, float* tmax,
+                 LeafFn&& leaf) {
   if (nodes.empty()) return;
-  const RayBoxSetup setup(ray);
+  const RayBoxSetup setup(ray, magnitude);
   uint32_t stack[kBvhMaxDepth];
   int size = 0;
   uint32_t index = 0;

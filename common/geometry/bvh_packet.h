@@ -36,11 +36,12 @@ inline int DirectionOctant(const Ray& ray) {
 struct alignas(16) RayPacket4 {
   float origin[3][kPacketWidth];
   float inv_dir[3][kPacketWidth];
+  float pad[3][kPacketWidth];
   float tmin[kPacketWidth];
   int dir_is_neg[3];  // shared by every lane
 
-  // `rays[0..count)` must share DirectionOctant.
-  RayPacket4(const Ray* const* rays, int count);
+  // `rays[0..count)` must share DirectionOctant. `magnitude`: as RayBoxSetup's.
+  RayPacket4(const Ray* const* rays, int count, float magnitude);
 };
 static_assert(sizeof(RayPacket4) % 16 == 0);
 
@@ -54,13 +55,14 @@ void TraverseBvhPacket4(std::span<const BvhNode> nodes, const RayPacket4& packet
 
 // ---------------------------------------------------------------------------------------
 
-inline RayPacket4::RayPacket4(const Ray* const* rays, int count) {
+inline RayPacket4::RayPacket4(const Ray* const* rays, int count, float magnitude) {
   DCHECK(count >= 1 && count <= kPacketWidth);
   for (int k = 0; k < kPacketWidth; ++k) {
-    const RayBoxSetup s(*rays[k < count ? k : 0]);  // the very constants TraverseBvh uses
+    const RayBoxSetup s(*rays[k < count ? k : 0], magnitude);  // the very constants TraverseBvh uses
     for (int a = 0; a < 3; ++a) {
       origin[a][k] = s.origin[a];
       inv_dir[a][k] = s.inv_dir[a];
+      pad[a][k] = s.pad[a];
       if (k == 0) dir_is_neg[a] = s.dir_is_neg[a];
     }
     tmin[k] = rays[k < count ? k : 0]->tmin;
@@ -82,9 +84,10 @@ inline int IntersectBox4(const RayPacket4& p, const BvhNode& node, __m128 tmax) 
     const float far_plane = p.dir_is_neg[a] ? node.lower[a] : node.upper[a];
     const __m128 o = _mm_load_ps(p.origin[a]);
     const __m128 inv = _mm_load_ps(p.inv_dir[a]);
-    const __m128 t_near = _mm_mul_ps(_mm_sub_ps(_mm_set1_ps(near_plane), o), inv);
-    const __m128 t_far =
-        _mm_mul_ps(_mm_mul_ps(_mm_sub_ps(_mm_set1_ps(far_plane), o), inv), far_scale);
+    const __m128 pad = _mm_load_ps(p.pad[a]);
+    const __m128 t_near = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(_mm_set1_ps(near_plane), o), inv), pad);
+    const __m128 t_far = _mm_add_ps(
+        _mm_mul_ps(_mm_mul_ps(_mm_sub_ps(_mm_set1_ps(far_plane), o), inv), far_scale), pad);
     t0 = _mm_max_ps(t_near, t0);  // t_near > t0 ? t_near : t0
     t1 = _mm_min_ps(t_far, t1);   // t_far < t1 ? t_far : t1
   }
@@ -94,10 +97,11 @@ inline int IntersectBox4(const RayPacket4& p, const BvhNode& node, __m128 tmax) 
 inline int IntersectBox4(const RayPacket4& p, const BvhNode& node, const float* tmax) {
   int mask = 0;
   for (int k = 0; k < kPacketWidth; ++k) {
-    RayBoxSetup s(Ray{});
+    RayBoxSetup s(Ray{}, 0);
     for (int a = 0; a < 3; ++a) {
       s.origin[a] = p.origin[a][k];
       s.inv_dir[a] = p.inv_dir[a][k];
+      s.pad[a] = p.pad[a][k];
       s.dir_is_neg[a] = p.dir_is_neg[a];
     }
     float t_enter;

@@ -102,33 +102,23 @@ __attribute__((always_inline)) inline void WideBvh::Traverse(NodeHitsFn&& node_h
 namespace wide_bvh_internal {
 
 // A ray's constants for the box tests: IntersectBox's, with the rows of Node::box that hold
-// each axis's near and far planes, and a margin in t per axis.
-//
-// The margin: IntersectTriangle decides inside or outside in float, relative to the ray's
-// origin, so it accepts rays that pass outside a triangle by a few ulps of the coordinates'
-// magnitude. Such a hit can lie before the entry into the triangle's (tight) box, and pruning
-// by the best hit would then cull the box (found on the conference room: a hit 7e-7 before
-// its leaf's computed entry, 7 ulps of the coordinates in space). Every box is therefore
-// widened in space by 2^-17 of the largest magnitude among the ray's origin and the model (64
-// to 128 ulps), turned into distances along each axis (`pad`). It costs 7-10% of the rays/s.
+// each axis's near and far planes, and the margin of every box test that guards triangles
+// (BoxMarginPads, with the model's magnitude). The margin costs 7-10% of the rays/s.
 struct BoxRay {
   float origin[3], inv_dir[3], pad[3];
   int near_row[3], far_row[3];
 
   BoxRay() = default;  // for arrays filled later (packets)
   BoxRay(const Ray& ray, float model_magnitude) {
-    float magnitude = model_magnitude;
-    for (int a = 0; a < 3; ++a) magnitude = std::max(magnitude, std::fabs(ray.origin[a]));
-    const float margin = 2 * magnitude * 0x1p-18f;
+    Vec3f inv;
     for (int a = 0; a < 3; ++a) {
       origin[a] = ray.origin[a];
-      inv_dir[a] = 1.0f / ray.direction[a];
+      inv[a] = inv_dir[a] = 1.0f / ray.direction[a];
       const bool negative = inv_dir[a] < 0;
       near_row[a] = negative ? 3 + a : a;
       far_row[a] = negative ? a : 3 + a;
-      // A ray parallel to the slabs (infinite inv_dir) keeps IntersectBox's exact test.
-      pad[a] = std::isinf(inv_dir[a]) ? 0.0f : margin * std::fabs(inv_dir[a]);
     }
+    BoxMarginPads(ray, inv, model_magnitude, pad);
   }
 };
 

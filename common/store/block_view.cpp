@@ -1,5 +1,6 @@
 #include "common/store/block_view.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <iterator>
@@ -116,14 +117,17 @@ Expected<BlockView> BlockView::Parse(const uint8_t* raw, uint64_t size, uint32_t
     return Bad(block_id, "vertex index out of range");
   // A float is NaN or infinite when its exponent bits are all ones; adding one to the
   // exponent field carries into the sign bit exactly then. Integer ORs vectorise (a float sum
-  // would not: its order is fixed).
-  uint32_t carry = 0;
+  // would not: its order is fixed). The same pass finds the largest |coordinate| (the box
+  // tests' margin): finite floats without their sign order as their bits do.
+  uint32_t carry = 0, largest = 0;
   for (uint64_t i = 0; i < 3 * uint64_t{h.vertex_count}; ++i) {
     uint32_t bits;
     std::memcpy(&bits, &pos[i], sizeof bits);
     carry |= (bits & 0x7f800000u) + 0x00800000u;
+    largest = std::max(largest, bits & 0x7fffffffu);
   }
   if (carry & 0x80000000u) return Bad(block_id, "non-finite vertex coordinate");
+  std::memcpy(&v.magnitude_, &largest, sizeof largest);
   RAYSTACK_RETURN_IF_ERROR(CheckBvh(v.nodes(), h.triangle_count, block_id));
   return v;
 }
@@ -150,7 +154,7 @@ bool BlockView::Intersect(const Ray& ray, Hit* hit) const {
   // Hits equal to the best t must still be tested (the smaller id wins a tie), so the
   // triangle test's open upper bound is one float above it.
   float tmax = NextUp(hit->t);
-  TraverseBvh(nodes(), ray, &tmax, [&](uint32_t first, uint32_t count) {
+  TraverseBvh(nodes(), ray, magnitude_, &tmax, [&](uint32_t first, uint32_t count) {
     found |= IntersectLeaf(setup, ray, first, count, &tmax, hit);
     return false;
   });
@@ -161,7 +165,7 @@ bool BlockView::Occluded(const Ray& ray) const {
   const RayTriangleSetup setup(ray);
   float tmax = ray.tmax;
   bool occluded = false;
-  TraverseBvh(nodes(), ray, &tmax, [&](uint32_t first, uint32_t count) {
+  TraverseBvh(nodes(), ray, magnitude_, &tmax, [&](uint32_t first, uint32_t count) {
     occluded = OccludedLeaf(setup, ray, first, count);
     return occluded;
   });

@@ -92,6 +92,7 @@ class BlockView {
   const uint32_t* indices32_ = nullptr;
   const uint32_t* ids_ = nullptr;
   const uint16_t* materials_ = nullptr;
+  float magnitude_ = 0;  // the largest |coordinate| of its vertices: the box tests' margin
   const float *nx_ = nullptr, *ny_ = nullptr, *nz_ = nullptr;
 };
 

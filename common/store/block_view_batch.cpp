@@ -60,7 +60,7 @@ void BlockView::IntersectBatch(std::span<const Ray> rays, std::span<Hit> hits) c
         setup[k] = RayTriangleSetup(*lane_ray[k]);
         tmax[k] = NextUp(lane_hit[k]->t);
       }
-      const RayPacket4 packet(lane_ray, count);
+      const RayPacket4 packet(lane_ray, count, magnitude_);
       TraverseBvhPacket4(nodes(), packet, (1 << count) - 1, tmax,
                          [&](int k, uint32_t first, uint32_t leaf_count) {
                            IntersectLeaf(setup[k], *lane_ray[k], first, leaf_count, &tmax[k],
@@ -88,7 +88,7 @@ void BlockView::OccludedBatch(std::span<const Ray> rays, std::span<uint8_t> occl
         setup[k] = RayTriangleSetup(*lane_ray[k]);
         tmax[k] = lane_ray[k]->tmax;
       }
-      const RayPacket4 packet(lane_ray, count);
+      const RayPacket4 packet(lane_ray, count, magnitude_);
       TraverseBvhPacket4(nodes(), packet, (1 << count) - 1, tmax,
                          [&](int k, uint32_t first, uint32_t leaf_count) {
                            if (!OccludedLeaf(setup[k], *lane_ray[k], first, leaf_count))

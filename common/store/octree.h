@@ -3,7 +3,9 @@
 // empty, and which blocks fill each leaf. It answers two questions for a ray: which leaves it
 // crosses, front to back, and where each starts and ends along the ray.
 
+#include <algorithm>
 #include <bit>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <span>
@@ -65,9 +67,12 @@ inline uint32_t KeepMayHit(const RayBoxSetup& s, const NodeBounds& bounds, uint3
     for (int a = 0; a < 3; ++a) {
       const __m128 lo = _mm_loadu_ps(bounds.lower[a] + at), hi = _mm_loadu_ps(bounds.upper[a] + at);
       const __m128 o = _mm_set1_ps(s.origin[a]), inv = _mm_set1_ps(s.inv_dir[a]);
-      const __m128 t_near = _mm_mul_ps(_mm_sub_ps(s.dir_is_neg[a] ? hi : lo, o), inv);
-      const __m128 t_far = _mm_mul_ps(_mm_mul_ps(_mm_sub_ps(s.dir_is_neg[a] ? lo : hi, o), inv),
-                                      _mm_set1_ps(bvh_internal::kFarScale));
+      const __m128 pad = _mm_set1_ps(s.pad[a]);
+      const __m128 t_near = _mm_sub_ps(_mm_mul_ps(_mm_sub_ps(s.dir_is_neg[a] ? hi : lo, o), inv), pad);
+      const __m128 t_far = _mm_add_ps(
+          _mm_mul_ps(_mm_mul_ps(_mm_sub_ps(s.dir_is_neg[a] ? lo : hi, o), inv),
+                     _mm_set1_ps(bvh_internal::kFarScale)),
+          pad);
       t0 = _mm_max_ps(t_near, t0);  // t_near > t0 ? t_near : t0, as IntersectBox
       t1 = _mm_min_ps(t_far, t1);   // t_far < t1 ? t_far : t1
     }
@@ -114,8 +119,8 @@ inline uint32_t OctreeChildHits(const RayBoxSetup& s, float tmin, float t1, cons
     const float planes[3] = {lower[a], mid[a], upper[a]};
     float tn[3], tf[3];
     for (int k = 0; k < 3; ++k) {
-      tn[k] = (planes[k] - s.origin[a]) * s.inv_dir[a];
-      tf[k] = (planes[k] - s.origin[a]) * s.inv_dir[a] * bvh_internal::kFarScale;
+      tn[k] = (planes[k] - s.origin[a]) * s.inv_dir[a] - s.pad[a];
+      tf[k] = (planes[k] - s.origin[a]) * s.inv_dir[a] * bvh_internal::kFarScale + s.pad[a];
     }
     for (int h = 0; h < 2; ++h) {
       t_near[a][h] = tn[s.dir_is_neg[a] ? h + 1 : h];
@@ -165,11 +170,16 @@ class OctreeView {
   OctreeView() = default;
   // `bounds`: per node, the union of its blocks' bounds (StoreReader computes it at open).
   OctreeView(std::span<const OctreeNode> nodes, NodeBounds bounds, Bounds3f root)
-      : nodes_(nodes), bounds_(bounds), root_(root) {}
+      : nodes_(nodes), bounds_(bounds), root_(root) {
+    for (int a = 0; a < 3; ++a)
+      magnitude_ = std::max({magnitude_, std::fabs(root.lower[a]), std::fabs(root.upper[a])});
+  }
 
   std::span<const OctreeNode> nodes() const { return nodes_; }
   const NodeBounds& bounds() const { return bounds_; }
   const Bounds3f& root_cell() const { return root_; }
+  // The largest |coordinate| of the root cell, which holds the model: the box tests' margin.
+  float magnitude() const { return magnitude_; }
 
   // Calls visit(node_index, node, t_enter, t_exit) for every non-empty leaf the ray crosses
   // within [ray.tmin, *tmax] whose blocks' bounds it may meet (MayHit), nearest cell first.
@@ -183,12 +193,13 @@ class OctreeView {
   std::span<const OctreeNode> nodes_;
   NodeBounds bounds_;
   Bounds3f root_;
+  float magnitude_ = 0;
 };
 
 template <typename Visit>
 void OctreeView::VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const {
   if (nodes_.empty()) return;
-  const RayBoxSetup setup(ray);
+  const RayBoxSetup setup(ray, magnitude_);
   // A validated octree is at most kMaxOctreeDepth deep, so 8 pending children per level fit.
   // Items are plain floats, not Bounds3f: the stack is left uninitialised (its default
   // member initialisers cost more than the whole walk of a typical ray).

@@ -35,8 +35,9 @@ Status StoreTracer::LoadAll() {
 template <typename PerBlock>
 Status StoreTracer::VisitBlocks(const Ray& ray, float* tmax, PerBlock&& per_block) {
   Status error;
-  const RayBoxSetup setup(ray);
-  store_.octree().VisitLeaves(ray, tmax, [&](uint32_t, const OctreeNode& leaf, float, float) {
+  const OctreeView octree = store_.octree();
+  const RayBoxSetup setup(ray, octree.magnitude());
+  octree.VisitLeaves(ray, tmax, [&](uint32_t, const OctreeNode& leaf, float, float) {
     for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b) {
       // Not even loaded when the ray misses its bounds.
       if (!MayHit(setup, BoundsOf(store_.blocks()[b]), ray.tmin, *tmax)) continue;

@@ -59,7 +59,7 @@ void Run(const char* name, int n, bool clustered) {
     const RayTriangleSetup setup(ray);
     float tmax = ray.tmax;
     uint32_t best = kInvalidId;
-    TraverseBvh(nodes, ray, &tmax, [&](uint32_t first, uint32_t count) {
+    TraverseBvh(nodes, ray, 3.0f, &tmax, [&](uint32_t first, uint32_t count) {
       for (uint32_t i = first; i < first + count; ++i) {
         const Triangle& t = tris[order[i]];
         float th, u, v;

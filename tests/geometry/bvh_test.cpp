@@ -237,13 +237,21 @@ struct BuiltSoup {
   std::vector<Triangle> tris;
   std::vector<BvhNode> nodes;
   std::vector<uint32_t> order;
+
+  // The largest |coordinate| of its triangles, for the box tests' margin.
+  float Magnitude() const {
+    float m = 0;
+    for (const Triangle& t : tris)
+      for (const Vec3f& p : t.p) m = std::max({m, std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
+    return m;
+  }
 };
 
 Hit BvhClosest(const BuiltSoup& s, const Ray& ray) {
   const RayTriangleSetup setup(ray);
   Hit best;
   float tmax = ray.tmax;
-  TraverseBvh(s.nodes, ray, &tmax, [&](uint32_t first, uint32_t count) {
+  TraverseBvh(s.nodes, ray, s.Magnitude(), &tmax, [&](uint32_t first, uint32_t count) {
     for (uint32_t i = first; i < first + count; ++i) {
       const uint32_t id = s.order[i];
       float t, u, v;
@@ -262,7 +270,7 @@ bool BvhOccluded(const BuiltSoup& s, const Ray& ray) {
   const RayTriangleSetup setup(ray);
   bool occluded = false;
   float tmax = ray.tmax;
-  TraverseBvh(s.nodes, ray, &tmax, [&](uint32_t first, uint32_t count) {
+  TraverseBvh(s.nodes, ray, s.Magnitude(), &tmax, [&](uint32_t first, uint32_t count) {
     for (uint32_t i = first; i < first + count; ++i) {
       float t, u, v;
       if (Intersect(setup, s.tris[s.order[i]], ray, &t, &u, &v)) return occluded = true;
@@ -553,17 +561,23 @@ bool Box(const Ray& ray, Bounds3f b, float* t_enter = nullptr) {
   float t;
   const float lower[3] = {b.lower.x, b.lower.y, b.lower.z};
   const float upper[3] = {b.upper.x, b.upper.y, b.upper.z};
-  const bool hit = IntersectBox(RayBoxSetup(ray), lower, upper, ray.tmin, ray.tmax, &t);
+  const bool hit = IntersectBox(RayBoxSetup(ray, 0), lower, upper, ray.tmin, ray.tmax, &t);
   if (hit && t_enter) *t_enter = t;
   return hit;
 }
 
-TEST(IntersectBox, EntersAtTheNearFace) {
+// The entry is the near face's, less the margin (2^-17 of the origin's magnitude here, in t).
+TEST(IntersectBox, EntersAtTheNearFaceLessTheMargin) {
   float t = -1;
-  EXPECT_TRUE(Box({{-3, 0.5f, 0.5f}, {1, 0, 0}}, {{0, 0, 0}, {1, 1, 1}}, &t));
-  EXPECT_EQ(t, 3.0f);
-  EXPECT_TRUE(Box({{4, 0.5f, 0.5f}, {-2, 0, 0}}, {{0, 0, 0}, {1, 1, 1}}, &t));
-  EXPECT_EQ(t, 1.5f);
+  const Ray from_left{{-3, 0.5f, 0.5f}, {1, 0, 0}};
+  const float pad_left = RayBoxSetup(from_left, 0).pad[0];
+  EXPECT_GT(pad_left, 0.0f);
+  EXPECT_LT(pad_left, 1e-4f);
+  EXPECT_TRUE(Box(from_left, {{0, 0, 0}, {1, 1, 1}}, &t));
+  EXPECT_EQ(t, 3.0f - pad_left);
+  const Ray from_right{{4, 0.5f, 0.5f}, {-2, 0, 0}};
+  EXPECT_TRUE(Box(from_right, {{0, 0, 0}, {1, 1, 1}}, &t));
+  EXPECT_EQ(t, 1.5f - RayBoxSetup(from_right, 0).pad[0]);
 }
 
 TEST(IntersectBox, OriginInsideEntersAtTmin) {
@@ -621,7 +635,7 @@ TEST(IntersectBox, GrazingTheCornerHits) {
 TEST(TraverseBvh, EmptyTreeVisitsNothing) {
   float tmax = kInf;
   int calls = 0;
-  TraverseBvh({}, Ray{{0, 0, 0}, {1, 0, 0}}, &tmax, [&](uint32_t, uint32_t) {
+  TraverseBvh({}, Ray{{0, 0, 0}, {1, 0, 0}}, 0, &tmax, [&](uint32_t, uint32_t) {
     ++calls;
     return false;
   });
@@ -640,6 +654,47 @@ BuiltSoup Row() {
   return s;
 }
 
+// Five triangles of the conference room and a ray that IntersectTriangle accepts on triangle 3
+// although it passes a few ulps outside it: the hit (t = 0x1.ffffe8p-1) lies before the
+// triangle's box, which the ray enters at t = 1 as computed, and a farther hit on triangle 0
+// (0x1.ffffeep-1) is found first. Without the box tests' margin every tree over them, whatever
+// the leaf size, bins or input order, returned the farther hit.
+TEST(TraverseBvh, AHitJustOutsideItsBoxIsNotPruned) {
+  const float v[5][9] = {
+      {0x1.9930fcp+10f, 0x1.b743eap-2f, -0x1.f19c64p+9f, 0x1.992f18p+10f, 0x1.17ba02p-1f,
+       -0x1.f1f6c6p+9f, 0x1.993154p+10f, 0x1.b67be6p-2f, -0x1.f19c7p+9f},
+      {0x1.992a44p+10f, 0x1.88fc0ep-2f, -0x1.f19ed8p+9f, 0x1.9929f4p+10f, 0x1.88fc0ep-2f,
+       -0x1.f19e8ap+9f, 0x1.9929fcp+10f, 0x1.8e43eep-2f, -0x1.f19e76p+9f},
+      {0x1.992b2cp+10f, 0x1.96cc1cp-2f, -0x1.f19d34p+9f, 0x1.992b68p+10f, 0x1.930404p-2f,
+       -0x1.f19d5ap+9f, 0x1.992b18p+10f, 0x1.96cc1cp-2f, -0x1.f19d8ep+9f},
+      {0x1.993154p+10f, 0x1.b6ac22p-2f, -0x1.f19cbep+9f, 0x1.99319cp+10f, 0x1.b43bf8p-2f,
+       -0x1.f19cbep+9f, 0x1.99314cp+10f, 0x1.b6ac22p-2f, -0x1.f19cf2p+9f},
+      {0x1.99319cp+10f, 0x1.b43bf8p-2f, -0x1.f19cbep+9f, 0x1.993194p+10f, 0x1.b43bf8p-2f,
+       -0x1.f19d22p+9f, 0x1.99314cp+10f, 0x1.b6ac22p-2f, -0x1.f19cf2p+9f}};
+  const Ray ray{{0x1.6d32d8p+9f, 0x1.13c728p+9f, -0x1.d4653cp+8f},
+                {0x1.c52fccp+9f, -0x1.139052p+9f, -0x1.076a2ep+9f}};
+  int perm[5] = {0, 1, 2, 3, 4};
+  do {
+    for (int leaf : {1, 2, 4}) {
+      for (int bins : {2, 16}) {
+        BuiltSoup s;
+        for (int k : perm)
+          s.tris.push_back({{{v[k][0], v[k][1], v[k][2]}, {v[k][3], v[k][4], v[k][5]},
+                             {v[k][6], v[k][7], v[k][8]}}});
+        BvhBuildOptions options;
+        options.max_leaf_size = leaf;
+        options.bins = bins;
+        s.nodes = BuildBvh(PrimitivesOf(s.tris), options, &s.order);
+        const Hit h = BvhClosest(s, ray);
+        ASSERT_TRUE(h.Valid());
+        EXPECT_EQ(perm[h.triangle_id], 3) << "leaves of " << leaf << ", " << bins << " bins, order "
+                                          << perm[0] << perm[1] << perm[2] << perm[3] << perm[4];
+        EXPECT_EQ(h.t, 0x1.ffffe8p-1f);
+      }
+    }
+  } while (std::next_permutation(perm, perm + 5));
+}
+
 TEST(TraverseBvh, NearChildFirstAndPruningVisitFewLeaves) {
   const BuiltSoup s = Row();
   for (float dir : {1.0f, -1.0f}) {
@@ -648,7 +703,7 @@ TEST(TraverseBvh, NearChildFirstAndPruningVisitFewLeaves) {
     float tmax = kInf;
     const RayTriangleSetup setup(ray);
     uint32_t best_id = kInvalidId;
-    TraverseBvh(s.nodes, ray, &tmax, [&](uint32_t first, uint32_t count) {
+    TraverseBvh(s.nodes, ray, s.Magnitude(), &tmax, [&](uint32_t first, uint32_t count) {
       ++leaves;
       for (uint32_t i = first; i < first + count; ++i) {
         float t, u, v;
@@ -672,7 +727,7 @@ TEST(TraverseBvh, StopsWhenTheLeafSaysSo) {
   const Ray ray{{-5, 0.1f, 0.2f}, {1, 0, 0}};
   float tmax = kInf;
   int calls = 0;
-  TraverseBvh(s.nodes, ray, &tmax, [&](uint32_t, uint32_t) {
+  TraverseBvh(s.nodes, ray, s.Magnitude(), &tmax, [&](uint32_t, uint32_t) {
     ++calls;
     return true;
   });

@@ -3,6 +3,8 @@
 // watertight triangle test), without a store: the extreme-scale tests shoot 10^6 rays, so the
 // loop must be direct.
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -21,7 +23,10 @@ class MeshBvh {
     std::vector<BvhBuildPrimitive> prims;
     for (const Triangle& t : triangles_) {
       Bounds3f b;
-      for (const Vec3f& p : t.p) b.Extend(p);
+      for (const Vec3f& p : t.p) {
+        b.Extend(p);
+        magnitude_ = std::max({magnitude_, std::fabs(p.x), std::fabs(p.y), std::fabs(p.z)});
+      }
       prims.push_back({b});
     }
     nodes_ = BuildBvh(prims, BvhBuildOptions{}, &order_);
@@ -33,7 +38,7 @@ class MeshBvh {
     Hit best;
     best.t = ray.tmax;
     float tmax = ray.tmax;
-    TraverseBvh(nodes_, ray, &tmax, [&](uint32_t first, uint32_t count) {
+    TraverseBvh(nodes_, ray, magnitude_, &tmax, [&](uint32_t first, uint32_t count) {
       for (uint32_t i = first; i < first + count; ++i) {
         const uint32_t id = order_[i];
         if (id == skipped_) continue;
@@ -56,7 +61,7 @@ class MeshBvh {
     const RayTriangleSetup setup(ray);
     uint32_t found = kInvalidId;
     float tmax = ray.tmax;
-    TraverseBvh(nodes_, ray, &tmax, [&](uint32_t first, uint32_t count) {
+    TraverseBvh(nodes_, ray, magnitude_, &tmax, [&](uint32_t first, uint32_t count) {
       for (uint32_t i = first; i < first + count; ++i) {
         const uint32_t id = order_[i];
         if (id == skipped_) continue;
@@ -79,6 +84,7 @@ class MeshBvh {
   std::vector<Triangle> triangles_;
   uint32_t skipped_;
   std::vector<BvhNode> nodes_;
+  float magnitude_ = 0;  // the largest |coordinate|, for the box tests' margin
   std::vector<uint32_t> order_;
 };
 

@@ -24,7 +24,8 @@ using slave::BlockWalk;
 
 // Whether the ray may meet block b's bounds (the index's copy of its BVH root box).
 bool MayHitBlock(const store::StoreReader& store, const Ray& ray, uint32_t b) {
-  return store::MayHit(RayBoxSetup(ray), store::BoundsOf(store.blocks()[b]), ray.tmin, ray.tmax);
+  return store::MayHit(RayBoxSetup(ray, store.octree().magnitude()), store::BoundsOf(store.blocks()[b]),
+                       ray.tmin, ray.tmax);
 }
 
 // Every block of every leaf VisitLeaves reports before `tmax` (the store's own walk) whose
@@ -67,7 +68,7 @@ void ReferenceWalk(const store::OctreeView& octree, const Ray& ray, uint32_t nod
     Bounds3f cell;
   };
   std::vector<Child> children;
-  const RayBoxSetup setup(ray);
+  const RayBoxSetup setup(ray, octree.magnitude());
   for (int i = 0; i < 8; ++i) {
     if (octree.nodes()[n.first + i].kind == store::kOctreeEmpty) continue;
     const Bounds3f c = store::ChildCell(cell, i);
@@ -75,8 +76,9 @@ void ReferenceWalk(const store::OctreeView& octree, const Ray& ray, uint32_t nod
     for (int a = 0; a < 3; ++a) {
       const float near_plane = setup.dir_is_neg[a] ? c.upper[a] : c.lower[a];
       const float far_plane = setup.dir_is_neg[a] ? c.lower[a] : c.upper[a];
-      const float tn = (near_plane - setup.origin[a]) * setup.inv_dir[a];
-      const float tf = (far_plane - setup.origin[a]) * setup.inv_dir[a] * bvh_internal::kFarScale;
+      const float tn = (near_plane - setup.origin[a]) * setup.inv_dir[a] - setup.pad[a];
+      const float tf =
+          (far_plane - setup.origin[a]) * setup.inv_dir[a] * bvh_internal::kFarScale + setup.pad[a];
       enter = tn > enter ? tn : enter;
       exit = tf < exit ? tf : exit;
     }

@@ -53,7 +53,7 @@ TEST(NodeBounds, PackedTestAnswersAsTheSingleBoxTestForEveryChild) {
     if (trial % 5 == 0) ray.direction = {0, 0, trial % 2 ? 1.0f : -1.0f};
     ray.tmin = 0;
     const float t_best = trial % 4 == 0 ? kInf : std::fabs(u(rng)) * 3;
-    const RayBoxSetup setup(ray);
+    const RayBoxSetup setup(ray, 3.0f);  // with a margin, as the store's walks
     const uint32_t all = (trial % 11 == 0) ? 0x5au : 0xffu;  // some children already dropped
     const uint32_t keep = KeepMayHit(setup, bounds, 0, all, ray.tmin, t_best);
     for (uint32_t c = 0; c < 8; ++c) {

@@ -5,6 +5,7 @@
 // (t, id). No tree, no clipping, nothing shared with the store's build but the triangle test.
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -25,6 +26,8 @@ class BruteForce {
     Bounds3f all;
     for (const Tri& t : tris_)
       for (const Vec3f& p : t.p) all.Extend(p);
+    for (int a = 0; a < 3 && !tris_.empty(); ++a)  // the box tests' margin (a hit may lie just outside its box)
+      magnitude_ = std::max({magnitude_, std::fabs(all.lower[a]), std::fabs(all.upper[a])});
     std::vector<std::pair<uint32_t, uint32_t>> keyed;  // (Morton code, index)
     for (uint32_t i = 0; i < tris_.size(); ++i) {
       const Vec3f c = (tris_[i].p[0] + tris_[i].p[1] + tris_[i].p[2]) * (1.0f / 3);
@@ -57,7 +60,7 @@ class BruteForce {
     Hit best;
     best.t = ray.tmax;
     const RayTriangleSetup setup(ray);
-    const RayBoxSetup box(ray);
+    const RayBoxSetup box(ray, magnitude_);
     auto may_hit = [&](const Bounds3f& b) {
       const float lo[3] = {b.lower.x, b.lower.y, b.lower.z};
       const float hi[3] = {b.upper.x, b.upper.y, b.upper.z};
@@ -95,6 +98,7 @@ class BruteForce {
  private:
   static constexpr size_t kRun = 64;
   std::vector<Tri> tris_;
+  float magnitude_ = 0;
   std::vector<uint32_t> order_;
   std::vector<Bounds3f> runs_;
   std::vector<Bounds3f> groups_;  // one box per 64 runs

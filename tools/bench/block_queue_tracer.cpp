@@ -19,7 +19,7 @@ void BlockQueueTracer::BuildPaths(std::span<const Ray> rays) {
   for (size_t i = 0; i < rays.size(); ++i) {
     cursor_[i] = static_cast<uint32_t>(steps_.size());
     float tmax = rays[i].tmax;
-    const RayBoxSetup setup(rays[i]);
+    const RayBoxSetup setup(rays[i], octree_.magnitude());
     octree_.VisitLeaves(rays[i], &tmax,
                         [&](uint32_t, const store::OctreeNode& leaf, float t_enter, float) {
                           // Blocks whose bounds (their BVH's root box) the ray misses are left
