@@ -654,33 +654,18 @@ BuiltSoup Row() {
   return s;
 }
 
-// Five triangles of the conference room and a ray that IntersectTriangle accepts on triangle 3
-// although it passes a few ulps outside it: the hit (t = 0x1.ffffe8p-1) lies before the
-// triangle's box, which the ray enters at t = 1 as computed, and a farther hit on triangle 0
-// (0x1.ffffeep-1) is found first. Without the box tests' margin every tree over them, whatever
-// the leaf size, bins or input order, returned the farther hit.
+// The conference room's hit just outside its box (ConferenceRoomHitOutsideItsBox): without the
+// box tests' margin every tree over those 5 triangles, whatever the leaf size, bins or input
+// order, returned the farther hit.
 TEST(TraverseBvh, AHitJustOutsideItsBoxIsNotPruned) {
-  const float v[5][9] = {
-      {0x1.9930fcp+10f, 0x1.b743eap-2f, -0x1.f19c64p+9f, 0x1.992f18p+10f, 0x1.17ba02p-1f,
-       -0x1.f1f6c6p+9f, 0x1.993154p+10f, 0x1.b67be6p-2f, -0x1.f19c7p+9f},
-      {0x1.992a44p+10f, 0x1.88fc0ep-2f, -0x1.f19ed8p+9f, 0x1.9929f4p+10f, 0x1.88fc0ep-2f,
-       -0x1.f19e8ap+9f, 0x1.9929fcp+10f, 0x1.8e43eep-2f, -0x1.f19e76p+9f},
-      {0x1.992b2cp+10f, 0x1.96cc1cp-2f, -0x1.f19d34p+9f, 0x1.992b68p+10f, 0x1.930404p-2f,
-       -0x1.f19d5ap+9f, 0x1.992b18p+10f, 0x1.96cc1cp-2f, -0x1.f19d8ep+9f},
-      {0x1.993154p+10f, 0x1.b6ac22p-2f, -0x1.f19cbep+9f, 0x1.99319cp+10f, 0x1.b43bf8p-2f,
-       -0x1.f19cbep+9f, 0x1.99314cp+10f, 0x1.b6ac22p-2f, -0x1.f19cf2p+9f},
-      {0x1.99319cp+10f, 0x1.b43bf8p-2f, -0x1.f19cbep+9f, 0x1.993194p+10f, 0x1.b43bf8p-2f,
-       -0x1.f19d22p+9f, 0x1.99314cp+10f, 0x1.b6ac22p-2f, -0x1.f19cf2p+9f}};
-  const Ray ray{{0x1.6d32d8p+9f, 0x1.13c728p+9f, -0x1.d4653cp+8f},
-                {0x1.c52fccp+9f, -0x1.139052p+9f, -0x1.076a2ep+9f}};
+  const geometry_test::HitOutsideItsBox c = geometry_test::ConferenceRoomHitOutsideItsBox();
+  const Ray ray{c.origin, c.direction};
   int perm[5] = {0, 1, 2, 3, 4};
   do {
     for (int leaf : {1, 2, 4}) {
       for (int bins : {2, 16}) {
         BuiltSoup s;
-        for (int k : perm)
-          s.tris.push_back({{{v[k][0], v[k][1], v[k][2]}, {v[k][3], v[k][4], v[k][5]},
-                             {v[k][6], v[k][7], v[k][8]}}});
+        for (int k : perm) s.tris.push_back(c.triangles[k]);
         BvhBuildOptions options;
         options.max_leaf_size = leaf;
         options.bins = bins;

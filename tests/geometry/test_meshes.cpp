@@ -76,4 +76,25 @@ ClosedMesh MakeClosedMesh(MeshShape shape, int cells, double scale, double trans
   return mesh;
 }
 
+HitOutsideItsBox ConferenceRoomHitOutsideItsBox() {
+  const float v[5][9] = {
+      {0x1.9930fcp+10f, 0x1.b743eap-2f, -0x1.f19c64p+9f, 0x1.992f18p+10f, 0x1.17ba02p-1f,
+       -0x1.f1f6c6p+9f, 0x1.993154p+10f, 0x1.b67be6p-2f, -0x1.f19c7p+9f},
+      {0x1.992a44p+10f, 0x1.88fc0ep-2f, -0x1.f19ed8p+9f, 0x1.9929f4p+10f, 0x1.88fc0ep-2f,
+       -0x1.f19e8ap+9f, 0x1.9929fcp+10f, 0x1.8e43eep-2f, -0x1.f19e76p+9f},
+      {0x1.992b2cp+10f, 0x1.96cc1cp-2f, -0x1.f19d34p+9f, 0x1.992b68p+10f, 0x1.930404p-2f,
+       -0x1.f19d5ap+9f, 0x1.992b18p+10f, 0x1.96cc1cp-2f, -0x1.f19d8ep+9f},
+      {0x1.993154p+10f, 0x1.b6ac22p-2f, -0x1.f19cbep+9f, 0x1.99319cp+10f, 0x1.b43bf8p-2f,
+       -0x1.f19cbep+9f, 0x1.99314cp+10f, 0x1.b6ac22p-2f, -0x1.f19cf2p+9f},
+      {0x1.99319cp+10f, 0x1.b43bf8p-2f, -0x1.f19cbep+9f, 0x1.993194p+10f, 0x1.b43bf8p-2f,
+       -0x1.f19d22p+9f, 0x1.99314cp+10f, 0x1.b6ac22p-2f, -0x1.f19cf2p+9f}};
+  HitOutsideItsBox c{{}, {74017, 75321, 75406, 76502, 76503},
+                     {0x1.6d32d8p+9f, 0x1.13c728p+9f, -0x1.d4653cp+8f},
+                     {0x1.c52fccp+9f, -0x1.139052p+9f, -0x1.076a2ep+9f}};
+  for (int i = 0; i < 5; ++i)
+    c.triangles[i] = {{{v[i][0], v[i][1], v[i][2]}, {v[i][3], v[i][4], v[i][5]},
+                       {v[i][6], v[i][7], v[i][8]}}};
+  return c;
+}
+
 }  // namespace raystack::geometry_test

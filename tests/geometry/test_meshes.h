@@ -1,6 +1,7 @@
 #pragma once
 // Closed triangle meshes for watertightness tests, shared by the triangle and BVH tests.
 
+#include <cstdint>
 #include <vector>
 
 #include "common/geometry/vec.h"
@@ -27,5 +28,17 @@ struct ClosedMesh {
 };
 
 ClosedMesh MakeClosedMesh(MeshShape shape, int cells, double scale, double translate);
+
+// Five triangles of the conference room (source ids 74017, 75321, 75406, 76502, 76503) and a
+// ray that IntersectTriangle accepts on triangle 3 (76502) although it passes a few ulps outside
+// it: the hit, at t = 0x1.ffffe8p-1, lies before the triangle's box, which the ray enters at
+// t = 1 as computed, and a farther hit on triangle 0 (t = 0x1.ffffeep-1) prunes that box when
+// it is found first. Box tests without a margin miss the closest hit.
+struct HitOutsideItsBox {
+  Triangle triangles[5];
+  uint32_t ids[5];
+  Vec3f origin, direction;
+};
+HitOutsideItsBox ConferenceRoomHitOutsideItsBox();
 
 }  // namespace raystack::geometry_test

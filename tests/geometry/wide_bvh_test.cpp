@@ -185,25 +185,14 @@ TEST(WideBvh, EmptyAndSingleTriangleMeshes) {
 // at t = 1 as computed. A farther hit found first (74017, at 0.999999464) must not prune that
 // leaf.
 TEST(WideBvh, AHitJustOutsideItsBoxIsNotPruned) {
-  const float v[5][9] = {
-      {0x1.9930fcp+10f, 0x1.b743eap-2f, -0x1.f19c64p+9f, 0x1.992f18p+10f, 0x1.17ba02p-1f,
-       -0x1.f1f6c6p+9f, 0x1.993154p+10f, 0x1.b67be6p-2f, -0x1.f19c7p+9f},
-      {0x1.992a44p+10f, 0x1.88fc0ep-2f, -0x1.f19ed8p+9f, 0x1.9929f4p+10f, 0x1.88fc0ep-2f,
-       -0x1.f19e8ap+9f, 0x1.9929fcp+10f, 0x1.8e43eep-2f, -0x1.f19e76p+9f},
-      {0x1.992b2cp+10f, 0x1.96cc1cp-2f, -0x1.f19d34p+9f, 0x1.992b68p+10f, 0x1.930404p-2f,
-       -0x1.f19d5ap+9f, 0x1.992b18p+10f, 0x1.96cc1cp-2f, -0x1.f19d8ep+9f},
-      {0x1.993154p+10f, 0x1.b6ac22p-2f, -0x1.f19cbep+9f, 0x1.99319cp+10f, 0x1.b43bf8p-2f,
-       -0x1.f19cbep+9f, 0x1.99314cp+10f, 0x1.b6ac22p-2f, -0x1.f19cf2p+9f},
-      {0x1.99319cp+10f, 0x1.b43bf8p-2f, -0x1.f19cbep+9f, 0x1.993194p+10f, 0x1.b43bf8p-2f,
-       -0x1.f19d22p+9f, 0x1.99314cp+10f, 0x1.b6ac22p-2f, -0x1.f19cf2p+9f}};
-  const uint32_t ids[5] = {74017, 75321, 75406, 76502, 76503};
+  const geometry_test::HitOutsideItsBox c = geometry_test::ConferenceRoomHitOutsideItsBox();
   Mesh m;
-  for (int i = 0; i < 5; ++i)
-    m.Add({v[i][0], v[i][1], v[i][2]}, {v[i][3], v[i][4], v[i][5]}, {v[i][6], v[i][7], v[i][8]},
-          ids[i]);
+  for (int i = 0; i < 5; ++i) {
+    const geometry_test::Triangle& t = c.triangles[i];
+    m.Add(t.p[0], t.p[1], t.p[2], c.ids[i]);
+  }
   const WideBvh bvh(m.vertices, m.ids, m.origins);
-  const Ray ray{{0x1.6d32d8p+9f, 0x1.13c728p+9f, -0x1.d4653cp+8f},
-                {0x1.c52fccp+9f, -0x1.139052p+9f, -0x1.076a2ep+9f}};
+  const Ray ray{c.origin, c.direction};
   const Hit expected = BruteIntersect(m, ray, Hit{});
   ASSERT_EQ(expected.triangle_id, 76502u);
   Hit got;
