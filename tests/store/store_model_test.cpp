@@ -16,6 +16,7 @@
 #include "common/store/store_reader.h"
 #include "common/store/store_bvh.h"
 #include "common/store/store_tracer.h"
+#include "tests/geometry/test_meshes.h"
 #include "tests/support/brute_force.h"
 #include "tests/support/model_loader.h"
 #include "tools/prep/clip.h"
@@ -196,6 +197,38 @@ TEST(StoreModel, PartitionedOnDiskMatchesInMemory) {
   const std::vector<Tri> tris = testing::GenerateTriangles(o.generate);
   CheckPlacement(*b.store, tris);
   CheckRays(*b.store, tris, 20000);
+}
+
+// The conference room's hit just outside its box (ConferenceRoomHitOutsideItsBox) through the
+// converter, a triangle a leaf so the closest and the farther hit sit in different leaves of the
+// block's BVH: the store's walk and the one BVH give brute force's hit. Without the margin in
+// the box tests the store returned the farther one.
+TEST(StoreModel, AHitJustOutsideItsBoxMatchesBruteForce) {
+  const geometry_test::HitOutsideItsBox c = geometry_test::ConferenceRoomHitOutsideItsBox();
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  const std::string obj = dir->File("five.obj");
+  {
+    std::FILE* f = std::fopen(obj.c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    for (int i = 0; i < 5; ++i) {
+      for (const Vec3f& p : c.triangles[i].p)  // 9 digits: the floats exactly
+        std::fprintf(f, "v %.9g %.9g %.9g\n", double{p.x}, double{p.y}, double{p.z});
+      std::fprintf(f, "f %d %d %d\n", 3 * i + 1, 3 * i + 2, 3 * i + 3);
+    }
+    std::fclose(f);
+  }
+  prep::ConvertOptions o;
+  o.inputs = {obj};
+  o.bvh.max_leaf_size = 1;
+  Built b = ConvertToStore(o);
+  ASSERT_TRUE(b.store);
+  const std::vector<Tri> tris = testing::LoadTriangles(obj);
+  ASSERT_EQ(tris.size(), 5u);
+  const Ray ray{c.origin, c.direction};
+  const Hit want = BruteForce(tris).Intersect(ray);
+  ASSERT_EQ(want.triangle_id, 3u);  // 76502 of the room
+  CheckRays(*b.store, tris, 400, {ray});
 }
 
 // Hostile geometry through the whole pipeline (issue 6): needles (10 long, 1e-6 wide), slivers
