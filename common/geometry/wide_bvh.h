@@ -60,6 +60,9 @@ class WideBvh {
   uint32_t IntersectPacket(std::span<const Ray> rays, std::span<Hit> hits) const;
   // Bit i set when Occluded(rays[i]).
   uint32_t OccludedPacket(std::span<const Ray> rays) const;
+  // Packets take an AVX2 walk where the CPU has it (the same results, faster). For tests and
+  // benchmarks: false keeps them on the SSE2 walk. Returns whether the AVX2 walk is now used.
+  static bool AllowPacketAvx2(bool allowed);
 
   size_t triangle_count() const { return triangle_count_; }
   size_t node_count() const { return nodes_.size(); }

@@ -123,33 +123,39 @@ void TraceOneBvh(const StoreReader& store, const std::vector<Ray>& rays) {
     }
     (void)bvh.Occluded(ray);
   }
-  // Packets give every lane the single-ray answer, whatever the geometry: the rays above 8 at
-  // a time (mostly split apart), and 8 close to the first one (walked together).
+  // Packets give every lane the single-ray answer, whatever the geometry and on either walk
+  // (SSE2, and AVX2 where the build and the CPU have it; the clang fuzzing build has SSE2 only):
+  // the rays above 8 at a time (mostly split apart), and 8 close to the first one (walked
+  // together).
   std::vector<Ray> packets = rays;
   for (int i = 0; i < WideBvh::kPacketSize && !rays.empty(); ++i) {
     const float spread = 0.004f * Length(rays[0].direction);
     packets.push_back({rays[0].origin, rays[0].direction + Vec3f{static_cast<float>(i % 4) * spread,
                                                                  static_cast<float>(i / 4) * spread, 0}});
   }
-  for (size_t i = 0; i < packets.size(); i += WideBvh::kPacketSize) {
-    const size_t n = std::min(packets.size() - i, size_t{WideBvh::kPacketSize});
-    const std::span<const Ray> packet(packets.data() + i, n);
-    Hit hits[WideBvh::kPacketSize];
-    for (size_t j = 0; j < n; ++j) hits[j].t = packet[j].tmax;
-    const uint32_t found = bvh.IntersectPacket(packet, {hits, n});
-    const uint32_t occluded = bvh.OccludedPacket(packet);
-    for (size_t j = 0; j < n; ++j) {
-      const Hit one = bvh.Intersect(packet[j]);
-      CHECK(((found >> j) & 1) == (one.Valid() ? 1u : 0u));
-      if (one.Valid()) {
-        CHECK(std::memcmp(&one.t, &hits[j].t, sizeof(float)) == 0);
-        CHECK(one.u == hits[j].u && one.v == hits[j].v);
-        CHECK(one.triangle_id == hits[j].triangle_id && one.block_id == hits[j].block_id &&
-              one.local_triangle == hits[j].local_triangle);
+  for (bool avx2 : {false, true}) {
+    WideBvh::AllowPacketAvx2(avx2);
+    for (size_t i = 0; i < packets.size(); i += WideBvh::kPacketSize) {
+      const size_t n = std::min(packets.size() - i, size_t{WideBvh::kPacketSize});
+      const std::span<const Ray> packet(packets.data() + i, n);
+      Hit hits[WideBvh::kPacketSize];
+      for (size_t j = 0; j < n; ++j) hits[j].t = packet[j].tmax;
+      const uint32_t found = bvh.IntersectPacket(packet, {hits, n});
+      const uint32_t occluded = bvh.OccludedPacket(packet);
+      for (size_t j = 0; j < n; ++j) {
+        const Hit one = bvh.Intersect(packet[j]);
+        CHECK(((found >> j) & 1) == (one.Valid() ? 1u : 0u));
+        if (one.Valid()) {
+          CHECK(std::memcmp(&one.t, &hits[j].t, sizeof(float)) == 0);
+          CHECK(one.u == hits[j].u && one.v == hits[j].v);
+          CHECK(one.triangle_id == hits[j].triangle_id && one.block_id == hits[j].block_id &&
+                one.local_triangle == hits[j].local_triangle);
+        }
+        CHECK(((occluded >> j) & 1) == (bvh.Occluded(packet[j]) ? 1u : 0u));
       }
-      CHECK(((occluded >> j) & 1) == (bvh.Occluded(packet[j]) ? 1u : 0u));
     }
   }
+  WideBvh::AllowPacketAvx2(true);
 }
 
 // The loader's reads: neighbouring ids as one run, each block found at its offset from the

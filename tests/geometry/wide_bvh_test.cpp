@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -235,31 +236,46 @@ TEST(WideBvh, NoRayEscapesAClosedMesh) {
 // case the packet walk is for), some lanes starting from a hit found elsewhere and some with a
 // shorter or later range: every lane as brute force, bit for bit, and the mask says which lanes
 // got a closer hit.
+// Runs `body` on each packet walk this machine has: SSE2, then AVX2 where the CPU has it (the
+// walks must agree with brute force alike).
+template <typename Body>
+void ForEachPacketWalk(Body&& body) {
+  for (bool avx2 : {false, true}) {
+    const bool used = WideBvh::AllowPacketAvx2(avx2);
+    if (avx2 && !used) continue;  // no AVX2 here: the SSE2 walk was the only one
+    SCOPED_TRACE(used ? "AVX2 packet walk" : "SSE2 packet walk");
+    body();
+  }
+  WideBvh::AllowPacketAvx2(true);
+}
+
 void ExpectPacketsMatchBruteForce(const Mesh& m, const WideBvh& bvh,
                                   const std::vector<std::vector<Ray>>& packets) {
-  for (size_t k = 0; k < packets.size(); ++k) {
-    const std::vector<Ray>& rays = packets[k];
-    std::vector<Hit> start(rays.size()), got(rays.size());
-    for (size_t i = 0; i < rays.size(); ++i) {
-      start[i].t = rays[i].tmax;
-      if ((k + i) % 9 == 4) {  // a hit found elsewhere, halfway to the nearest
-        const Hit near = BruteIntersect(m, rays[i], start[i]);
-        if (near.Valid()) start[i] = {near.t * 0.5f + rays[i].tmin * 0.5f, 0, 0, 1u << 30, 0, 0};
+  ForEachPacketWalk([&] {
+    for (size_t k = 0; k < packets.size(); ++k) {
+      const std::vector<Ray>& rays = packets[k];
+      std::vector<Hit> start(rays.size()), got(rays.size());
+      for (size_t i = 0; i < rays.size(); ++i) {
+        start[i].t = rays[i].tmax;
+        if ((k + i) % 9 == 4) {  // a hit found elsewhere, halfway to the nearest
+          const Hit near = BruteIntersect(m, rays[i], start[i]);
+          if (near.Valid()) start[i] = {near.t * 0.5f + rays[i].tmin * 0.5f, 0, 0, 1u << 30, 0, 0};
+        }
+        got[i] = start[i];
       }
-      got[i] = start[i];
+      const uint32_t found = bvh.IntersectPacket(rays, got);
+      uint32_t occluded = bvh.OccludedPacket(rays);
+      for (size_t i = 0; i < rays.size(); ++i) {
+        SCOPED_TRACE(testing::Message() << "packet " << k << " lane " << i);
+        const Hit expected = BruteIntersect(m, rays[i], start[i]);
+        ExpectSameHit(expected, got[i]);
+        EXPECT_EQ((found >> i) & 1, expected.triangle_id != start[i].triangle_id ? 1u : 0u);
+        EXPECT_EQ((occluded >> i) & 1, BruteOccluded(m, rays[i]) ? 1u : 0u);
+      }
+      EXPECT_EQ(found >> rays.size(), 0u);
+      EXPECT_EQ(occluded >> rays.size(), 0u);
     }
-    const uint32_t found = bvh.IntersectPacket(rays, got);
-    uint32_t occluded = bvh.OccludedPacket(rays);
-    for (size_t i = 0; i < rays.size(); ++i) {
-      SCOPED_TRACE(testing::Message() << "packet " << k << " lane " << i);
-      const Hit expected = BruteIntersect(m, rays[i], start[i]);
-      ExpectSameHit(expected, got[i]);
-      EXPECT_EQ((found >> i) & 1, expected.triangle_id != start[i].triangle_id ? 1u : 0u);
-      EXPECT_EQ((occluded >> i) & 1, BruteOccluded(m, rays[i]) ? 1u : 0u);
-    }
-    EXPECT_EQ(found >> rays.size(), 0u);
-    EXPECT_EQ(occluded >> rays.size(), 0u);
-  }
+  });
 }
 
 std::vector<std::vector<Ray>> CameraPackets(Vec3f eye, int width, int height, uint32_t seed) {
@@ -355,10 +371,12 @@ TEST(WideBvh, PacketsThroughSharedEdgesAndCornersHit) {
     }
   }
   ExpectPacketsMatchBruteForce(m, bvh, packets);
-  for (const std::vector<Ray>& rays : packets) {
-    Hit hits[WideBvh::kPacketSize];
-    EXPECT_EQ(bvh.IntersectPacket(rays, hits), 0xffu);
-  }
+  ForEachPacketWalk([&] {
+    for (const std::vector<Ray>& rays : packets) {
+      Hit hits[WideBvh::kPacketSize];
+      EXPECT_EQ(bvh.IntersectPacket(rays, hits), 0xffu);
+    }
+  });
 }
 
 // From inside a closed mesh, packets of close directions: no lane may escape.
@@ -368,15 +386,20 @@ TEST(WideBvh, NoPacketRayEscapesAClosedMesh) {
   const WideBvh bvh(m.vertices, m.ids, m.origins);
   std::mt19937 rng(4);
   std::uniform_real_distribution<float> dir(-1, 1), near(-0.02f, 0.02f);
-  for (int k = 0; k < 400; ++k) {
+  std::vector<std::array<Ray, WideBvh::kPacketSize>> packets(400);
+  for (auto& rays : packets) {
     const Vec3f d{dir(rng), dir(rng), dir(rng)};
-    Ray rays[WideBvh::kPacketSize];
-    Hit hits[WideBvh::kPacketSize];
     for (Ray& r : rays) r = Ray{closed.center, d + Vec3f{near(rng), near(rng), near(rng)}};
-    EXPECT_EQ(bvh.IntersectPacket(rays, hits), 0xffu) << "packet " << k;
-    EXPECT_EQ(bvh.OccludedPacket(rays), 0xffu) << "packet " << k;
-    for (int i = 0; i < WideBvh::kPacketSize; ++i) ExpectSameHit(BruteIntersect(m, rays[i], Hit{}), hits[i]);
   }
+  ForEachPacketWalk([&] {
+    for (size_t k = 0; k < packets.size(); ++k) {
+      Hit hits[WideBvh::kPacketSize];
+      EXPECT_EQ(bvh.IntersectPacket(packets[k], hits), 0xffu) << "packet " << k;
+      EXPECT_EQ(bvh.OccludedPacket(packets[k]), 0xffu) << "packet " << k;
+      for (int i = 0; i < WideBvh::kPacketSize; ++i)
+        ExpectSameHit(BruteIntersect(m, packets[k][static_cast<size_t>(i)], Hit{}), hits[i]);
+    }
+  });
 }
 
 }  // namespace
