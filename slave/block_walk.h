@@ -174,17 +174,8 @@ inline uint32_t BlockWalk::Descend(const Slabs& s, Frame* frames, int depth) con
 inline uint32_t BlockWalk::First(const Ray& ray) const {
   if (nodes_.empty()) return kInvalidId;
   const Slabs s(ray, magnitude_);
-  float enter = s.tmin, exit = std::numeric_limits<float>::infinity();
-  for (int a = 0; a < 3; ++a) {  // the root cell, with IntersectBox's expressions
-    const float near_plane = s.box.dir_is_neg[a] ? root_.upper[a] : root_.lower[a];
-    const float far_plane = s.box.dir_is_neg[a] ? root_.lower[a] : root_.upper[a];
-    const float tn = (near_plane - s.box.origin[a]) * s.box.inv_dir[a] - s.box.pad[a];
-    const float tf =
-        (far_plane - s.box.origin[a]) * s.box.inv_dir[a] * bvh_internal::kFarScale + s.box.pad[a];
-    enter = tn > enter ? tn : enter;
-    exit = tf < exit ? tf : exit;
-  }
-  if (enter > (exit < s.t1 ? exit : s.t1)) return kInvalidId;
+  float enter;
+  if (!IntersectBox(s.box, root_.lower, root_.upper, s.tmin, ray.tmax, &enter)) return kInvalidId;
   if (!store::MayHit(s.box, node_bounds_[0], s.tmin, s.t_best)) return kInvalidId;
   const store::OctreeNode& root = nodes_[0];
   if (root.kind == store::kOctreeLeaf) return FirstMet(s, root, root.first);
