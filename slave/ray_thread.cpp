@@ -494,12 +494,7 @@ void RayThread::TracePacket(const size_t* index, int n) {
   const uint32_t found = shared_->bvh->IntersectPacket({rays, count}, {hits, count});
   for (int j = 0; j < n; ++j) {
     RayRecord& ray = pending_[index[j]];
-    if (found >> j & 1) {
-      const store::BlockView* view = shared_->cache->TryAcquire(hits[j].block_id);
-      CHECK(view != nullptr);  // preloaded, and nothing is evicted without a budget
-      RecordHit(*view, hits[j], &ray);
-      shared_->cache->Release(hits[j].block_id);
-    }
+    if (found >> j & 1) RecordBvhHit(hits[j], &ray);
     ray.flags |= kPretraced;
   }
 }
@@ -518,14 +513,16 @@ void RayThread::TraceBvh(RayRecord ray) {
     }
   } else {
     Hit h = ToHit(ray);
-    if (bvh.Intersect(ToRay(ray), &h)) {
-      const store::BlockView* view = shared_->cache->TryAcquire(h.block_id);
-      CHECK(view != nullptr);  // preloaded, and nothing is evicted without a budget
-      RecordHit(*view, h, &ray);
-      shared_->cache->Release(h.block_id);
-    }
+    if (bvh.Intersect(ToRay(ray), &h)) RecordBvhHit(h, &ray);
   }
   Finish(ray);
+}
+
+void RayThread::RecordBvhHit(const Hit& hit, RayRecord* ray) {
+  const store::BlockView* view = shared_->cache->TryAcquire(hit.block_id);
+  CHECK(view != nullptr);  // preloaded, and nothing is evicted without a budget
+  RecordHit(*view, hit, ray);
+  shared_->cache->Release(hit.block_id);
 }
 
 void RayThread::RunSync() {

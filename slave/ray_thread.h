@@ -106,6 +106,8 @@ class RayThread {
   void PretraceBvh(size_t first, uint32_t sample_begin, uint32_t sample_end, const Tile& tile);
   // One packet of those rays, pending_[index[0 .. n)], n <= WideBvh::kPacketSize.
   void TracePacket(const size_t* index, int n);
+  // bvh mode: records a closer hit the one tree found, from the block that holds the triangle.
+  void RecordBvhHit(const Hit& hit, RayRecord* ray);
   const store::BlockView* AcquireSync(uint32_t block);
 
   FrameShared* shared_;
