@@ -12,6 +12,7 @@
 #include <bit>
 #include <cstring>
 #include <limits>
+#include <utility>
 
 #if defined(__SSE2__)  // every x86-64; elsewhere a packet's rays take the single-ray walk
 #include <immintrin.h>
