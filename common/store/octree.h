@@ -185,9 +185,10 @@ class OctreeView {
   // within [ray.tmin, *tmax] whose blocks' bounds it may meet (MayHit), nearest cell first.
   // The interval is widened by a few ulps so no hit on a cell boundary is lost. visit returns
   // false to stop; it may lower *tmax (closest hit): leaves entered after *tmax are skipped.
-  // The visitor still tests each block of a leaf with several (MayHit on its own bounds).
+  // The visitor still tests each block of a leaf with several (MayHit on its own bounds), with
+  // the same `setup`, which must be RayBoxSetup(ray, magnitude()).
   template <typename Visit>
-  void VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const;
+  void VisitLeaves(const Ray& ray, const RayBoxSetup& setup, float* tmax, Visit&& visit) const;
 
  private:
   std::span<const OctreeNode> nodes_;
@@ -197,9 +198,9 @@ class OctreeView {
 };
 
 template <typename Visit>
-void OctreeView::VisitLeaves(const Ray& ray, float* tmax, Visit&& visit) const {
+void OctreeView::VisitLeaves(const Ray& ray, const RayBoxSetup& setup, float* tmax,
+                             Visit&& visit) const {
   if (nodes_.empty()) return;
-  const RayBoxSetup setup(ray, magnitude_);
   // A validated octree is at most kMaxOctreeDepth deep, so 8 pending children per level fit.
   // Items are plain floats, not Bounds3f: the stack is left uninitialised (its default
   // member initialisers cost more than the whole walk of a typical ray).

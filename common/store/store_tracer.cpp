@@ -37,7 +37,7 @@ Status StoreTracer::VisitBlocks(const Ray& ray, float* tmax, PerBlock&& per_bloc
   Status error;
   const OctreeView octree = store_.octree();
   const RayBoxSetup setup(ray, octree.magnitude());
-  octree.VisitLeaves(ray, tmax, [&](uint32_t, const OctreeNode& leaf, float, float) {
+  octree.VisitLeaves(ray, setup, tmax, [&](uint32_t, const OctreeNode& leaf, float, float) {
     for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b) {
       // Not even loaded when the ray misses its bounds.
       if (!MayHit(setup, BoundsOf(store_.blocks()[b]), ray.tmin, *tmax)) continue;

@@ -33,7 +33,9 @@ bool MayHitBlock(const store::StoreReader& store, const Ray& ray, uint32_t b) {
 std::vector<uint32_t> BlocksByVisitLeaves(const store::StoreReader& store, const Ray& ray) {
   std::vector<uint32_t> blocks;
   float bound = ray.tmax;
-  store.octree().VisitLeaves(ray, &bound, [&](uint32_t, const store::OctreeNode& leaf, float, float) {
+  const store::OctreeView octree = store.octree();
+  const RayBoxSetup setup(ray, octree.magnitude());
+  octree.VisitLeaves(ray, setup, &bound, [&](uint32_t, const store::OctreeNode& leaf, float, float) {
     for (uint32_t b = leaf.first; b < leaf.first + leaf.count; ++b)
       if (MayHitBlock(store, ray, b)) blocks.push_back(b);
     return true;

@@ -20,7 +20,7 @@ void BlockQueueTracer::BuildPaths(std::span<const Ray> rays) {
     cursor_[i] = static_cast<uint32_t>(steps_.size());
     float tmax = rays[i].tmax;
     const RayBoxSetup setup(rays[i], octree_.magnitude());
-    octree_.VisitLeaves(rays[i], &tmax,
+    octree_.VisitLeaves(rays[i], setup, &tmax,
                         [&](uint32_t, const store::OctreeNode& leaf, float t_enter, float) {
                           // Blocks whose bounds (their BVH's root box) the ray misses are left
                           // out, as the store's walks leave them out; the leaf's first step
