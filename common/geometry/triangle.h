@@ -70,17 +70,17 @@ struct TrianglePlane {
 // origin (1-2% off on a wall of the conference room), which is enough for a box test to cull
 // an equal or closer hit. In double the result is the correctly rounded distance to the exact
 // plane, so every traversal order finds the same closest hit.
-inline bool FinishTriangleHit(const RayTriangleSetup& s, const TrianglePlane& plane, float u,
+inline bool FinishTriangleHit(Vec3f origin, Vec3f direction, const TrianglePlane& plane, float u,
                               float v, float w, float tmin, float tmax, float* t_out,
                               float* u_out, float* v_out) {
   const float det = u + v + w;
   if (det == 0.0f) return false;
   using D = double;
   const D denominator =
-      plane.nx * D{s.direction.x} + plane.ny * D{s.direction.y} + plane.nz * D{s.direction.z};
+      plane.nx * D{direction.x} + plane.ny * D{direction.y} + plane.nz * D{direction.z};
   if (denominator == 0.0) return false;
-  const D numerator = plane.nx * (plane.x0 - D{s.origin.x}) +
-                      plane.ny * (plane.y0 - D{s.origin.y}) + plane.nz * (plane.z0 - D{s.origin.z});
+  const D numerator = plane.nx * (plane.x0 - D{origin.x}) + plane.ny * (plane.y0 - D{origin.y}) +
+                      plane.nz * (plane.z0 - D{origin.z});
   const float t = static_cast<float>(numerator / denominator);
   if (!(t > tmin && t < tmax)) return false;  // also rejects NaN
   const float inv_det = 1.0f / det;
@@ -111,8 +111,8 @@ inline bool IntersectTriangle(const RayTriangleSetup& s, Vec3f p0, Vec3f p1, Vec
     w = static_cast<float>(dbx * day - dby * dax);
   }
   if (!EdgesAccept(u, v, w)) return false;
-  return FinishTriangleHit(s, TrianglePlane(p0, p1, p2), u, v, w, tmin, tmax, t_out, u_out,
-                           v_out);
+  return FinishTriangleHit(s.origin, s.direction, TrianglePlane(p0, p1, p2), u, v, w, tmin, tmax,
+                           t_out, u_out, v_out);
 }
 
 #if defined(__SSE2__)

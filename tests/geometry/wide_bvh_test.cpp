@@ -238,6 +238,9 @@ TEST(WideBvh, NoRayEscapesAClosedMesh) {
 // got a closer hit.
 // Runs `body` on each packet walk this machine has: SSE2, then AVX2 where the CPU has it (the
 // walks must agree with brute force alike).
+constexpr int kPacket = WideBvh::kPacketSize;  // 4 x 4 pixels
+constexpr uint32_t kEveryLane = (1u << kPacket) - 1;
+
 template <typename Body>
 void ForEachPacketWalk(Body&& body) {
   for (bool avx2 : {false, true}) {
@@ -281,10 +284,10 @@ void ExpectPacketsMatchBruteForce(const Mesh& m, const WideBvh& bvh,
 std::vector<std::vector<Ray>> CameraPackets(Vec3f eye, int width, int height, uint32_t seed) {
   std::mt19937 rng(seed);
   std::vector<std::vector<Ray>> packets;
-  for (int by = 0; by < height; by += 2) {
+  for (int by = 0; by < height; by += 4) {
     for (int bx = 0; bx < width; bx += 4) {
       std::vector<Ray> rays;
-      const int lanes = 1 + static_cast<int>(rng() % 8);  // partly filled packets too
+      const int lanes = 1 + static_cast<int>(rng() % kPacket);  // partly filled packets too
       for (int j = 0; j < lanes; ++j) {
         const float x = (static_cast<float>(bx + j % 4) + 0.5f) / static_cast<float>(width);
         const float y = (static_cast<float>(by + j / 4) + 0.5f) / static_cast<float>(height);
@@ -318,7 +321,7 @@ TEST(WideBvh, PacketsFromNearbyOriginsMatchBruteForceBitForBit) {
     const Vec3f base{pos(rng), pos(rng), pos(rng)};
     const Vec3f light = k % 2 ? Vec3f{0.5f, 2.0f, 0.5f} : Vec3f{-1.0f, 0.3f, 1.5f};
     std::vector<Ray> rays;
-    for (int i = 0; i < 8; ++i) {
+    for (int i = 0; i < kPacket; ++i) {
       const Vec3f o = base + Vec3f{jitter(rng), jitter(rng), jitter(rng)};
       rays.push_back(Ray{o, light - o, 1e-4f, 1.0f - 1e-4f});
     }
@@ -334,9 +337,9 @@ TEST(WideBvh, PacketsOfUnrelatedRaysMatchBruteForceBitForBit) {
   const WideBvh bvh(m.vertices, m.ids, m.origins);
   const std::vector<Ray> rays = Rays(4000, 12);
   std::vector<std::vector<Ray>> packets;
-  for (size_t i = 0; i < rays.size(); i += 8)
+  for (size_t i = 0; i < rays.size(); i += kPacket)
     packets.emplace_back(rays.begin() + static_cast<ptrdiff_t>(i),
-                         rays.begin() + static_cast<ptrdiff_t>(std::min(rays.size(), i + 8)));
+                         rays.begin() + static_cast<ptrdiff_t>(std::min(rays.size(), i + kPacket)));
   ExpectPacketsMatchBruteForce(m, bvh, packets);
   Hit none[1];
   EXPECT_EQ(bvh.IntersectPacket({}, none), 0u);
@@ -360,10 +363,10 @@ TEST(WideBvh, PacketsThroughSharedEdgesAndCornersHit) {
   const WideBvh bvh(m.vertices, m.ids, m.origins);
   const Vec3f eye{0, 0, -32};
   std::vector<std::vector<Ray>> packets;
-  for (int by = -6; by < 6; by += 2) {
+  for (int by = -6; by < 6; by += 4) {
     for (int bx = -6; bx < 6; bx += 4) {
       std::vector<Ray> rays;
-      for (int j = 0; j < 8; ++j) {
+      for (int j = 0; j < kPacket; ++j) {
         const Vec3f target{0.5f * static_cast<float>(bx + j % 4), 0.5f * static_cast<float>(by + j / 4), 0};
         rays.push_back(Ray{eye, target - eye});
       }
@@ -374,7 +377,7 @@ TEST(WideBvh, PacketsThroughSharedEdgesAndCornersHit) {
   ForEachPacketWalk([&] {
     for (const std::vector<Ray>& rays : packets) {
       Hit hits[WideBvh::kPacketSize];
-      EXPECT_EQ(bvh.IntersectPacket(rays, hits), 0xffu);
+      EXPECT_EQ(bvh.IntersectPacket(rays, hits), kEveryLane);
     }
   });
 }
@@ -394,8 +397,8 @@ TEST(WideBvh, NoPacketRayEscapesAClosedMesh) {
   ForEachPacketWalk([&] {
     for (size_t k = 0; k < packets.size(); ++k) {
       Hit hits[WideBvh::kPacketSize];
-      EXPECT_EQ(bvh.IntersectPacket(packets[k], hits), 0xffu) << "packet " << k;
-      EXPECT_EQ(bvh.OccludedPacket(packets[k]), 0xffu) << "packet " << k;
+      EXPECT_EQ(bvh.IntersectPacket(packets[k], hits), kEveryLane) << "packet " << k;
+      EXPECT_EQ(bvh.OccludedPacket(packets[k]), kEveryLane) << "packet " << k;
       for (int i = 0; i < WideBvh::kPacketSize; ++i)
         ExpectSameHit(BruteIntersect(m, packets[k][static_cast<size_t>(i)], Hit{}), hits[i]);
     }
