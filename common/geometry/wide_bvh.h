@@ -18,6 +18,7 @@
 #include <span>
 #include <vector>
 
+#include "common/base/huge_page_allocator.h"
 #include "common/geometry/ray.h"
 #include "common/geometry/triangle.h"
 #include "common/geometry/vec.h"
@@ -99,8 +100,10 @@ class WideBvh {
   // Bit k set: triangle k of `leaf` (k < n) passes the float edge test.
   static uint32_t EdgeCandidates(const RayTriangleSetup& s, const Leaf& leaf, uint32_t n);
 
-  std::vector<Node> nodes_;  // the root is nodes_[0]
-  std::vector<Leaf> leaves_;
+  // On huge pages where the kernel has them (see HugePageAllocator): the walks reach nodes and
+  // leaves all over both arrays (dragon, one thread: primary packets +N%).
+  std::vector<Node, HugePageAllocator<Node>> nodes_;  // the root is nodes_[0]
+  std::vector<Leaf, HugePageAllocator<Leaf>> leaves_;
   size_t triangle_count_ = 0;
   float magnitude_ = 0;  // the largest |coordinate| of any vertex: sets the boxes' margin
   float extent_ = 0;     // the model box's largest side: sets how far apart a packet's rays may start
