@@ -101,7 +101,7 @@ class WideBvh {
   static uint32_t EdgeCandidates(const RayTriangleSetup& s, const Leaf& leaf, uint32_t n);
 
   // On huge pages where the kernel has them (see HugePageAllocator): the walks reach nodes and
-  // leaves all over both arrays (dragon, one thread: primary packets +N%).
+  // leaves all over both arrays (dragon, one thread: random rays +5%).
   std::vector<Node, HugePageAllocator<Node>> nodes_;  // the root is nodes_[0]
   std::vector<Leaf, HugePageAllocator<Leaf>> leaves_;
   size_t triangle_count_ = 0;
