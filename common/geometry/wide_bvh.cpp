@@ -108,6 +108,7 @@ class WideBvhBuilder {
       }
       node.child[k] = WideBvh::kEmpty;
     }
+    node.occupied = (1u << n) - 1;
     out_.nodes_.push_back(node);
     for (int k = 0; k < n; ++k) {
       const BvhNode& c = binary_[children[k]];

@@ -74,11 +74,18 @@ class WideBvh {
  private:
   // kWidth children: their boxes as [lower x, y, z, upper x, y, z][child], and their references:
   // an inner node's index, or kLeaf | (leaf group << 2) | (triangles - 1), or kEmpty (whose
-  // box is empty, so no ray meets it).
+  // box is empty).
   struct alignas(64) Node {
     float box[6][kWidth];
     uint32_t child[kWidth];
+    // Bit k set when child k is not kEmpty. Traversals never enter the others: an empty box
+    // culls every finite ray, but a ray with a NaN or infinite component (or pads that overflow
+    // on an extreme model) can turn all three of its slab tests into NaNs, which the box test
+    // ignores, and would then walk into a child that is not there. (In the 32 bytes a node
+    // left unused.)
+    uint32_t occupied;
   };
+  static_assert(sizeof(Node) == 256);
   // Up to 4 triangles: corner c's coordinate a of triangle k is p[c][a][k]. Unused lanes repeat
   // the last triangle and are masked out by the count in the reference. The origins live in the
   // leaf rather than in a table of their own: 192 bytes are 3 whole cache lines, as many as the

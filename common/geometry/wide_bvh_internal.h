@@ -82,7 +82,7 @@ __attribute__((always_inline)) inline void WideBvh::Traverse(NodeHitsFn&& node_h
     if (!(ref & kLeaf)) {
       const Node& node = nodes_[ref];
       float t_enter[kWidth];
-      const uint32_t mask = node_hits(node, *tmax, t_enter);
+      const uint32_t mask = node_hits(node, *tmax, t_enter) & node.occupied;
       if (mask != 0) {
         Prefetch(node.child, mask);
         ref = (mask & (mask - 1)) == 0 ? node.child[std::countr_zero(mask)]

@@ -125,8 +125,8 @@ void TraceOneBvh(const StoreReader& store, const std::vector<Ray>& rays) {
   }
   // Packets give every lane the single-ray answer, whatever the geometry and on either walk
   // (SSE2, and AVX2 where the build and the CPU have it; the clang fuzzing build has SSE2 only):
-  // the rays above 8 at a time (mostly split apart), and 8 close to the first one (walked
-  // together).
+  // the rays above kPacketSize at a time (mostly split apart), and kPacketSize close to the first
+  // one (walked together).
   std::vector<Ray> packets = rays;
   for (int i = 0; i < WideBvh::kPacketSize && !rays.empty(); ++i) {
     const float spread = 0.004f * Length(rays[0].direction);

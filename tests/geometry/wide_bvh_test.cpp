@@ -330,6 +330,33 @@ TEST(WideBvh, PacketsFromNearbyOriginsMatchBruteForceBitForBit) {
   ExpectPacketsMatchBruteForce(m, bvh, packets);
 }
 
+// Camera packets with hostile lanes among coherent ones: a NaN or infinite coordinate, a zero
+// direction component, a direction 1e30 long. A packet's set-up reads every lane at once; these
+// lanes must not widen or poison the others' bounds, and each must come out as brute force.
+// The non-finite lanes take the single-ray walk, which an infinite origin or an all-NaN
+// direction used to send into a node's empty child (a crash; see Node::occupied).
+TEST(WideBvh, PacketsWithNonFiniteLanesMatchBruteForceBitForBit) {
+  const Mesh m = Soup(3000, 9);
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
+  const float inf = std::numeric_limits<float>::infinity(), nan = std::nanf("");
+  std::vector<std::vector<Ray>> packets = CameraPackets({0.5f, 0.5f, -1.0f}, 32, 32, 3);
+  for (size_t k = 0; k < packets.size(); ++k) {
+    std::vector<Ray>& rays = packets[k];
+    Ray& r = rays[k % rays.size()];
+    switch (k % 8) {
+      case 0: r.direction.y = nan; break;
+      case 1: r.origin.x = inf; break;
+      case 2: r.direction.z = -inf; break;
+      case 3: r.direction.x = 0; break;
+      case 4: r.direction = r.direction * 1e30f; break;
+      case 5: r.direction = {nan, nan, nan}; break;
+      case 6: r.direction = {inf, -inf, inf}; break;
+      default: r.origin.z = nan; break;
+    }
+  }
+  ExpectPacketsMatchBruteForce(m, bvh, packets);
+}
+
 // Rays that cannot share a walk (other direction signs or shear axes, directions parallel to
 // a slab, far-apart origins or directions) in one call: each as brute force.
 TEST(WideBvh, PacketsOfUnrelatedRaysMatchBruteForceBitForBit) {
