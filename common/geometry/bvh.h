@@ -65,6 +65,8 @@ std::vector<BvhNode> BuildBvh(std::span<const BvhBuildPrimitive> prims,
 // therefore widened in space by 2^-17 of the largest magnitude among the ray's origin and the
 // triangles the box may hold (`magnitude`; 64 to 128 ulps), turned into distances along each
 // axis. A ray parallel to an axis (infinite 1 / direction) keeps the exact test on it.
+// WideBvh's packets compute the same across their lanes (RayLanes, wide_bvh_packet_walk.inc):
+// a change here must be made there too.
 inline void BoxMarginPads(const Ray& ray, Vec3f inv_dir, float magnitude, float pad[3]) {
   float m = magnitude;
   for (int a = 0; a < 3; ++a) m = std::max(m, std::fabs(ray.origin[a]));

@@ -17,7 +17,9 @@
 
 namespace raystack {
 
-// Per-ray constants, computed once per ray and reused for every triangle it meets.
+// Per-ray constants, computed once per ray and reused for every triangle it meets. WideBvh's
+// packets compute the same across their lanes (RayLanes, wide_bvh_packet_walk.inc): a change
+// here must be made there too (the packet tests compare the two bit for bit).
 struct RayTriangleSetup {
   Vec3f origin;
   Vec3f direction;
