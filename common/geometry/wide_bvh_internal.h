@@ -46,6 +46,14 @@ constexpr int kStackSize = (WideBvh::kWidth - 1) * kBvhMaxDepth + 1;
 // Pushes the children in `mask` but the nearest, farthest first, and returns the nearest.
 inline uint32_t PushChildren(const uint32_t child[WideBvh::kWidth], uint32_t mask,
                              const float t_enter[WideBvh::kWidth], Pending* stack, int* size) {
+  const uint32_t rest = mask & (mask - 1);
+  if ((rest & (rest - 1)) == 0) {  // two children, the most common case: no sort
+    const int a = std::countr_zero(mask), b = std::countr_zero(rest);
+    const bool a_nearer = t_enter[a] < t_enter[b];  // as the sort below: a tie returns b
+    const int near = a_nearer ? a : b, far = a_nearer ? b : a;
+    stack[(*size)++] = {child[far], t_enter[far]};
+    return child[near];
+  }
   Pending hit[WideBvh::kWidth];
   int n = 0;
   for (; mask; mask &= mask - 1) {  // insertion sort by entry, nearest last
