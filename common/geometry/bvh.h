@@ -24,6 +24,10 @@ struct BvhNode {
 };
 static_assert(sizeof(BvhNode) == 32, "BvhNode is stored on disk");
 
+inline Bounds3f NodeBounds(const BvhNode& n) {
+  return {{n.lower[0], n.lower[1], n.lower[2]}, {n.upper[0], n.upper[1], n.upper[2]}};
+}
+
 // Traversal keeps a fixed stack of this many entries, so the builder guarantees that no leaf
 // is deeper than this (root at depth 0). 64 levels hold any tree over 2^32 primitives even
 // when half of them come from median splits forced by the bound.
