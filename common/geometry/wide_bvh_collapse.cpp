@@ -36,7 +36,11 @@ void WideCollapse::Plan(std::span<const BvhNode> nodes, uint32_t root, int width
     DCHECK(r.first == l.first + l.count);  // a subtree's primitives are one run
     e.first = l.first;
     e.count = l.count + r.count;
+    // Comparisons with an infinite or NaN cost (the areas of boxes near the float range's end
+    // overflow) fail, and leave these valid choices in place: one child from the first subtree,
+    // and each node one child (split 0).
     e.as_node = kInf;
+    e.node_split = 1;
     for (int k = 1; k < width; ++k) {
       const float c = l.cost[k - 1] + r.cost[width - k - 1];
       if (c < e.as_node) e.as_node = c, e.node_split = static_cast<uint8_t>(k);

@@ -149,6 +149,31 @@ TEST(WideCollapse, FindsTheLeastCostOfEveryCollapse) {
   }
 }
 
+// Boxes across the whole float range have infinite areas, and flat ones NaN areas (inf x 0):
+// every cost compares false, and the plan must still be a valid tree.
+TEST(WideCollapse, PlansValidTreesWhenAreasOverflow) {
+  std::vector<BvhBuildPrimitive> prims(300);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> coordinate(-3e38, 3e38);  // (a float range would overflow)
+  auto pos = [&] { return static_cast<float>(coordinate(rng)); };
+  for (size_t i = 0; i < prims.size(); ++i) {
+    const Vec3f a{pos(), pos(), i % 2 ? 0.0f : pos()}, b{pos(), pos(), 0.0f};
+    prims[i].bounds.Extend(a);
+    prims[i].bounds.Extend(b);
+  }
+  BvhBuildOptions options;
+  std::vector<uint32_t> order;
+  const std::vector<BvhNode> tree = BuildBvh(prims, options, &order);
+  ASSERT_EQ(tree[0].count, 0);
+  for (int width : {2, 8}) {
+    WideCollapse plan;
+    plan.Plan(tree, 0, width, kNodeCost, kPrimitiveCost);
+    uint32_t next = 0;
+    CheckedCost(tree, plan, 0, width, &next);
+    EXPECT_EQ(next, 300u);
+  }
+}
+
 TEST(WideCollapse, PlansASubtreeOnItsOwn) {
   const std::vector<BvhNode> tree = RandomTree(500, 4, 3);
   const uint32_t sub = tree[0].offset;  // the root's second child
