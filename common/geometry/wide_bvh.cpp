@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <iterator>
 #include <limits>
 
 #if defined(__SSE2__)
@@ -48,9 +49,9 @@ class WideBvhBuilder {
       for (int c = 0; c < 3; ++c) prims[i].bounds.Extend(vertices_[3 * i + static_cast<size_t>(c)]);
     // Leaves of up to 4 triangles: one leaf test covers 4 as cheaply as 1.
     BvhBuildOptions options;
-    options.max_leaf_size = 4;
-    options.intersection_cost = intersection_cost_;
-    options.traversal_cost = traversal_cost_;
+    options.max_leaf_size = WideCollapse::kMaxLeaf;
+    options.intersection_cost = kIntersectionCost;
+    options.traversal_cost = kTraversalCost;
     options.threads = threads_;
     binary_ = BuildBvh(prims, options, &order_);
     if (binary_.empty()) return;
@@ -85,7 +86,7 @@ class WideBvhBuilder {
     const BvhNode& node = binary_[b];
     if (node.count != 0) return EmitLeaf(node.offset, node.count);
     if (TriangleCount(b) > kOptimalBelow) return EmitNode(children, Gather(b, children));
-    plan_.Plan(binary_, b, WideBvh::kWidth, traversal_cost_, intersection_cost_);
+    plan_.Plan(binary_, b, WideBvh::kWidth, kTraversalCost, kIntersectionCost);
     planned_ = true;
     const uint32_t ref = EmitChild(b, root);
     planned_ = false;
@@ -148,6 +149,8 @@ class WideBvhBuilder {
   }
 
   // The leaf over triangles order_[first .. first + count).
+  static_assert(std::size(WideBvh::Leaf{}.id) == WideCollapse::kMaxLeaf);
+  static_assert(WideBvh::kWidth <= WideCollapse::kMaxWidth);
   uint32_t EmitLeaf(uint32_t first, uint32_t count) {
     CHECK(count >= 1 && count <= 4);
     const auto group = static_cast<uint32_t>(out_.leaves_.size());
@@ -174,8 +177,8 @@ class WideBvhBuilder {
   // SAH costs of the binary tree, and of the optimal collapse. A leaf's 4 triangles are tested
   // at once, so SAH should see a triangle as cheaper than a node (dragon: 0.25 against 1 gives
   // 3.0 triangles a leaf instead of 1.8, 75 against 120 MB, and 10-20% more rays/s).
-  static constexpr float traversal_cost_ = 1.0f;
-  static constexpr float intersection_cost_ = 0.25f;
+  static constexpr float kTraversalCost = 1.0f;
+  static constexpr float kIntersectionCost = 0.25f;
   std::vector<BvhNode> binary_;
   std::vector<uint32_t> order_;
   WideCollapse plan_;    // of the subtree being emitted, while planned_

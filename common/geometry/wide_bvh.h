@@ -3,8 +3,9 @@
 // instead of the store's octree of blocks, each with its own binary BVH. The binned-SAH binary
 // tree (BuildBvh) is collapsed into nodes of 8 children (near the leaves by the SAH-optimal
 // WideCollapse) whose boxes are tested 4 at a time (SSE2), and each leaf holds its (at most 4)
-// triangles' vertices in place, laid out lane by lane, so a leaf costs no index or vertex gathers. Measured on the dragon (embree_bench, one
-// thread): 8 children rather than 4 gave +9% primary and +4% random rays/s.
+// triangles' vertices in place, laid out lane by lane, so a leaf costs no index or vertex
+// gathers. Measured on the dragon (embree_bench, one thread): 8 children rather than 4 gave +9%
+// primary and +4% random rays/s.
 //
 // Hits are bit-identical to the block traversals: the leaves run IntersectTriangle's float edge
 // test 4 triangles at a time with the same operations lane by lane, then IntersectTriangle
