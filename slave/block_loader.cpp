@@ -176,6 +176,10 @@ void BlockLoader::Submit(Run run) {
     aio_cv_.notify_one();
     return;
   }
+  if (read_inline_) {
+    ReadInline(run);
+    return;
+  }
   bool start;
   {
     std::lock_guard lock(runs_mu_);
@@ -192,6 +196,20 @@ void BlockLoader::Submit(Run run) {
   } else {
     runs_cv_.notify_one();
   }
+}
+
+void BlockLoader::ReadInline(const Run& run) {
+  ++inline_runs_;
+  BusyBegin();
+  const long waits_before = VoluntarySwitches();
+  const Status read = source_->ReadRun(run.ids, &inline_bytes_);
+  if (VoluntarySwitches() != waits_before) {  // see WorkerLoop: this read waited
+    read_inline_ = false;
+    std::lock_guard lock(runs_mu_);
+    allowed_workers_ = std::min(max_workers_, allowed_workers_ + 1);
+  }
+  CompleteRun(run, read, inline_bytes_.data(), &inline_scratch_);
+  BusyEnd();
 }
 
 void BlockLoader::WorkerLoop() {

@@ -180,6 +180,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
     s.loader_busy_seconds = loader->busy_seconds();
     s.loader_cpu_seconds = loader->cpu_seconds();
     s.io_workers = loader->workers();
+    s.loader_reads = loader->inline_runs();
     s.aio_reads = loader->aio();
   }
 

@@ -26,6 +26,7 @@ std::string RenderStats::ToJson() const {
     << ",\n  \"loaded_per_useful\": "
     << (blocks_distinct ? static_cast<double>(blocks_loaded) / static_cast<double>(blocks_distinct) : 0.0)
     << ",\n  \"bytes_read\": " << bytes_read << ",\n  \"reads\": " << reads << ",\n  \"io_workers\": " << io_workers
+    << ",\n  \"loader_reads\": " << loader_reads
     << ",\n  \"direct_reads\": " << (direct_reads ? "true" : "false")
     << ",\n  \"aio_reads\": " << (aio_reads ? "true" : "false")
     << ",\n  \"block_visits\": " << block_visits << ",\n  \"cache_hit_rate\": " << cache_hit_rate
@@ -53,12 +54,13 @@ std::string RenderStats::ToText() const {
                  static_cast<unsigned long long>(rays_total), rays_per_second * 1e-6,
                  static_cast<unsigned long long>(rays[0]), static_cast<unsigned long long>(rays[1]),
                  static_cast<unsigned long long>(rays[2]), static_cast<unsigned long long>(rays[3]));
-  s += StrFormat("\n  blocks: %llu loaded (#C), %llu distinct used (#U) of %llu; %.1f MB read in %llu %s reads by %llu I/O threads; loader busy %.3f s; ray threads idle %.3f s",
+  s += StrFormat("\n  blocks: %llu loaded (#C), %llu distinct used (#U) of %llu; %.1f MB read in %llu %s reads (%llu by the loader itself, the rest by %llu I/O threads); loader busy %.3f s; ray threads idle %.3f s",
                  static_cast<unsigned long long>(blocks_loaded),
                  static_cast<unsigned long long>(blocks_distinct),
                  static_cast<unsigned long long>(block_count), static_cast<double>(bytes_read) / 1e6,
                  static_cast<unsigned long long>(reads),
                  aio_reads ? "direct (Linux AIO)" : direct_reads ? "direct" : "buffered",
+                 static_cast<unsigned long long>(loader_reads),
                  static_cast<unsigned long long>(io_workers), loader_busy_seconds, ray_idle_seconds);
   s += StrFormat("\n  ray threads: busy %.3f s, waiting for a tile %.3f s; CPU: ray threads %.3f s, "
                  "loader threads %.3f s",
