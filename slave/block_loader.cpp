@@ -94,6 +94,7 @@ void BlockLoader::Request(uint32_t block, uint32_t thread) {
 void BlockLoader::LoaderLoop() {
   std::vector<std::pair<uint32_t, uint32_t>> batch;
   std::vector<std::pair<uint32_t, uint64_t>> blocks;  // (block, threads)
+  std::vector<Run> ready;                             // the batch's runs, to be read
   for (;;) {
     {
       std::unique_lock lock(mu_);
@@ -113,9 +114,16 @@ void BlockLoader::LoaderLoop() {
     Run run;
     uint64_t run_bytes = 0;
     auto flush = [&] {
-      if (!run.ids.empty()) Submit(std::move(run));
+      if (!run.ids.empty()) ready.push_back(std::move(run));
       run = Run{};
       run_bytes = 0;
+    };
+    // A batch of a few runs (requests trickling in) the loader may read itself; a longer one
+    // (a burst, or ray threads asking faster than one thread decodes) goes to the workers.
+    auto submit = [&] {
+      const bool few = ready.size() <= kInlineRunsAtMost;
+      for (Run& r : ready) Submit(std::move(r), few);
+      ready.clear();
     };
     for (const auto& [block, threads] : blocks) {
       {
@@ -130,6 +138,7 @@ void BlockLoader::LoaderLoop() {
       BlockCache::Claim claim = cache_->BeginLoad(block, /*wait=*/false);
       if (claim == BlockCache::Claim::kNoRoom) {
         flush();  // the reads already reserved must go first: they are what frees room
+        submit();
         claim = cache_->BeginLoad(block);
       }
       if (claim == BlockCache::Claim::kFailed) {
@@ -162,10 +171,11 @@ void BlockLoader::LoaderLoop() {
       run_bytes += e.stored_bytes;
     }
     flush();
+    submit();
   }
 }
 
-void BlockLoader::Submit(Run run) {
+void BlockLoader::Submit(Run run, bool may_read_here) {
   runs_.fetch_add(1, std::memory_order_relaxed);
   if (aio_) {
     {
@@ -176,7 +186,7 @@ void BlockLoader::Submit(Run run) {
     aio_cv_.notify_one();
     return;
   }
-  if (read_inline_) {
+  if (read_inline_ && may_read_here) {
     ReadInline(run);
     return;
   }
@@ -203,7 +213,11 @@ void BlockLoader::ReadInline(const Run& run) {
   BusyBegin();
   const long waits_before = VoluntarySwitches();
   const Status read = source_->ReadRun(run.ids, &inline_bytes_);
-  if (VoluntarySwitches() != waits_before) {  // see WorkerLoop: this read waited
+  // Reads have to wait once two in a row gave up the CPU (see WorkerLoop). One alone is not
+  // enough: a read from the page cache now and then does too (8 slaves: in about one frame of
+  // two, some slave's loader met one among its first few dozen reads).
+  waited_in_a_row_ = VoluntarySwitches() != waits_before ? waited_in_a_row_ + 1 : 0;
+  if (waited_in_a_row_ == 2) {
     read_inline_ = false;
     std::lock_guard lock(runs_mu_);
     allowed_workers_ = std::min(max_workers_, allowed_workers_ + 1);

@@ -3,11 +3,12 @@
 // the loader takes all pending requests as one batch, sorts it by file offset, merges blocks
 // that are neighbours on disk into one read and reserves their room in the cache.
 //
-// Until a read has had to wait, the loader reads and decodes the runs itself: a block from the
-// page cache is CPU work, and handing it to another thread added two thread switches to it
-// (66 -> 48 us of CPU a block, default scene). Once reads wait (a disk, a peer, an injected
-// latency), it hands them to its I/O workers so up to 32 reads are in flight (a disk, and even
-// more a network filesystem, is fastest with a deep queue); workers start as reads pile up.
+// Until reads have to wait, the loader reads and decodes a batch of a few runs itself: a block
+// from the page cache is CPU work, and handing it to another thread added two thread switches
+// to it (one process, uncapped: 66 -> 48 us of CPU a block). Longer batches, and every run once
+// reads wait (a disk, a peer, an injected latency), go to its I/O workers, so several decode at
+// once and up to 32 reads are in flight (a disk, and even more a network filesystem, is
+// fastest with a deep queue); workers start as reads pile up.
 // Direct reads of a disk (--direct-io) need no thread each: the loader starts them with Linux
 // AIO and a thread per core waits for them and decodes the blocks (slave/aio_runs.h).
 //
@@ -83,7 +84,9 @@ class BlockLoader {
                    store::AlignedBuffer* scratch);
   void Complete(uint32_t block, const Status& status, std::span<const uint8_t> stored,
                 store::AlignedBuffer* scratch);
-  void Submit(Run run);
+  // To the I/O workers (or AIO); read on the loader thread itself while reads have not waited,
+  // if `may_read_here`.
+  void Submit(Run run, bool may_read_here);
   void ReadInline(const Run& run);  // on the loader thread
   void StartWorker();
   void BusyBegin();
@@ -102,9 +105,11 @@ class BlockLoader {
   std::unordered_map<uint32_t, uint64_t> in_flight_;      // block -> threads waiting for it
   bool stop_ = false;
 
-  // The loader thread reads runs itself until one waits (then the workers take them). Loader
-  // thread only.
+  // The loader thread reads batches of at most kInlineRunsAtMost runs itself until reads wait
+  // (then the workers take every run). Loader thread only.
+  static constexpr size_t kInlineRunsAtMost = 4;
   bool read_inline_ = true;
+  int waited_in_a_row_ = 0;
   uint64_t inline_runs_ = 0;
   std::vector<uint8_t> inline_bytes_;
   store::AlignedBuffer inline_scratch_;

@@ -193,7 +193,7 @@ TEST(RenderEngine, CacheBudgetHoldsFromAFewBlocksUp) {
 }
 
 // Reads from the page cache (the test's store was just written) are CPU work: the loader thread
-// makes them itself. Once reads have to wait (an injected latency, as a slow disk or network
+// makes them itself, but for bursts of more than a few runs. Once reads have to wait (an injected latency, as a slow disk or network
 // filesystem), it hands them to I/O threads, which start as reads pile up, up to io_threads.
 TEST(RenderEngine, IoThreadsStartWhenReadsWait) {
   static TestStore s = BuildGenerated("spheres:60000");
@@ -203,7 +203,7 @@ TEST(RenderEngine, IoThreadsStartWhenReadsWait) {
   const RenderOutcome a = Render(*s.reader, scene, fast);
   ASSERT_TRUE(a.status.ok()) << a.status.message();
   ASSERT_GT(a.stats.reads, 100u);
-  // A read that waits on a lock now and then hands the rest to a few threads.
+  // Bursts go to a few threads (as many as the cores).
   EXPECT_GT(a.stats.loader_reads, a.stats.reads / 2);
   EXPECT_LT(a.stats.io_workers, 16u);
 
@@ -212,7 +212,7 @@ TEST(RenderEngine, IoThreadsStartWhenReadsWait) {
   slow.faults.io_latency_us = 1000;
   const RenderOutcome b = Render(*s.reader, scene, slow);
   ASSERT_TRUE(b.status.ok()) << b.status.message();
-  EXPECT_EQ(b.stats.loader_reads, 1u);  // the first read waited
+  EXPECT_EQ(b.stats.loader_reads, 2u);  // the first two reads waited
   EXPECT_EQ(b.stats.io_workers, 8u);
   EXPECT_TRUE(SameBits(a.image.rgba, b.image.rgba));
 }
