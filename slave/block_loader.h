@@ -69,7 +69,7 @@ class BlockLoader {
   // a blocking thread each.
   bool aio() const { return aio_ != nullptr; }
   uint64_t runs() const { return runs_.load(); }
-  // Runs the loader thread read itself (all of them until one had to wait). Call after Stop().
+  // Runs the loader thread read itself (see the top of this file). Call after Stop().
   uint64_t inline_runs() const { return inline_runs_; }
 
  private:

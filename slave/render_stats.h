@@ -40,7 +40,7 @@ struct RenderStats {
   uint64_t reads = 0;            // read requests (runs of neighbouring blocks)
   // The loader's I/O threads started (as reads piled up); with AIO, its decoding threads.
   uint64_t io_workers = 0;
-  uint64_t loader_reads = 0;     // of `reads`, made by the loader thread itself (none had waited)
+  uint64_t loader_reads = 0;     // of `reads`, made by the loader thread itself (reads had not waited)
   bool direct_reads = false;     // blocks.bin read past the page cache (--direct-io)
   bool aio_reads = false;        // the loader kept those reads in flight with Linux AIO
   uint64_t block_visits = 0;
