@@ -208,22 +208,33 @@ void BlockLoader::Submit(Run run, bool may_read_here) {
   }
 }
 
-void BlockLoader::ReadInline(const Run& run) {
-  ++inline_runs_;
+bool BlockLoader::ReadAndComplete(const Run& run, std::vector<uint8_t>* bytes,
+                                  store::AlignedBuffer* scratch) {
   BusyBegin();
   const long waits_before = VoluntarySwitches();
-  const Status read = source_->ReadRun(run.ids, &inline_bytes_);
-  // Reads have to wait once two in a row gave up the CPU (see WorkerLoop). One alone is not
-  // enough: a read from the page cache now and then does too (8 slaves: in about one frame of
-  // two, some slave's loader met one among its first few dozen reads).
-  waited_in_a_row_ = VoluntarySwitches() != waits_before ? waited_in_a_row_ + 1 : 0;
-  if (waited_in_a_row_ == 2) {
-    read_inline_ = false;
+  const Status read = source_->ReadRun(run.ids, bytes);
+  // The thread gave up its CPU during the read: it waited for the disk, a peer or an injected
+  // latency, not for a copy from the page cache (preemption is an involuntary switch). Each
+  // such read allows one more worker, so a rare wait on a lock in a page-cache read adds one,
+  // and a disk, where every read waits, soon has them all.
+  const bool waited = VoluntarySwitches() != waits_before;
+  if (waited) {
     std::lock_guard lock(runs_mu_);
     allowed_workers_ = std::min(max_workers_, allowed_workers_ + 1);
   }
-  CompleteRun(run, read, inline_bytes_.data(), &inline_scratch_);
+  CompleteRun(run, read, bytes->data(), scratch);
   BusyEnd();
+  return waited;
+}
+
+void BlockLoader::ReadInline(const Run& run) {
+  ++inline_runs_;
+  // Reads have to wait once two in a row gave up the CPU. One alone is not enough: a read from
+  // the page cache now and then does too (8 slaves: in about one frame of two, some slave's
+  // loader met one among its first few dozen reads).
+  const bool waited = ReadAndComplete(run, &inline_bytes_, &inline_scratch_);
+  waited_in_a_row_ = waited ? waited_in_a_row_ + 1 : 0;
+  if (waited_in_a_row_ == 2) read_inline_ = false;
 }
 
 void BlockLoader::WorkerLoop() {
@@ -240,19 +251,7 @@ void BlockLoader::WorkerLoop() {
       run = std::move(run_queue_.front());
       run_queue_.pop_front();
     }
-    BusyBegin();
-    const long waits_before = VoluntarySwitches();
-    const Status read = source_->ReadRun(run.ids, &bytes);
-    // The thread gave up its CPU during the read: it waited for the disk, a peer or an injected
-    // latency, not for a copy from the page cache (preemption is an involuntary switch). Each
-    // such read allows one more worker, so a rare wait on a lock in a page-cache read adds one,
-    // and a disk, where every read waits, soon has them all.
-    if (VoluntarySwitches() != waits_before) {
-      std::lock_guard lock(runs_mu_);
-      allowed_workers_ = std::min(max_workers_, allowed_workers_ + 1);
-    }
-    CompleteRun(run, read, bytes.data(), &scratch);
-    BusyEnd();
+    ReadAndComplete(run, &bytes, &scratch);
   }
 }
 

@@ -88,6 +88,8 @@ class BlockLoader {
   // if `may_read_here`.
   void Submit(Run run, bool may_read_here);
   void ReadInline(const Run& run);  // on the loader thread
+  // Reads `run` from the source and completes its blocks; returns whether the read waited.
+  bool ReadAndComplete(const Run& run, std::vector<uint8_t>* bytes, store::AlignedBuffer* scratch);
   void StartWorker();
   void BusyBegin();
   void BusyEnd();
