@@ -11,10 +11,6 @@
 #include <iterator>
 #include <limits>
 
-#if defined(__SSE2__)
-#include <emmintrin.h>
-#endif
-
 #include "common/base/check.h"
 #include "common/geometry/bounds.h"
 #include "common/geometry/bvh.h"
@@ -24,9 +20,6 @@
 
 namespace raystack {
 
-
-using wide_bvh_internal::BoxRay;
-using wide_bvh_internal::Corners;
 
 class WideBvhBuilder {
  public:
@@ -194,132 +187,6 @@ WideBvh::WideBvh(std::span<const Vec3f> vertices, std::span<const uint32_t> ids,
 
 size_t WideBvh::bytes() const {
   return nodes_.size() * sizeof(Node) + leaves_.size() * sizeof(Leaf);
-}
-
-
-// Which of a node's boxes the ray meets within [tmin, tmax], and where it enters each:
-// IntersectBox lane by lane, 4 boxes at a time (the same expressions, NaN handling and
-// far-plane slack). A template so the private Node type need not be named here.
-template <typename NodeT>
-inline uint32_t NodeHits(const BoxRay& r, const NodeT& node, float tmin, float tmax,
-                         float t_enter[WideBvh::kWidth]) {
-  constexpr float kFar = bvh_internal::kFarScale;
-#if defined(__SSE2__)
-  uint32_t mask = 0;
-  for (int half = 0; half < WideBvh::kWidth; half += 4) {
-    __m128 t0 = _mm_set1_ps(tmin);
-    __m128 t1 = _mm_set1_ps(tmax * kFar);
-    for (int a = 0; a < 3; ++a) {
-      const __m128 o = _mm_set1_ps(r.origin[a]);
-      const __m128 inv = _mm_set1_ps(r.inv_dir[a]);
-      const __m128 pad = _mm_set1_ps(r.pad[a]);
-      const __m128 tn = _mm_sub_ps(
-          _mm_mul_ps(_mm_sub_ps(_mm_load_ps(node.box[r.near_row[a]] + half), o), inv), pad);
-      const __m128 tf = _mm_add_ps(
-          _mm_mul_ps(
-              _mm_mul_ps(_mm_sub_ps(_mm_load_ps(node.box[r.far_row[a]] + half), o), inv),
-              _mm_set1_ps(kFar)),
-          pad);
-      t0 = _mm_max_ps(tn, t0);  // tn > t0 ? tn : t0: a NaN leaves t0 as it was
-      t1 = _mm_min_ps(tf, t1);
-    }
-    _mm_storeu_ps(t_enter + half, t0);
-    mask |= static_cast<uint32_t>(_mm_movemask_ps(_mm_cmpngt_ps(t0, t1))) << half;
-  }
-  return mask;
-#else
-  uint32_t mask = 0;
-  for (int k = 0; k < WideBvh::kWidth; ++k) {
-    float t0 = tmin, t1 = tmax * kFar;
-    for (int a = 0; a < 3; ++a) {
-      const float tn = (node.box[r.near_row[a]][k] - r.origin[a]) * r.inv_dir[a] - r.pad[a];
-      const float tf = (node.box[r.far_row[a]][k] - r.origin[a]) * r.inv_dir[a] * kFar + r.pad[a];
-      t0 = tn > t0 ? tn : t0;
-      t1 = tf < t1 ? tf : t1;
-    }
-    t_enter[k] = t0;
-    if (!(t0 > t1)) mask |= 1u << k;
-  }
-  return mask;
-#endif
-}
-
-inline uint32_t WideBvh::EdgeCandidates(const RayTriangleSetup& s, const Leaf& leaf, uint32_t n) {
-#if defined(__SSE2__)
-  // IntersectTriangle's float expressions, lane by lane: p - origin, then the shear, then the
-  // edge functions. A lane it drops, IntersectTriangle rejects too; a zero edge value (decided
-  // there in double) is kept.
-  const __m128 ox = _mm_set1_ps(s.origin[s.kx]), oy = _mm_set1_ps(s.origin[s.ky]);
-  const __m128 oz = _mm_set1_ps(s.origin[s.kz]);
-  const __m128 sx = _mm_set1_ps(s.sx), sy = _mm_set1_ps(s.sy);
-  __m128 x[3], y[3];
-  for (int c = 0; c < 3; ++c) {
-    const __m128 dz = _mm_sub_ps(_mm_load_ps(leaf.p[c][s.kz]), oz);
-    x[c] = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(leaf.p[c][s.kx]), ox), _mm_mul_ps(sx, dz));
-    y[c] = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(leaf.p[c][s.ky]), oy), _mm_mul_ps(sy, dz));
-  }
-  return ~EdgeRejected4(x, y) & ((1u << n) - 1);
-#else
-  (void)s;
-  (void)leaf;
-  return (1u << n) - 1;
-#endif
-}
-
-bool WideBvh::Intersect(const Ray& ray, Hit* hit) const {
-  const RayTriangleSetup tri(ray);
-  // Hits equal to the best t must still be tested (the smaller id wins a tie).
-  float tmax = NextUp(hit->t);
-  bool found = false;
-  const BoxRay box(ray, magnitude_);
-  auto node_hits = [&](const Node& node, float bound, float* t_enter) {
-    return NodeHits(box, node, ray.tmin, bound, t_enter);
-  };
-  Traverse(node_hits, &tmax, [&](uint32_t group, uint32_t n) {
-    const Leaf& leaf = leaves_[group];
-    for (uint32_t keep = EdgeCandidates(tri, leaf, n); keep; keep &= keep - 1) {
-      const auto k = static_cast<uint32_t>(std::countr_zero(keep));
-      Vec3f p0, p1, p2;
-      Corners(leaf.p, k, &p0, &p1, &p2);
-      float t, u, v;
-      if (IntersectTriangle(tri, p0, p1, p2, ray.tmin, tmax, &t, &u, &v) &&
-          CloserThan(t, leaf.id[k], *hit)) {
-        hit->t = t;
-        hit->u = u;
-        hit->v = v;
-        hit->triangle_id = leaf.id[k];
-        hit->block_id = leaf.origin[k].block;
-        hit->local_triangle = leaf.origin[k].local;
-        tmax = NextUp(t);
-        found = true;
-      }
-    }
-    return false;  // every leaf the best hit has not passed: a later one may be closer
-  });
-  return found;
-}
-
-bool WideBvh::Occluded(const Ray& ray) const {
-  const RayTriangleSetup tri(ray);
-  bool occluded = false;
-  const BoxRay box(ray, magnitude_);
-  auto node_hits = [&](const Node& node, float bound, float* t_enter) {
-    return NodeHits(box, node, ray.tmin, bound, t_enter);
-  };
-  Traverse(node_hits, &ray.tmax, [&](uint32_t group, uint32_t n) {
-    const Leaf& leaf = leaves_[group];
-    for (uint32_t keep = EdgeCandidates(tri, leaf, n); keep; keep &= keep - 1) {
-      Vec3f p0, p1, p2;
-      Corners(leaf.p, static_cast<uint32_t>(std::countr_zero(keep)), &p0, &p1, &p2);
-      float t, u, v;
-      if (IntersectTriangle(tri, p0, p1, p2, ray.tmin, ray.tmax, &t, &u, &v)) {
-        occluded = true;
-        break;
-      }
-    }
-    return occluded;
-  });
-  return occluded;
 }
 
 }  // namespace raystack

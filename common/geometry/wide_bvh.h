@@ -2,10 +2,10 @@
 // A wide BVH over a whole triangle mesh in memory, for models that fit in RAM: one tree
 // instead of the store's octree of blocks, each with its own binary BVH. The binned-SAH binary
 // tree (BuildBvh) is collapsed into nodes of 8 children (near the leaves by the SAH-optimal
-// WideCollapse) whose boxes are tested 4 at a time (SSE2), and each leaf holds its (at most 4)
-// triangles' vertices in place, laid out lane by lane, so a leaf costs no index or vertex
-// gathers. Measured on the dragon (embree_bench, one thread): 8 children rather than 4 gave +9%
-// primary and +4% random rays/s.
+// WideCollapse) whose boxes are tested 8 at a time (AVX2; 4 at a time with SSE2), and each
+// leaf holds its (at most 4) triangles' vertices in place, laid out lane by lane, so a leaf
+// costs no index or vertex gathers. Measured on the dragon (embree_bench, one thread): 8
+// children rather than 4 gave +9% primary and +4% random rays/s.
 //
 // Hits are bit-identical to the block traversals: the leaves run IntersectTriangle's float edge
 // test 4 triangles at a time with the same operations lane by lane, then IntersectTriangle
@@ -42,6 +42,7 @@ class WideBvh {
   WideBvh(std::span<const Vec3f> vertices, std::span<const uint32_t> ids,
           std::span<const TriangleOrigin> origins, int threads = 1);
 
+  // The walks are in wide_bvh_walks.cpp.
   // Closest hit in (ray.tmin, hit->t], ties broken by CloserThan, as BlockView::Intersect.
   // On a closer hit, fills t, u, v, triangle_id, and block_id and local_triangle from the
   // triangle's origin, and returns true.
@@ -55,7 +56,7 @@ class WideBvh {
   // Lane by lane, the tests are the single-ray ones, so results are the same bit for bit.
   // Rays whose direction signs or dominant axis differ from the others', or that point or start
   // far from them, are walked as further packets (one alone takes the single-ray walk), so
-  // incoherent rays cost about what they cost alone. Implemented in wide_bvh_packet.cpp.
+  // incoherent rays cost about what they cost alone.
   // 16 rays (4 x 4 pixels) walk as one packet where the CPU has AVX2; elsewhere (SSE2) each
   // run of 8 walks as its own, where 16 do not pay (see wide_bvh_packet_walk.inc).
   static constexpr int kPacketSize = 16;
@@ -64,9 +65,10 @@ class WideBvh {
   uint32_t IntersectPacket(std::span<const Ray> rays, std::span<Hit> hits) const;
   // Bit i set when Occluded(rays[i]).
   uint32_t OccludedPacket(std::span<const Ray> rays) const;
-  // Packets take an AVX2 walk where the CPU has it (the same results, faster). For tests and
-  // benchmarks: false keeps them on the SSE2 walk. Returns whether the AVX2 walk is now used.
-  static bool AllowPacketAvx2(bool allowed);
+  // Single rays and packets take AVX2 copies of their walks where the CPU has it (the same
+  // results, faster; wide_bvh_walks.cpp). For tests and benchmarks: false keeps both on the
+  // baseline (SSE2) walks. Returns whether the AVX2 walks are now used.
+  static bool AllowAvx2(bool allowed);
 
   size_t triangle_count() const { return triangle_count_; }
   size_t node_count() const { return nodes_.size(); }
@@ -105,8 +107,6 @@ class WideBvh {
   void Traverse(NodeHitsFn&& node_hits, const float* tmax, LeafFn&& leaf) const;
   // Requests the cache lines of the children in `mask`.
   void Prefetch(const uint32_t child[kWidth], uint32_t mask) const;
-  // Bit k set: triangle k of `leaf` (k < n) passes the float edge test.
-  static uint32_t EdgeCandidates(const RayTriangleSetup& s, const Leaf& leaf, uint32_t n);
 
   // On huge pages where the kernel has them (see HugePageAllocator): the walks reach nodes and
   // leaves all over both arrays (dragon, one thread: random rays +5%).
@@ -117,7 +117,7 @@ class WideBvh {
   float extent_ = 0;     // the model box's largest side: sets how far apart a packet's rays may start
 
   friend class WideBvhBuilder;
-  friend class WideBvhPacketWalk;
+  friend class WideBvhWalks;  // the single-ray and packet walks (wide_bvh_walks.cpp)
 };
 
 }  // namespace raystack

@@ -134,7 +134,7 @@ void TraceOneBvh(const StoreReader& store, const std::vector<Ray>& rays) {
                                                                  static_cast<float>(i / 4) * spread, 0}});
   }
   for (bool avx2 : {false, true}) {
-    WideBvh::AllowPacketAvx2(avx2);
+    WideBvh::AllowAvx2(avx2);
     for (size_t i = 0; i < packets.size(); i += WideBvh::kPacketSize) {
       const size_t n = std::min(packets.size() - i, size_t{WideBvh::kPacketSize});
       const std::span<const Ray> packet(packets.data() + i, n);
@@ -155,7 +155,7 @@ void TraceOneBvh(const StoreReader& store, const std::vector<Ray>& rays) {
       }
     }
   }
-  WideBvh::AllowPacketAvx2(true);
+  WideBvh::AllowAvx2(true);
 }
 
 // The loader's reads: neighbouring ids as one run, each block found at its offset from the

@@ -106,28 +106,44 @@ std::vector<Ray> Rays(int n, uint32_t seed) {
   return rays;
 }
 
+// Runs `body` on each copy of the walks (single rays and packets) this machine has: the
+// baseline (SSE2 on x86-64), then AVX2 where the CPU has it. They must agree with brute force
+// alike.
+template <typename Body>
+void ForEachWalk(Body&& body) {
+  for (bool avx2 : {false, true}) {
+    const bool used = WideBvh::AllowAvx2(avx2);
+    if (avx2 && !used) continue;  // no AVX2 here: the baseline walk was the only one
+    SCOPED_TRACE(used ? "AVX2 walks" : "baseline walks");
+    body();
+  }
+  WideBvh::AllowAvx2(true);
+}
+
 TEST(WideBvh, RandomSoupMatchesBruteForceBitForBit) {
   const Mesh m = Soup(3000, 7);
   const WideBvh bvh(m.vertices, m.ids, m.origins);
   EXPECT_EQ(bvh.triangle_count(), m.ids.size());
   EXPECT_GT(bvh.node_count(), 10u);
-  int hits = 0, occluded = 0;
-  for (const Ray& ray : Rays(4000, 11)) {
-    Hit start;
-    start.t = ray.tmax;
-    const Hit expected = BruteIntersect(m, ray, start);
-    Hit got = start;
-    EXPECT_EQ(bvh.Intersect(ray, &got), expected.Valid());
-    ExpectSameHit(expected, got);
-    hits += expected.Valid();
-    const bool any = BruteOccluded(m, ray);
-    EXPECT_EQ(bvh.Occluded(ray), any);
-    occluded += any;
-  }
-  // Both answers occur often enough to mean something.
-  EXPECT_GT(hits, 400);
-  EXPECT_LT(hits, 3600);
-  EXPECT_GT(occluded, 400);
+  ForEachWalk([&] {
+    int hits = 0, occluded = 0;
+    for (const Ray& ray : Rays(4000, 11)) {
+      Hit start;
+      start.t = ray.tmax;
+      const Hit expected = BruteIntersect(m, ray, start);
+      Hit got = start;
+      EXPECT_EQ(bvh.Intersect(ray, &got), expected.Valid());
+      ExpectSameHit(expected, got);
+      hits += expected.Valid();
+      const bool any = BruteOccluded(m, ray);
+      EXPECT_EQ(bvh.Occluded(ray), any);
+      occluded += any;
+    }
+    // Both answers occur often enough to mean something.
+    EXPECT_GT(hits, 400);
+    EXPECT_LT(hits, 3600);
+    EXPECT_GT(occluded, 400);
+  });
 }
 
 TEST(WideBvh, EqualDistanceGoesToTheSmallerIdWhateverTheOrder) {
@@ -196,9 +212,11 @@ TEST(WideBvh, AHitJustOutsideItsBoxIsNotPruned) {
   const Ray ray{c.origin, c.direction};
   const Hit expected = BruteIntersect(m, ray, Hit{});
   ASSERT_EQ(expected.triangle_id, 76502u);
-  Hit got;
-  ASSERT_TRUE(bvh.Intersect(ray, &got));
-  ExpectSameHit(expected, got);
+  ForEachWalk([&] {
+    Hit got;
+    ASSERT_TRUE(bvh.Intersect(ray, &got));
+    ExpectSameHit(expected, got);
+  });
 }
 
 // A closed, bumpy mesh far from the origin, and the same triangles as a Mesh.
@@ -221,40 +239,29 @@ TEST(WideBvh, NoRayEscapesAClosedMesh) {
   const geometry_test::ClosedMesh closed = BumpyClosedMesh();
   const Mesh m = MeshOf(closed);
   const WideBvh bvh(m.vertices, m.ids, m.origins);
-  std::mt19937 rng(3);
-  std::uniform_real_distribution<float> dir(-1, 1);
-  for (int i = 0; i < 3000; ++i) {
-    const Ray ray{closed.center, {dir(rng), dir(rng), dir(rng)}};
-    Hit h;
-    ASSERT_TRUE(bvh.Intersect(ray, &h)) << "ray " << i << " escaped";
-    ExpectSameHit(BruteIntersect(m, ray, Hit{}), h);
-    EXPECT_TRUE(bvh.Occluded(ray));
-  }
+  ForEachWalk([&] {
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> dir(-1, 1);
+    for (int i = 0; i < 3000; ++i) {
+      const Ray ray{closed.center, {dir(rng), dir(rng), dir(rng)}};
+      Hit h;
+      ASSERT_TRUE(bvh.Intersect(ray, &h)) << "ray " << i << " escaped";
+      ExpectSameHit(BruteIntersect(m, ray, Hit{}), h);
+      EXPECT_TRUE(bvh.Occluded(ray));
+    }
+  });
 }
 
 // Packets of rays through neighbouring pixels of a camera looking at the soup (the coherent
 // case the packet walk is for), some lanes starting from a hit found elsewhere and some with a
 // shorter or later range: every lane as brute force, bit for bit, and the mask says which lanes
 // got a closer hit.
-// Runs `body` on each packet walk this machine has: SSE2, then AVX2 where the CPU has it (the
-// walks must agree with brute force alike).
 constexpr int kPacket = WideBvh::kPacketSize;  // 4 x 4 pixels
 constexpr uint32_t kEveryLane = (1u << kPacket) - 1;
 
-template <typename Body>
-void ForEachPacketWalk(Body&& body) {
-  for (bool avx2 : {false, true}) {
-    const bool used = WideBvh::AllowPacketAvx2(avx2);
-    if (avx2 && !used) continue;  // no AVX2 here: the SSE2 walk was the only one
-    SCOPED_TRACE(used ? "AVX2 packet walk" : "SSE2 packet walk");
-    body();
-  }
-  WideBvh::AllowPacketAvx2(true);
-}
-
 void ExpectPacketsMatchBruteForce(const Mesh& m, const WideBvh& bvh,
                                   const std::vector<std::vector<Ray>>& packets) {
-  ForEachPacketWalk([&] {
+  ForEachWalk([&] {
     for (size_t k = 0; k < packets.size(); ++k) {
       const std::vector<Ray>& rays = packets[k];
       std::vector<Hit> start(rays.size()), got(rays.size());
@@ -401,7 +408,7 @@ TEST(WideBvh, PacketsThroughSharedEdgesAndCornersHit) {
     }
   }
   ExpectPacketsMatchBruteForce(m, bvh, packets);
-  ForEachPacketWalk([&] {
+  ForEachWalk([&] {
     for (const std::vector<Ray>& rays : packets) {
       Hit hits[WideBvh::kPacketSize];
       EXPECT_EQ(bvh.IntersectPacket(rays, hits), kEveryLane);
@@ -421,7 +428,7 @@ TEST(WideBvh, NoPacketRayEscapesAClosedMesh) {
     const Vec3f d{dir(rng), dir(rng), dir(rng)};
     for (Ray& r : rays) r = Ray{closed.center, d + Vec3f{near(rng), near(rng), near(rng)}};
   }
-  ForEachPacketWalk([&] {
+  ForEachWalk([&] {
     for (size_t k = 0; k < packets.size(); ++k) {
       Hit hits[WideBvh::kPacketSize];
       EXPECT_EQ(bvh.IntersectPacket(packets[k], hits), kEveryLane) << "packet " << k;
