@@ -6,7 +6,11 @@
 // one ray at a time and in packets of 8 consecutive rays. A benchmark: it measures and
 // checks agreement, it asserts nothing.
 //   embree_bench STORE [--width W] [--height H] [--random N] [--threads 1,2] [--repeats R]
-//                      [--chunk RAYS] [--cpu-time 0|1] [--ours-only 0|1]
+//                      [--pairs P] [--chunk RAYS] [--cpu-time 0|1] [--ours-only 0|1]
+// The table's ratios divide figures measured one after the other; on a VM whose speed drifts
+// by 10-20% within a minute they move with the drift. So each row is followed by paired
+// ratios: ours (one BVH, and packets) and the best Embree API timed alternately P times, the
+// ratio taken within each pair, their median and range printed.
 
 #include <algorithm>
 #include <chrono>
@@ -35,6 +39,7 @@ namespace {
 struct Options {
   std::string store;
   int width = 1024, height = 1024, random = 1000000, repeats = 3;
+  int pairs = 7;  // ours and the best Embree API alternated, for the paired ratios
   size_t chunk = 65536;  // rays per BlockQueueTracer call (one wave of the ray stack)
   std::vector<int> threads{1, 2};
   bool cpu_time = false;  // CPU seconds instead of wall seconds
@@ -44,7 +49,8 @@ struct Options {
 [[noreturn]] void Usage() {
   std::fprintf(stderr,
                "usage: embree_bench STORE [--width W] [--height H] [--random N] "
-               "[--threads 1,2] [--repeats R] [--chunk RAYS] [--cpu-time 0|1] [--ours-only 0|1]\n");
+               "[--threads 1,2] [--repeats R] [--pairs P] [--chunk RAYS] [--cpu-time 0|1] "
+               "[--ours-only 0|1]\n");
   std::exit(2);
 }
 
@@ -59,6 +65,7 @@ Options Parse(int argc, char** argv) {
     else if (!std::strcmp(argv[i], "--height")) o.height = std::atoi(v);
     else if (!std::strcmp(argv[i], "--random")) o.random = std::atoi(v);
     else if (!std::strcmp(argv[i], "--repeats")) o.repeats = std::max(1, std::atoi(v));
+    else if (!std::strcmp(argv[i], "--pairs")) o.pairs = std::max(0, std::atoi(v));
     else if (!std::strcmp(argv[i], "--cpu-time")) o.cpu_time = std::atoi(v) != 0;
     else if (!std::strcmp(argv[i], "--ours-only")) o.ours_only = std::atoi(v) != 0;
     else if (!std::strcmp(argv[i], "--chunk")) o.chunk = static_cast<size_t>(std::atol(v));
@@ -190,6 +197,7 @@ int main(int argc, char** argv) {
   for (size_t i = 0; i < std::size(apis); ++i) std::printf("---:|");
   std::printf("---|---:|---:|---:|---:|\n");
 
+  std::string paired_rows;  // printed after the table
   for (const Kind& kind : kinds) {
     const size_t n = kind.rays.size();
     const std::span<const Ray> rays = kind.rays;
@@ -220,7 +228,7 @@ int main(int argc, char** argv) {
           }
         });
       }, o.cpu_time);
-      const double one_bvh = MedianSeconds(o.repeats, [&] {
+      auto run_one_bvh = [&] {
         ParallelChunks(threads, n, 4096, [&](size_t b, size_t e, int) {
           for (size_t i = b; i < e; ++i) {
             if (kind.closest) {
@@ -230,10 +238,11 @@ int main(int argc, char** argv) {
             }
           }
         });
-      }, o.cpu_time);
+      };
+      const double one_bvh = MedianSeconds(o.repeats, run_one_bvh, o.cpu_time);
       // Consecutive rays as packets: PrimaryRays lists 4 x 4 pixel blocks, ShadowRays keeps
       // their order (the packet walk splits off rays too far apart; random rays all are).
-      const double packets = MedianSeconds(o.repeats, [&] {
+      auto run_packets = [&] {
         ParallelChunks(threads, n, 4096, [&](size_t b, size_t e, int) {
           for (size_t i = b; i < e; i += WideBvh::kPacketSize) {
             const size_t m = std::min<size_t>(WideBvh::kPacketSize, e - i);
@@ -248,7 +257,8 @@ int main(int argc, char** argv) {
             }
           }
         });
-      }, o.cpu_time);
+      };
+      const double packets = MedianSeconds(o.repeats, run_packets, o.cpu_time);
       uint64_t visits = 0, batches = 0;
       for (const BlockQueueTracer& q : queues) {
         visits += q.ray_block_visits();
@@ -270,25 +280,27 @@ int main(int argc, char** argv) {
                   static_cast<double>(n) / single / 1e6, static_cast<double>(n) / batched / 1e6,
                   static_cast<double>(visits) / static_cast<double>(std::max<uint64_t>(1, batches)),
                   static_cast<double>(n) / one_bvh / 1e6, static_cast<double>(n) / packets / 1e6);
+      auto run_embree = [&](EmbreeApi api) {
+        ParallelChunks(threads, n, 4096, [&](size_t b, size_t e, int) {
+          if (kind.closest) {
+            embree.Intersect(api, kind.coherent, rays.subspan(b, e - b),
+                             std::span<float>(embree_t).subspan(b, e - b));
+          } else {
+            embree.Occluded(api, kind.coherent, rays.subspan(b, e - b),
+                            std::span<uint8_t>(embree_occ).subspan(b, e - b));
+          }
+        });
+      };
       double best = 0;
       const char* best_name = "";
+      EmbreeApi best_api = EmbreeApi::kSingle;
       std::string agreement;
       for (EmbreeApi api : apis) {
         if (o.ours_only || !embree.Supports(api)) {
           std::printf(" n/a |");
           continue;
         }
-        const double sec = MedianSeconds(o.repeats, [&] {
-          ParallelChunks(threads, n, 4096, [&](size_t b, size_t e, int) {
-            if (kind.closest) {
-              embree.Intersect(api, kind.coherent, rays.subspan(b, e - b),
-                               std::span<float>(embree_t).subspan(b, e - b));
-            } else {
-              embree.Occluded(api, kind.coherent, rays.subspan(b, e - b),
-                              std::span<uint8_t>(embree_occ).subspan(b, e - b));
-            }
-          });
-        }, o.cpu_time);
+        const double sec = MedianSeconds(o.repeats, [&] { run_embree(api); }, o.cpu_time);
         size_t agree = 0;
         for (size_t i = 0; i < n; ++i) {
           agree += kind.closest ? CloseT(single_hits[i].t, embree_t[i])
@@ -303,6 +315,7 @@ int main(int argc, char** argv) {
         if (rate > best) {
           best = rate;
           best_name = EmbreeApiName(api);
+          best_api = api;
         }
       }
       std::printf(" %.2f (%s) | %.2f | %.2f | %.2f | %.2f |\n", best, best_name,
@@ -315,7 +328,37 @@ int main(int argc, char** argv) {
                    "!= single on %zu; Embree agrees:%s\n",
                    kind.name, threads, batch_mismatch, flat_mismatch, packet_mismatch,
                    agreement.c_str());
+      if (best > 0 && o.pairs > 0) {
+        // Paired: each of ours against the best Embree API timed right after it, so a drift
+        // of the machine's speed moves both sides of each ratio alike.
+        std::vector<double> one_bvh_ratio, packets_ratio;
+        for (int p = 0; p < o.pairs; ++p) {
+          const double ours_one = MedianSeconds(1, run_one_bvh, o.cpu_time);
+          const double theirs_one = MedianSeconds(1, [&] { run_embree(best_api); }, o.cpu_time);
+          const double ours_packets = MedianSeconds(1, run_packets, o.cpu_time);
+          const double theirs_packets = MedianSeconds(1, [&] { run_embree(best_api); }, o.cpu_time);
+          one_bvh_ratio.push_back(theirs_one / ours_one);
+          packets_ratio.push_back(theirs_packets / ours_packets);
+        }
+        auto summary = [](std::vector<double> r) {
+          std::sort(r.begin(), r.end());
+          char text[64];
+          std::snprintf(text, sizeof(text), "%.2f (%.2f-%.2f)", r[r.size() / 2], r.front(), r.back());
+          return std::string(text);
+        };
+        char row[256];
+        std::snprintf(row, sizeof(row), "| %s | %d | %s | %s | %s |\n", kind.name, threads,
+                      best_name, summary(one_bvh_ratio).c_str(), summary(packets_ratio).c_str());
+        paired_rows += row;
+      }
     }
+  }
+  if (!paired_rows.empty()) {
+    std::printf("\nPaired ratios: ours and the best Embree API above timed alternately, %d pairs, "
+                "the ratio taken within each pair: median (range)\n\n"
+                "| rays | threads | Embree API | one BVH / Embree | packets / Embree |\n"
+                "|---|---:|---|---:|---:|\n%s",
+                o.pairs, paired_rows.c_str());
   }
   return 0;
 }
