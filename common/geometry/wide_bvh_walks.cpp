@@ -65,12 +65,14 @@ namespace sse2 {
 #include "common/geometry/wide_bvh_packet_walk.inc"
 #undef RAYSTACK_WALK_AVX2
 }  // namespace sse2
+namespace baseline = sse2;
 #else
 namespace generic {  // the single-ray walk alone; a packet's rays take it one by one
 #define RAYSTACK_WALK_AVX2 0
 #include "common/geometry/wide_bvh_ray_walk.inc"
 #undef RAYSTACK_WALK_AVX2
 }  // namespace generic
+namespace baseline = generic;
 #endif
 
 #if RAYSTACK_HAS_WALK_AVX2
@@ -104,22 +106,14 @@ bool WideBvh::Intersect(const Ray& ray, Hit* hit) const {
 #if RAYSTACK_HAS_WALK_AVX2
   if (UseAvx2()) return avx2::IntersectRay(*this, ray, hit);
 #endif
-#if defined(__SSE2__)
-  return sse2::IntersectRay(*this, ray, hit);
-#else
-  return generic::IntersectRay(*this, ray, hit);
-#endif
+  return baseline::IntersectRay(*this, ray, hit);
 }
 
 bool WideBvh::Occluded(const Ray& ray) const {
 #if RAYSTACK_HAS_WALK_AVX2
   if (UseAvx2()) return avx2::OccludedRay(*this, ray);
 #endif
-#if defined(__SSE2__)
-  return sse2::OccludedRay(*this, ray);
-#else
-  return generic::OccludedRay(*this, ray);
-#endif
+  return baseline::OccludedRay(*this, ray);
 }
 
 bool WideBvh::AllowAvx2(bool allowed) {
