@@ -20,9 +20,9 @@
 #include <immintrin.h>
 #endif
 
-#include "common/geometry/triangle.h"
 #include "common/base/check.h"
 #include "common/geometry/next_float.h"
+#include "common/geometry/triangle.h"
 #include "common/geometry/wide_bvh.h"
 #include "common/geometry/wide_bvh_internal.h"
 
