@@ -329,21 +329,21 @@ int main(int argc, char** argv) {
                    kind.name, threads, batch_mismatch, flat_mismatch, packet_mismatch,
                    agreement.c_str());
       if (best > 0 && o.pairs > 0) {
-        // Paired: each of ours against the best Embree API timed right after it, so a drift
-        // of the machine's speed moves both sides of each ratio alike.
+        // Paired: the best Embree API timed between our two walks, so a drift of the machine's
+        // speed moves both sides of each ratio alike.
         std::vector<double> one_bvh_ratio, packets_ratio;
         for (int p = 0; p < o.pairs; ++p) {
           const double ours_one = MedianSeconds(1, run_one_bvh, o.cpu_time);
-          const double theirs_one = MedianSeconds(1, [&] { run_embree(best_api); }, o.cpu_time);
+          const double theirs = MedianSeconds(1, [&] { run_embree(best_api); }, o.cpu_time);
           const double ours_packets = MedianSeconds(1, run_packets, o.cpu_time);
-          const double theirs_packets = MedianSeconds(1, [&] { run_embree(best_api); }, o.cpu_time);
-          one_bvh_ratio.push_back(theirs_one / ours_one);
-          packets_ratio.push_back(theirs_packets / ours_packets);
+          one_bvh_ratio.push_back(theirs / ours_one);
+          packets_ratio.push_back(theirs / ours_packets);
         }
         auto summary = [](std::vector<double> r) {
           std::sort(r.begin(), r.end());
           char text[64];
-          std::snprintf(text, sizeof(text), "%.2f (%.2f-%.2f)", r[r.size() / 2], r.front(), r.back());
+          std::snprintf(text, sizeof(text), "%.2f (%.2f-%.2f)", r[r.size() / 2], r.front(),
+                        r.back());
           return std::string(text);
         };
         char row[256];
