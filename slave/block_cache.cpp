@@ -22,8 +22,23 @@ Expected<std::unique_ptr<BlockCache>> BlockCache::Create(const store::StoreReade
   return std::unique_ptr<BlockCache>(new BlockCache(store, budget_bytes));
 }
 
+namespace {
+
+// The arena's size: the budget and an eighth, or the whole store decoded when that is less
+// (an in-core cache, or a budget above the store: then nothing is evicted and no gap forms).
+uint64_t ArenaCapacity(const store::StoreReader& store, uint64_t budget) {
+  uint64_t total = 0;
+  for (const store::BlockEntry& e : store.blocks()) total += (uint64_t{e.raw_bytes} + 63) & ~uint64_t{63};
+  return budget >= total ? total : std::min(total, budget + budget / 8);  // kUnlimited: no overflow
+}
+
+}  // namespace
+
 BlockCache::BlockCache(const store::StoreReader& store, uint64_t budget)
-    : store_(store), budget_(budget), entries_(store.blocks().size()) {}
+    : store_(store),
+      budget_(budget),
+      arena_(ArenaCapacity(store, budget)),
+      entries_(store.blocks().size()) {}
 
 uint64_t BlockCache::Charge(uint32_t id) const {
   return (uint64_t{store_.blocks()[id].raw_bytes} + 63) & ~uint64_t{63};
@@ -108,6 +123,7 @@ BlockCache::Claim BlockCache::BeginLoad(uint32_t id, bool wait) {
 Status BlockCache::FinishLoad(uint32_t id, std::span<const uint8_t> stored, int pins,
                               store::AlignedBuffer* scratch) {
   auto data = std::make_unique<Resident>();
+  data->raw.ReserveIn(&arena_, Charge(id));  // when no gap fits: the C heap, in Decode
   Expected<store::BlockView> view = store_.Decode(id, stored, scratch, &data->raw);
   std::lock_guard lock(mu_);
   Entry& e = entries_[id];

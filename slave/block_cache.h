@@ -8,6 +8,11 @@
 // swinging its pin count from 0 to a large negative value, which a concurrent TryAcquire sees
 // and backs off from, so a pinned block is never freed under a reader.
 //
+// Decoded blocks live in a huge-page arena (common/base/huge_page_arena.h) of an eighth more
+// than the budget, for the gaps between blocks of different sizes; a block that finds no gap
+// large enough takes the C heap. On a PVM guest, filling a 72 MB cache from the heap cost its
+// loader 0.2 s of CPU in page faults.
+//
 // Thread-safe. Budgets count decoded bytes (64-byte rounded), the memory blocks really use.
 
 #include <atomic>
@@ -18,6 +23,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "common/base/huge_page_arena.h"
 #include "common/base/status.h"
 #include "common/store/block_codec.h"
 #include "common/store/block_view.h"
@@ -75,6 +81,9 @@ class BlockCache {
   void StartFrame();
   uint64_t evictions() const { return evictions_.load(); }
   uint64_t resident_count() const;
+  // Bytes of decoded blocks in the arena now (the rest are on the C heap), and its size.
+  uint64_t arena_bytes() const { return arena_.allocated_bytes(); }
+  uint64_t arena_capacity() const { return arena_.capacity(); }
 
  private:
   struct Resident {
@@ -99,6 +108,7 @@ class BlockCache {
 
   const store::StoreReader& store_;
   const uint64_t budget_;
+  HugePageArena arena_;  // before entries_: the blocks give their memory back to it
   std::vector<Entry> entries_;
   std::atomic<uint64_t> clock_{0};
 

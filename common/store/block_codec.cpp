@@ -58,12 +58,27 @@ uint64_t MaxStoredBytes(uint32_t raw_bytes) {
   return n + n / 255 + 16;  // LZ4_COMPRESSBOUND, without its int range limit
 }
 
-void AlignedBuffer::Free::operator()(uint8_t* p) const { std::free(p); }
+void AlignedBuffer::Free::operator()(uint8_t* p) const {
+  if (arena != nullptr) {
+    arena->Free(p, bytes);
+  } else {
+    std::free(p);
+  }
+}
+
+bool AlignedBuffer::ReserveIn(HugePageArena* arena, uint64_t bytes) {
+  CHECK(data_ == nullptr);
+  uint8_t* p = arena->Allocate(bytes);
+  if (p == nullptr) return false;
+  data_ = std::unique_ptr<uint8_t, Free>(p, Free{arena, bytes});
+  capacity_ = bytes;
+  return true;
+}
 
 void AlignedBuffer::Reserve(uint64_t bytes) {
   if (bytes <= capacity_) return;
   const uint64_t rounded = (bytes + 63) & ~uint64_t{63};
-  data_.reset(static_cast<uint8_t*>(std::aligned_alloc(64, rounded)));
+  data_ = std::unique_ptr<uint8_t, Free>(static_cast<uint8_t*>(std::aligned_alloc(64, rounded)), Free{});
   CHECK(data_ != nullptr);
   capacity_ = rounded;
 }

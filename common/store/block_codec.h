@@ -9,6 +9,7 @@
 #include <span>
 #include <vector>
 
+#include "common/base/huge_page_arena.h"
 #include "common/base/status.h"
 
 namespace raystack::store {
@@ -22,16 +23,26 @@ void EncodeBlock(std::span<const uint8_t> raw, std::vector<uint8_t>* stored, boo
 // The most bytes EncodeBlock can produce for a raw block of `raw_bytes` (lz4's bound).
 uint64_t MaxStoredBytes(uint32_t raw_bytes);
 
-// A 16-byte aligned byte buffer that only grows: one per thread, reused across blocks.
+// A 64-byte aligned byte buffer that only grows: one per thread, reused across blocks. Its
+// memory comes from the C heap, or from an arena it is given (a block cache's decoded blocks).
 class AlignedBuffer {
  public:
   uint8_t* data() { return data_.get(); }
   const uint8_t* data() const { return data_.get(); }
   uint64_t capacity() const { return capacity_; }
   void Reserve(uint64_t bytes);
+  // Takes `bytes` from `arena` if it has room (the buffer must be empty): later Reserves up to
+  // `bytes` then keep that memory. False, and nothing changes, when the arena is full.
+  bool ReserveIn(HugePageArena* arena, uint64_t bytes);
 
  private:
-  struct Free { void operator()(uint8_t* p) const; };
+  struct Free {
+    Free() noexcept : arena(nullptr), bytes(0) {}  // the C heap
+    Free(HugePageArena* a, uint64_t n) noexcept : arena(a), bytes(n) {}
+    void operator()(uint8_t* p) const;
+    HugePageArena* arena;
+    uint64_t bytes;
+  };
   std::unique_ptr<uint8_t, Free> data_;
   uint64_t capacity_ = 0;
 };

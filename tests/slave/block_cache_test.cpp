@@ -1,5 +1,6 @@
 // The block cache remembers why a block failed, so every ray thread that asks for it later
-// reports the first cause (naming the block), not a generic one, whichever reports first.
+// reports the first cause (naming the block), not a generic one, whichever reports first; its
+// decoded blocks live in its huge-page arena, through evictions and reloads.
 
 #include <gtest/gtest.h>
 
@@ -36,6 +37,55 @@ TEST(BlockCache, AFailedBlockKeepsItsFirstCause) {
   EXPECT_EQ((*cache)->BeginLoad(1), slave::BlockCache::Claim::kFailed);
   EXPECT_EQ((*cache)->FailureOf(1).message(), "blocks.bin: block 1 at offset 42: read failed");
   EXPECT_EQ((*cache)->used_bytes(), 0u);  // both reservations were given back
+}
+
+// Loads every block of a store, a few times over, into a budget of a few blocks: the blocks
+// decode into the arena (the C heap only when no gap fits), their views read correctly from
+// it, and the arena never holds more than the resident blocks.
+uint64_t LoadEveryBlock(slave::BlockCache* cache, const store::StoreReader& reader, int rounds) {
+  std::vector<uint8_t> stored;
+  store::AlignedBuffer scratch;
+  uint64_t in_arena = 0;
+  for (int round = 0; round < rounds; ++round) {
+    for (uint32_t id = 0; id < reader.blocks().size(); ++id) {
+      if (cache->BeginLoad(id) != slave::BlockCache::Claim::kLoad) continue;  // still resident
+      EXPECT_TRUE(reader.ReadStored(id, &stored).ok());
+      EXPECT_TRUE(cache->FinishLoad(id, stored, 1, &scratch).ok());
+      const store::BlockView* view = cache->TryAcquire(id);
+      EXPECT_NE(view, nullptr);
+      if (view == nullptr) return 0;
+      EXPECT_EQ(view->triangle_count(), reader.blocks()[id].triangle_count);
+      cache->Release(id);
+      cache->Release(id);  // FinishLoad's pin
+      EXPECT_LE(cache->arena_bytes(), cache->used_bytes());
+      in_arena += cache->arena_bytes();
+    }
+  }
+  return in_arena;
+}
+
+TEST(BlockCache, BlocksDecodeIntoItsArena) {
+  TestStore s = BuildGenerated("sphere:20000", 4);
+  const auto& blocks = s.reader->blocks();
+  ASSERT_GE(blocks.size(), 8u);
+  uint64_t total = 0;
+  for (const store::BlockEntry& e : blocks) total += (uint64_t{e.raw_bytes} + 63) & ~uint64_t{63};
+
+  // Room for everything: one arena of the store's size, and every block in it.
+  auto roomy = slave::BlockCache::Create(*s.reader, total * 2);
+  ASSERT_TRUE(roomy.ok());
+  EXPECT_GE((*roomy)->arena_capacity(), total);
+  LoadEveryBlock(roomy->get(), *s.reader, 1);
+  EXPECT_EQ((*roomy)->arena_bytes(), total);
+  EXPECT_EQ((*roomy)->used_bytes(), total);
+
+  // A budget of about a quarter of the store: evictions and reloads, blocks still in the arena.
+  auto tight = slave::BlockCache::Create(*s.reader, total / 4);
+  ASSERT_TRUE(tight.ok());
+  const uint64_t in_arena = LoadEveryBlock(tight->get(), *s.reader, 3);
+  EXPECT_GT((*tight)->evictions(), 0u);
+  EXPECT_GT(in_arena, 0u);
+  EXPECT_LE((*tight)->arena_bytes(), (*tight)->used_bytes());
 }
 
 }  // namespace

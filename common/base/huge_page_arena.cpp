@@ -1,0 +1,114 @@
+#include "common/base/huge_page_arena.h"
+
+#include <sys/mman.h>
+
+#include <algorithm>
+#include <iterator>
+
+#include "common/base/check.h"
+
+#ifndef MADV_POPULATE_WRITE
+#define MADV_POPULATE_WRITE 23  // Linux 5.14; older glibc headers lack the name
+#endif
+
+namespace raystack {
+
+HugePageArena::HugePageArena(uint64_t capacity) {
+  capacity_ = std::max<uint64_t>((capacity + kStep - 1) / kStep * kStep, kStep);
+  // One step more than asked, so the pieces can start on a huge-page boundary.
+  void* p = mmap(nullptr, capacity_ + kStep, PROT_READ | PROT_WRITE,
+                 MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+  CHECK(p != MAP_FAILED);
+  const auto start = reinterpret_cast<uintptr_t>(p);
+  const uintptr_t aligned = (start + kStep - 1) & ~uintptr_t{kStep - 1};
+  // Give the unaligned head and tail back; the middle is exactly the capacity.
+  if (aligned > start) munmap(p, aligned - start);
+  const uintptr_t tail = aligned + capacity_;
+  if (start + capacity_ + kStep > tail) munmap(reinterpret_cast<void*>(tail), start + capacity_ + kStep - tail);
+  base_ = reinterpret_cast<uint8_t*>(aligned);
+  madvise(base_, capacity_, MADV_HUGEPAGE);  // a hint: where it fails, ordinary pages
+}
+
+HugePageArena::~HugePageArena() { munmap(base_, capacity_); }
+
+uint8_t* HugePageArena::Allocate(uint64_t bytes) {
+  CHECK(bytes > 0);
+  const uint64_t size = Rounded(bytes);
+  std::lock_guard lock(mu_);
+  auto best = free_by_size_.lower_bound({size, 0});
+  uint64_t offset;
+  if (best != free_by_size_.end()) {
+    const auto [piece, at] = *best;
+    RemoveFree(at, piece);
+    if (piece > size) AddFree(at + size, piece - size);
+    offset = at;
+  } else if (capacity_ - top_ >= size) {
+    offset = top_;
+    top_ += size;
+    PopulateTo(top_);
+  } else {
+    return nullptr;
+  }
+  allocated_ += size;
+  return base_ + offset;
+}
+
+void HugePageArena::Free(uint8_t* p, uint64_t bytes) {
+  CHECK(Owns(p));
+  uint64_t offset = static_cast<uint64_t>(p - base_);
+  uint64_t size = Rounded(bytes);
+  std::lock_guard lock(mu_);
+  allocated_ -= size;
+  // Merge with the free neighbours, so that freed room serves larger pieces again.
+  auto next = free_by_offset_.lower_bound(offset);
+  if (next != free_by_offset_.end() && next->first == offset + size) {
+    const auto [at, piece] = *next;
+    RemoveFree(at, piece);
+    size += piece;
+  }
+  next = free_by_offset_.lower_bound(offset);
+  if (next != free_by_offset_.begin()) {
+    const auto [at, piece] = *std::prev(next);
+    if (at + piece == offset) {
+      RemoveFree(at, piece);
+      offset = at;
+      size += piece;
+    }
+  }
+  if (offset + size == top_) {
+    top_ = offset;  // back to the untouched end (its pages stay populated)
+  } else {
+    AddFree(offset, size);
+  }
+}
+
+uint64_t HugePageArena::allocated_bytes() const {
+  std::lock_guard lock(mu_);
+  return allocated_;
+}
+
+uint64_t HugePageArena::populated_bytes() const {
+  std::lock_guard lock(mu_);
+  return populated_;
+}
+
+void HugePageArena::PopulateTo(uint64_t end) {
+  if (end <= populated_) return;
+  const uint64_t target = std::min(capacity_, (end + kStep - 1) / kStep * kStep);
+  // Fails before Linux 5.14 (EINVAL) and without memory (ENOMEM): the pages then come one
+  // fault at a time when first written, and a real lack of memory shows there as it would.
+  madvise(base_ + populated_, target - populated_, MADV_POPULATE_WRITE);
+  populated_ = target;
+}
+
+void HugePageArena::AddFree(uint64_t offset, uint64_t size) {
+  free_by_offset_.emplace(offset, size);
+  free_by_size_.emplace(size, offset);
+}
+
+void HugePageArena::RemoveFree(uint64_t offset, uint64_t size) {
+  free_by_offset_.erase(offset);
+  free_by_size_.erase({size, offset});
+}
+
+}  // namespace raystack
