@@ -6,6 +6,12 @@
 // "madvise" mode: without the advice, a walk through the dragon's 78 MB tree misses the TLB on
 // most node and leaf loads (Embree advises its trees the same way). Smaller arrays, and systems
 // without transparent huge pages (the advice then fails and is ignored), get ordinary pages.
+//
+// kPopulate: for arrays written whole as soon as they are made (a film), the pages are also
+// mapped in one call before the first write (MADV_POPULATE_WRITE, Linux 5.14), instead of one
+// fault per page: in a PVM guest each fault leaves the guest (~11 us a 4 KB page; a 960x540
+// film is 55 MB). Not for vectors reserved larger than they grow (a BVH being built): that
+// would make memory of capacity never used.
 
 #include <sys/mman.h>
 
@@ -17,14 +23,23 @@
 namespace raystack {
 
 inline constexpr size_t kHugePage = size_t{2} << 20;
+#ifdef MADV_POPULATE_WRITE
+inline constexpr int kMadvPopulateWrite = MADV_POPULATE_WRITE;
+#else
+inline constexpr int kMadvPopulateWrite = 23;  // Linux 5.14; older headers lack the name
+#endif
 
-template <typename T>
+template <typename T, bool kPopulate = false>
 struct HugePageAllocator {
   using value_type = T;
+  template <typename U>
+  struct rebind {
+    using other = HugePageAllocator<U, kPopulate>;
+  };
 
   HugePageAllocator() = default;
   template <typename U>
-  explicit HugePageAllocator(const HugePageAllocator<U>&) {}
+  explicit HugePageAllocator(const HugePageAllocator<U, kPopulate>&) {}
 
   T* allocate(size_t n) {
     if (n > std::numeric_limits<size_t>::max() / sizeof(T)) throw std::bad_array_new_length();
@@ -34,6 +49,8 @@ struct HugePageAllocator {
     void* p = std::aligned_alloc(kHugePage, rounded);
     if (p == nullptr) throw std::bad_alloc();
     madvise(p, rounded, MADV_HUGEPAGE);  // a hint: where it fails, ordinary pages
+    // Where it fails (an older kernel), pages come one fault at a time as without it.
+    if constexpr (kPopulate) madvise(p, rounded, kMadvPopulateWrite);
     return static_cast<T*>(p);
   }
 

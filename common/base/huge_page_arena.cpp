@@ -6,10 +6,7 @@
 #include <iterator>
 
 #include "common/base/check.h"
-
-#ifndef MADV_POPULATE_WRITE
-#define MADV_POPULATE_WRITE 23  // Linux 5.14; older glibc headers lack the name
-#endif
+#include "common/base/huge_page_allocator.h"
 
 namespace raystack {
 
@@ -97,7 +94,7 @@ void HugePageArena::PopulateTo(uint64_t end) {
   const uint64_t target = std::min(capacity_, (end + kStep - 1) / kStep * kStep);
   // Fails before Linux 5.14 (EINVAL) and without memory (ENOMEM): the pages then come one
   // fault at a time when first written, and a real lack of memory shows there as it would.
-  madvise(base_ + populated_, target - populated_, MADV_POPULATE_WRITE);
+  madvise(base_ + populated_, target - populated_, kMadvPopulateWrite);
   populated_ = target;
 }
 

@@ -9,6 +9,7 @@
 #include <span>
 #include <vector>
 
+#include "common/base/huge_page_allocator.h"
 #include "common/image/image_layers.h"
 #include "common/render/fixed_sum.h"
 #include "common/render/sample_result.h"
@@ -69,8 +70,12 @@ class Film {
   };
   int width_, height_;
   mutable std::mutex mu_;
-  std::vector<Pixel> pixels_;
-  std::vector<float> z_, normal_, albedo_;
+  // Written whole when made: on populated huge pages (see HugePageAllocator), a new film costs
+  // no page fault per 4 KB.
+  template <typename T>
+  using Pages = std::vector<T, HugePageAllocator<T, /*kPopulate=*/true>>;
+  Pages<Pixel> pixels_;
+  Pages<float> z_, normal_, albedo_;
   image::ImageLayers restored_;  // empty unless Restore was called
   std::vector<uint32_t> restored_pixels_;
   uint64_t samples_merged_ = 0;

@@ -2,6 +2,7 @@
 // huge-page candidates, small ones ordinary, both usable.
 
 #include "common/base/huge_page_allocator.h"
+#include "tests/support/resident_pages.h"
 
 #include <gtest/gtest.h>
 
@@ -66,6 +67,24 @@ TEST(HugePageAllocator, LargeArraysAreAdvisedAsHugePages) {
   EXPECT_NE(flags.find(" hg"), std::string::npos) << flags;
   std::vector<Line, HugePageAllocator<Line>> small(3);
   EXPECT_EQ(VmFlagsOf(small.data()).find(" hg"), std::string::npos);
+}
+
+// kPopulate (a film): the pages are in memory as soon as the array is allocated, before its
+// first write; without it they come as they are first written.
+TEST(HugePageAllocator, PopulatedArraysAreInMemoryBeforeTheFirstWrite) {
+  if (!testing::KernelPopulatesOnRequest())
+    GTEST_SKIP() << "this kernel cannot map pages in on request (MADV_POPULATE_WRITE, Linux 5.14)";
+  // 64 MB: above glibc's largest mmap threshold, so each array is a fresh mapping, never
+  // memory an earlier test touched.
+  const size_t n = 32 * kHugePage / sizeof(Line);
+  HugePageAllocator<Line> lazy;
+  Line* q = lazy.allocate(n);
+  EXPECT_LT(testing::ResidentShare(q, n * sizeof(Line)), 0.5);
+  lazy.deallocate(q, n);
+  HugePageAllocator<Line, true> populated;
+  Line* p = populated.allocate(n);
+  EXPECT_EQ(testing::ResidentShare(p, n * sizeof(Line)), 1.0);
+  populated.deallocate(p, n);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 // merged and reused, null when nothing fits, memory asked for only as the pieces reach it.
 
 #include "common/base/huge_page_arena.h"
+#include "tests/support/resident_pages.h"
 
 #include <gtest/gtest.h>
 
@@ -81,6 +82,10 @@ TEST(HugePageArena, MemoryIsAskedForOnlyAsPiecesReachIt) {
   EXPECT_EQ(arena.populated_bytes(), 0u);
   uint8_t* p = arena.Allocate(1000);
   EXPECT_EQ(arena.populated_bytes(), HugePageArena::kStep);
+  if (testing::KernelPopulatesOnRequest()) {  // in memory before the first write, one step only
+    EXPECT_EQ(testing::ResidentShare(p, HugePageArena::kStep), 1.0);
+    EXPECT_EQ(testing::ResidentShare(p + HugePageArena::kStep, HugePageArena::kStep), 0.0);
+  }
   std::vector<uint8_t*> more;
   for (int i = 0; i < 40; ++i) more.push_back(arena.Allocate(100 * 1024));  // ~4 MB in all
   EXPECT_EQ(arena.populated_bytes(), 2 * HugePageArena::kStep);
