@@ -8,6 +8,7 @@
 #include "common/base/log.h"
 #include "common/base/thread_cpu.h"
 #include "common/base/thread_name.h"
+#include "common/base/thread_policy.h"
 
 namespace raystack::slave {
 namespace {
@@ -38,12 +39,14 @@ BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, Blo
     for (size_t i = 0; i < std::min<size_t>(max_workers_, Cores()); ++i)
       workers_.emplace_back([this] {
         SetThreadName("rs-aio");
+        SetBatchScheduling();
         AioLoop();
         AddCpu(ThreadCpuSeconds());
       });
   }
   loader_ = std::thread([this] {
     SetThreadName("rs-loader");
+    SetBatchScheduling();
     LoaderLoop();
     AddCpu(ThreadCpuSeconds());
   });
@@ -53,6 +56,7 @@ BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, Blo
 void BlockLoader::StartWorker() {
   workers_.emplace_back([this] {
     SetThreadName("rs-io");
+    SetBatchScheduling();
     WorkerLoop();
     AddCpu(ThreadCpuSeconds());
   });
