@@ -71,6 +71,12 @@ int AioRuns::in_flight() const {
 }
 
 int AioRuns::Start(std::span<const uint32_t> ids) {
+  const int slot = Prepare(ids);
+  SubmitPrepared();
+  return slot;
+}
+
+int AioRuns::Prepare(std::span<const uint32_t> ids) {
   Slot* slot;
   {
     std::lock_guard lock(mu_);
@@ -78,14 +84,48 @@ int AioRuns::Start(std::span<const uint32_t> ids) {
     slot = slots_[free_.back()].get();
     free_.pop_back();
   }
-  if (Status s = Submit(slot, ids); !s.ok()) {
-    std::lock_guard lock(mu_);
+  Status s = Fill(slot, ids);
+  std::lock_guard lock(mu_);
+  if (s.ok()) {
+    prepared_.push_back(slot);
+  } else {
     failed_.push_back({slot->index, std::move(s), {}});
   }
   return slot->index;
 }
 
-Status AioRuns::Submit(Slot* slot, std::span<const uint32_t> ids) {
+void AioRuns::SubmitPrepared() {
+  std::vector<Slot*> batch;
+  {
+    std::lock_guard lock(mu_);
+    batch.swap(prepared_);
+  }
+  std::vector<iocb*> requests;
+  requests.reserve(batch.size());
+  for (Slot* slot : batch) requests.push_back(&slot->request);
+  size_t done = 0;
+  while (done < requests.size()) {
+    const long n = IoSubmit(context_, static_cast<long>(requests.size() - done), requests.data() + done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {  // the first of the rest cannot start (n = 0: the kernel took none)
+      std::lock_guard lock(mu_);
+      failed_.push_back({batch[done]->index,
+                         StartFailure(*batch[done], n < 0 ? std::strerror(errno) : "not submitted"),
+                         {}});
+      ++done;
+      continue;
+    }
+    done += static_cast<size_t>(n);
+  }
+}
+
+Status AioRuns::StartFailure(const Slot& slot, const char* why) const {
+  return Status::Error(StrFormat("%s/%s: direct read at offset %llu could not start: %s",
+                                 store_.dir().c_str(), store::kBlocksFile,
+                                 static_cast<unsigned long long>(slot.span.begin), why));
+}
+
+Status AioRuns::Fill(Slot* slot, std::span<const uint32_t> ids) {
   RAYSTACK_RETURN_IF_ERROR(disk_->BeginRead(ids, &slot->read));
   const store::StoreReader::Extent run = store_.RunExtent(ids.front(), ids.back());
   slot->offset = run.offset;
@@ -100,16 +140,6 @@ Status AioRuns::Submit(Slot* slot, std::span<const uint32_t> ids) {
   slot->request.aio_buf = reinterpret_cast<uint64_t>(slot->buffer.Reserve(d.end - d.begin));
   slot->request.aio_nbytes = d.end - d.begin;
   slot->request.aio_offset = static_cast<int64_t>(d.begin);
-  iocb* requests[1] = {&slot->request};
-  long submitted;
-  do {
-    submitted = IoSubmit(context_, 1, requests);
-  } while (submitted < 0 && errno == EINTR);
-  if (submitted != 1)
-    return Status::Error(StrFormat("%s/%s: direct read at offset %llu could not start: %s",
-                                   store_.dir().c_str(), store::kBlocksFile,
-                                   static_cast<unsigned long long>(d.begin),
-                                   submitted < 0 ? std::strerror(errno) : "not submitted"));
   return OkStatus();
 }
 

@@ -126,7 +126,7 @@ void BlockLoader::LoaderLoop() {
     // (a burst, or ray threads asking faster than one thread decodes) goes to the workers.
     auto submit = [&] {
       const bool few = ready.size() <= kInlineRunsAtMost;
-      for (Run& r : ready) Submit(std::move(r), few);
+      Submit(&ready, few);
       ready.clear();
     };
     for (const auto& [block, threads] : blocks) {
@@ -179,17 +179,21 @@ void BlockLoader::LoaderLoop() {
   }
 }
 
-void BlockLoader::Submit(Run run, bool may_read_here) {
-  runs_.fetch_add(1, std::memory_order_relaxed);
-  if (aio_) {
+void BlockLoader::Submit(std::vector<Run>* runs, bool may_read_here) {
+  runs_.fetch_add(runs->size(), std::memory_order_relaxed);
+  if (aio_) {  // the whole batch at once: one system call, one notification of the disk
     {
       std::lock_guard lock(aio_mu_);
-      aio_queue_.push_back(std::move(run));
+      for (Run& run : *runs) aio_queue_.push_back(std::move(run));
       StartQueuedAio();
     }
     aio_cv_.notify_one();
     return;
   }
+  for (Run& run : *runs) Submit(std::move(run), may_read_here);
+}
+
+void BlockLoader::Submit(Run run, bool may_read_here) {
   if (read_inline_ && may_read_here) {
     ReadInline(run);
     return;
@@ -261,12 +265,13 @@ void BlockLoader::WorkerLoop() {
 
 void BlockLoader::StartQueuedAio() {
   while (!aio_queue_.empty()) {
-    const int slot = aio_->Start(aio_queue_.front().ids);
-    if (slot < 0) return;  // every slot in flight: the AIO threads start the rest as reads end
+    const int slot = aio_->Prepare(aio_queue_.front().ids);
+    if (slot < 0) break;  // every slot in flight: the AIO threads start the rest as reads end
     BusyBegin();
     aio_runs_[slot] = std::move(aio_queue_.front());
     aio_queue_.pop_front();
   }
+  aio_->SubmitPrepared();  // the batch's runs in one system call
 }
 
 void BlockLoader::AioLoop() {
@@ -293,12 +298,15 @@ void BlockLoader::AioLoop() {
       CompleteRun(run, f.status, f.bytes.data(), &scratch);
       aio_->Release(f.slot);
       BusyEnd();
-      {
-        std::lock_guard lock(aio_mu_);
-        StartQueuedAio();
-      }
-      aio_cv_.notify_one();  // a thread that found nothing in flight shares these reads
     }
+    // The runs waiting for the slots just freed start together, in one system call: started
+    // one per freed slot, every read cost the disk its own notification (dragon x36: 9,100
+    // io_submit calls for 10,700 reads, against 2,500; the frame 0.96-1.14 -> 0.85-0.95 s).
+    {
+      std::lock_guard lock(aio_mu_);
+      StartQueuedAio();
+    }
+    aio_cv_.notify_one();  // a thread that found nothing in flight shares these reads
   }
 }
 
@@ -315,11 +323,14 @@ void BlockLoader::CompleteRun(const Run& run, const Status& read, const uint8_t*
 
 void BlockLoader::Complete(uint32_t block, const Status& read, std::span<const uint8_t> stored,
                            store::AlignedBuffer* scratch) {
+  // The block stays in flight while it decodes, so a thread that asks for it meanwhile is
+  // added to its askers. (Taken out before, such a request found the block loading in the
+  // cache and went back to the loader's queue, which the loader then turned over without
+  // sleeping until the decode ended: 401,006 loader batches for 10,752 reads on dragon x36.)
   uint64_t threads;
   {
     std::lock_guard lock(mu_);
     threads = in_flight_[block];
-    in_flight_.erase(block);
   }
   Status status = read;
   if (read.ok()) {
@@ -327,7 +338,26 @@ void BlockLoader::Complete(uint32_t block, const Status& read, std::span<const u
   } else {
     cache_->FailLoad(block, read);
   }
-  for (uint64_t t = threads; t; t &= t - 1)
+  uint64_t late;
+  bool asked_again = false;
+  {
+    std::lock_guard lock(mu_);
+    late = in_flight_[block] & ~threads;
+    in_flight_.erase(block);
+    // Late askers get their pins now, before any asker is told and could release its own:
+    // until then the block cannot be evicted, so this cannot fail (if it ever did, the ask
+    // goes back to the loader like any other).
+    for (uint64_t t = late; t && status.ok(); t &= t - 1) {
+      const auto thread = static_cast<uint32_t>(std::countr_zero(t));
+      if (cache_->TryAcquire(block) == nullptr) {
+        late &= ~(uint64_t{1} << thread);
+        requests_.push_back({block, thread});
+        asked_again = true;
+      }
+    }
+  }
+  if (asked_again) requests_cv_.notify_one();
+  for (uint64_t t = threads | late; t; t &= t - 1)
     deliver_(static_cast<uint32_t>(std::countr_zero(t)), block, status);
 }
 

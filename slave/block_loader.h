@@ -86,7 +86,9 @@ class BlockLoader {
                 store::AlignedBuffer* scratch);
   // To the I/O workers (or AIO); read on the loader thread itself while reads have not waited,
   // if `may_read_here`.
-  void Submit(Run run, bool may_read_here);
+  // A batch's runs (moved from): with AIO all started in one system call, else each as below.
+  void Submit(std::vector<Run>* runs, bool may_read_here);
+  void Submit(Run run, bool may_read_here);  // one run, without AIO
   void ReadInline(const Run& run);  // on the loader thread
   // Reads `run` from the source and completes its blocks; returns whether the read waited.
   bool ReadAndComplete(const Run& run, std::vector<uint8_t>* bytes, store::AlignedBuffer* scratch);

@@ -1,6 +1,7 @@
 // Direct reads kept in flight with Linux AIO (slave/aio_runs.h): the bytes equal buffered
-// reads for every block and for runs, with every slot in flight; injected faults and a file
-// cut short while open come back as errors naming the file; buffered stores do not use it.
+// reads for every block and for runs, with every slot in flight, started one by one or in
+// batches (Prepare, SubmitPrepared); injected faults and a file cut short while open come
+// back as errors naming the file; buffered stores do not use it.
 
 #include "slave/aio_runs.h"
 
@@ -36,15 +37,17 @@ std::vector<uint32_t> Ids(BlockRun run) {
 
 using Outcomes = std::map<size_t, std::pair<Status, std::vector<uint8_t>>>;
 
-// Reads `runs` with up to `depth` in flight; returns each run's outcome, by index.
-Outcomes ReadAll(AioRuns* aio, const std::vector<BlockRun>& runs, int depth, bool* filled) {
+// Reads `runs` with up to `depth` in flight, each started alone or (`batched`) all that fit
+// in one submission; returns each run's outcome, by index.
+Outcomes ReadAll(AioRuns* aio, const std::vector<BlockRun>& runs, int depth, bool* filled,
+                 bool batched = false) {
   Outcomes out;
   std::map<int, size_t> by_slot;
   size_t next = 0;
   std::vector<AioRuns::Finished> finished;
   while (out.size() < runs.size()) {
     while (next < runs.size()) {
-      const int slot = aio->Start(Ids(runs[next]));
+      const int slot = batched ? aio->Prepare(Ids(runs[next])) : aio->Start(Ids(runs[next]));
       if (slot < 0) {
         *filled = true;
         EXPECT_EQ(aio->in_flight(), depth);
@@ -52,6 +55,7 @@ Outcomes ReadAll(AioRuns* aio, const std::vector<BlockRun>& runs, int depth, boo
       }
       by_slot[slot] = next++;
     }
+    if (batched) aio->SubmitPrepared();
     finished.clear();
     aio->Wait(1000, 64, &finished);
     for (const AioRuns::Finished& f : finished) {
@@ -76,22 +80,25 @@ TEST(AioRuns, ReadsWhatBufferedReadsRead) {
   runs.push_back({0, n - 1});  // larger than any slot's buffer so far: it grows
   runs.push_back({1, n / 2});
   runs.push_back({n / 2, n - 1});
-  slave::DiskBlockSource disk(*direct, {});
-  const int depth = 4;
-  std::unique_ptr<AioRuns> aio = disk.OpenAio(depth);
-  ASSERT_TRUE(aio) << "this kernel gives no AIO context";
-  bool filled = false;
-  const auto got = ReadAll(aio.get(), runs, depth, &filled);
-  EXPECT_TRUE(filled) << "every slot should have been in flight at some point";
-  uint64_t bytes = 0;
-  for (size_t r = 0; r < runs.size(); ++r) {
-    ASSERT_TRUE(got.at(r).first.ok()) << got.at(r).first.message();
-    const std::vector<uint8_t> want = Buffered(*s.reader, runs[r]);
-    EXPECT_EQ(got.at(r).second, want) << "blocks " << runs[r].first << " to " << runs[r].last;
-    bytes += want.size();
+  for (const bool batched : {false, true}) {
+    SCOPED_TRACE(batched ? "batched" : "one by one");
+    slave::DiskBlockSource disk(*direct, {});
+    const int depth = 4;
+    std::unique_ptr<AioRuns> aio = disk.OpenAio(depth);
+    ASSERT_TRUE(aio) << "this kernel gives no AIO context";
+    bool filled = false;
+    const auto got = ReadAll(aio.get(), runs, depth, &filled, batched);
+    EXPECT_TRUE(filled) << "every slot should have been in flight at some point";
+    uint64_t bytes = 0;
+    for (size_t r = 0; r < runs.size(); ++r) {
+      ASSERT_TRUE(got.at(r).first.ok()) << got.at(r).first.message();
+      const std::vector<uint8_t> want = Buffered(*s.reader, runs[r]);
+      EXPECT_EQ(got.at(r).second, want) << "blocks " << runs[r].first << " to " << runs[r].last;
+      bytes += want.size();
+    }
+    EXPECT_EQ(disk.reads(), runs.size());
+    EXPECT_EQ(disk.bytes_read(), bytes);
   }
-  EXPECT_EQ(disk.reads(), runs.size());
-  EXPECT_EQ(disk.bytes_read(), bytes);
 }
 
 TEST(AioRuns, InjectedFaultsComeBackAsTheThreadedReadsGiveThem) {
@@ -101,25 +108,28 @@ TEST(AioRuns, InjectedFaultsComeBackAsTheThreadedReadsGiveThem) {
   slave::FaultOptions faults;
   faults.fail_read = 2;
   faults.corrupt_read = 3;
-  slave::DiskBlockSource disk(*direct, faults);
-  std::unique_ptr<AioRuns> aio = disk.OpenAio(8);
-  ASSERT_TRUE(aio);
-  const std::vector<BlockRun> runs = {{0, 0}, {1, 1}, {2, 2}, {3, 3}, {4, 4}};
-  bool filled = false;
-  const auto got = ReadAll(aio.get(), runs, 8, &filled);
-  for (size_t r : {0, 1, 4}) {
-    ASSERT_TRUE(got.at(r).first.ok()) << got.at(r).first.message();
-    EXPECT_EQ(got.at(r).second, Buffered(*s.reader, runs[r]));
+  for (const bool batched : {false, true}) {
+    SCOPED_TRACE(batched ? "batched" : "one by one");
+    slave::DiskBlockSource disk(*direct, faults);
+    std::unique_ptr<AioRuns> aio = disk.OpenAio(8);
+    ASSERT_TRUE(aio);
+    const std::vector<BlockRun> runs = {{0, 0}, {1, 1}, {2, 2}, {3, 3}, {4, 4}};
+    bool filled = false;
+    const auto got = ReadAll(aio.get(), runs, 8, &filled, batched);
+    for (size_t r : {0, 1, 4}) {
+      ASSERT_TRUE(got.at(r).first.ok()) << got.at(r).first.message();
+      EXPECT_EQ(got.at(r).second, Buffered(*s.reader, runs[r]));
+    }
+    ASSERT_FALSE(got.at(2).first.ok());
+    EXPECT_NE(got.at(2).first.message().find("blocks.bin: block 2 at offset"), std::string::npos)
+        << got.at(2).first.message();
+    ASSERT_TRUE(got.at(3).first.ok());
+    const std::vector<uint8_t> clean = Buffered(*s.reader, runs[3]);
+    ASSERT_EQ(got.at(3).second.size(), clean.size());
+    size_t differ = 0;
+    for (size_t i = 0; i < clean.size(); ++i) differ += got.at(3).second[i] != clean[i];
+    EXPECT_EQ(differ, 1u);
   }
-  ASSERT_FALSE(got.at(2).first.ok());
-  EXPECT_NE(got.at(2).first.message().find("blocks.bin: block 2 at offset"), std::string::npos)
-      << got.at(2).first.message();
-  ASSERT_TRUE(got.at(3).first.ok());
-  const std::vector<uint8_t> clean = Buffered(*s.reader, runs[3]);
-  ASSERT_EQ(got.at(3).second.size(), clean.size());
-  size_t differ = 0;
-  for (size_t i = 0; i < clean.size(); ++i) differ += got.at(3).second[i] != clean[i];
-  EXPECT_EQ(differ, 1u);
 }
 
 TEST(AioRuns, AFileCutShortWhileOpenIsAnErrorNamingItAndTheOffset) {

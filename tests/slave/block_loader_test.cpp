@@ -1,7 +1,9 @@
 // The loader's threads do not preempt ray threads when they wake (SCHED_BATCH, see
 // common/base/thread_policy.h): every block is delivered from a thread with that policy, by
 // each way the loader reads (itself from the page cache, its I/O workers when reads wait,
-// its AIO threads for direct reads), and the threads that ask keep their own policy.
+// its AIO threads for direct reads), and the threads that ask keep their own policy. A block
+// asked for again while it decodes is answered once it is in, without the loader turning
+// the request over and over meanwhile.
 
 #include <gtest/gtest.h>
 #include <sched.h>
@@ -12,6 +14,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "render_fixture.h"
 #include "slave/block_cache.h"
@@ -74,6 +77,75 @@ TEST(BlockLoader, ItsThreadsDoNotPreemptTheThreadsThatAsk) {
     EXPECT_EQ(policies.count(SCHED_BATCH) ? policies.at(SCHED_BATCH) : 0, blocks);
   }
   EXPECT_EQ(sched_getscheduler(0), SCHED_OTHER);  // the asking thread's own stays
+}
+
+// Four "ray threads" ask for every block of `store` at once, two from each end, so some asks
+// come while another's load of the same block is decoding.
+struct Asked {
+  int asks = 0, answers = 0, unpinned = 0;
+  uint64_t loads = 0, batches = 0;
+};
+Asked AskEveryBlockFromFourThreads(const store::StoreReader& store) {
+  Asked r;
+  auto cache = slave::BlockCache::Create(store, uint64_t{256} << 20);
+  EXPECT_TRUE(cache.ok());
+  if (!cache.ok()) return r;
+  slave::BlockCache* c = cache->get();
+  slave::DiskBlockSource disk(store, {});
+  const auto count = static_cast<uint32_t>(store.blocks().size());
+  std::atomic<int> pending{0}, answers{0}, unpinned{0};
+  slave::BlockLoader loader(store, c, &disk, slave::LoaderOptions{},
+                            [&](uint32_t, uint32_t block, const Status& st) {
+                              EXPECT_TRUE(st.ok()) << st.message();
+                              // The pin is ours: taking and dropping one more must work.
+                              if (c->TryAcquire(block) == nullptr) {
+                                ++unpinned;
+                              } else {
+                                c->Release(block);
+                              }
+                              c->Release(block);
+                              ++answers;
+                              --pending;
+                            });
+  std::vector<std::thread> askers;
+  for (uint32_t t = 0; t < 4; ++t) {
+    askers.emplace_back([&, t] {
+      for (uint32_t k = 0; k < count; ++k) {
+        ++pending;
+        loader.Request(t % 2 ? k : count - 1 - k, t);
+      }
+    });
+  }
+  for (std::thread& a : askers) a.join();
+  while (pending.load() > 0) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  loader.Stop();
+  r.asks = static_cast<int>(4 * count);
+  r.answers = answers.load();
+  r.unpinned = unpinned.load();
+  r.loads = c->loads();
+  r.batches = loader.batches();
+  return r;
+}
+
+// Each ask is answered once, with a pin, and each block read once (the budget holds them all);
+// the loader takes at most one batch per ask. Turning asks for a decoding block back into its
+// queue, it took 401,006 batches for 10,752 reads on dragon x36, and up to 17,563 here for
+// 688 asks, in about one round in three: hence the rounds.
+TEST(BlockLoader, AnAskWhileTheBlockDecodesWaitsForItWithoutSpinning) {
+  TestStore s = BuildGenerated("spheres:60000");
+  const std::unique_ptr<store::StoreReader> direct = OpenDirect(s);
+  ASSERT_TRUE(direct);
+  for (int round = 0; round < 8; ++round) {
+    for (const store::StoreReader* store : {s.reader.get(), direct.get()}) {
+      SCOPED_TRACE(std::string(store->direct_reads() ? "direct reads" : "page cache") +
+                   ", round " + std::to_string(round));
+      const Asked r = AskEveryBlockFromFourThreads(*store);
+      EXPECT_EQ(r.answers, r.asks);
+      EXPECT_EQ(r.unpinned, 0);
+      EXPECT_EQ(r.loads, store->blocks().size());
+      EXPECT_LE(r.batches, static_cast<uint64_t>(r.asks));
+    }
+  }
 }
 
 }  // namespace
