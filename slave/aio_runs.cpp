@@ -105,7 +105,8 @@ void AioRuns::SubmitPrepared() {
   for (Slot* slot : batch) requests.push_back(&slot->request);
   size_t done = 0;
   while (done < requests.size()) {
-    const long n = IoSubmit(context_, static_cast<long>(requests.size() - done), requests.data() + done);
+    const long n =
+        IoSubmit(context_, static_cast<long>(requests.size() - done), requests.data() + done);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {  // the first of the rest cannot start (n = 0: the kernel took none)
       std::lock_guard lock(mu_);

@@ -28,7 +28,8 @@ namespace {
 // (an in-core cache, or a budget above the store: then nothing is evicted and no gap forms).
 uint64_t ArenaCapacity(const store::StoreReader& store, uint64_t budget) {
   uint64_t total = 0;
-  for (const store::BlockEntry& e : store.blocks()) total += (uint64_t{e.raw_bytes} + 63) & ~uint64_t{63};
+  for (const store::BlockEntry& e : store.blocks())
+    total += (uint64_t{e.raw_bytes} + 63) & ~uint64_t{63};
   return budget >= total ? total : std::min(total, budget + budget / 8);  // kUnlimited: no overflow
 }
 

@@ -3,10 +3,13 @@
 #include <sys/mman.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <iterator>
 
 #include "common/base/check.h"
 #include "common/base/huge_page_allocator.h"
+#include "common/base/log.h"
 
 namespace raystack {
 
@@ -15,18 +18,27 @@ HugePageArena::HugePageArena(uint64_t capacity) {
   // One step more than asked, so the pieces can start on a huge-page boundary.
   void* p = mmap(nullptr, capacity_ + kStep, PROT_READ | PROT_WRITE,
                  MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
-  CHECK(p != MAP_FAILED);
+  if (p == MAP_FAILED) {  // no address space for it (a strict overcommit policy, a ulimit -v)
+    LOG_WARNING("memory", "no %llu MB of address space for a huge-page arena (%s): its buffers "
+                "come from the heap", static_cast<unsigned long long>(capacity_ >> 20),
+                std::strerror(errno));
+    capacity_ = 0;
+    return;
+  }
   const auto start = reinterpret_cast<uintptr_t>(p);
   const uintptr_t aligned = (start + kStep - 1) & ~uintptr_t{kStep - 1};
   // Give the unaligned head and tail back; the middle is exactly the capacity.
   if (aligned > start) munmap(p, aligned - start);
   const uintptr_t tail = aligned + capacity_;
-  if (start + capacity_ + kStep > tail) munmap(reinterpret_cast<void*>(tail), start + capacity_ + kStep - tail);
+  const uintptr_t end = start + capacity_ + kStep;
+  if (end > tail) munmap(reinterpret_cast<void*>(tail), end - tail);
   base_ = reinterpret_cast<uint8_t*>(aligned);
   madvise(base_, capacity_, MADV_HUGEPAGE);  // a hint: where it fails, ordinary pages
 }
 
-HugePageArena::~HugePageArena() { munmap(base_, capacity_); }
+HugePageArena::~HugePageArena() {
+  if (base_ != nullptr) munmap(base_, capacity_);
+}
 
 uint8_t* HugePageArena::Allocate(uint64_t bytes) {
   CHECK(bytes > 0);

@@ -30,8 +30,8 @@ class HugePageArena {
   static constexpr uint64_t kAlignment = 64;
   static constexpr uint64_t kStep = uint64_t{2} << 20;  // populated at a time (a huge page)
 
-  // Reserves `capacity` bytes of address space (rounded up to kStep); CHECK-fails when even
-  // the reservation is refused.
+  // Reserves `capacity` bytes of address space (rounded up to kStep). Where the system refuses
+  // even that, logs it, and the arena has no room: every Allocate returns null.
   explicit HugePageArena(uint64_t capacity);
   ~HugePageArena();
   HugePageArena(const HugePageArena&) = delete;

@@ -78,7 +78,8 @@ bool AlignedBuffer::ReserveIn(HugePageArena* arena, uint64_t bytes) {
 void AlignedBuffer::Reserve(uint64_t bytes) {
   if (bytes <= capacity_) return;
   const uint64_t rounded = (bytes + 63) & ~uint64_t{63};
-  data_ = std::unique_ptr<uint8_t, Free>(static_cast<uint8_t*>(std::aligned_alloc(64, rounded)), Free{});
+  auto* p = static_cast<uint8_t*>(std::aligned_alloc(64, rounded));
+  data_ = std::unique_ptr<uint8_t, Free>(p, Free{});  // a heap buffer's deleter, not an arena's
   CHECK(data_ != nullptr);
   capacity_ = rounded;
 }

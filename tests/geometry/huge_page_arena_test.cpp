@@ -96,6 +96,15 @@ TEST(HugePageArena, MemoryIsAskedForOnlyAsPiecesReachIt) {
   arena.Free(p, 1000);
 }
 
+// Address space the system cannot give (more than x86-64's 47 bits): a warning, no crash, and
+// an arena without room, so its users take the heap.
+TEST(HugePageArena, AnArenaTheSystemRefusesHasNoRoom) {
+  HugePageArena arena(uint64_t{1} << 62);
+  EXPECT_EQ(arena.capacity(), 0u);
+  EXPECT_EQ(arena.Allocate(64), nullptr);
+  EXPECT_EQ(arena.populated_bytes(), 0u);
+}
+
 // Random sizes allocated and freed in random order, against a model of which bytes are taken:
 // no two live pieces overlap, each keeps the bytes written into it, and once everything is
 // freed one piece of the whole capacity fits again (every gap merged back).

@@ -67,7 +67,8 @@ TEST(BlockLoader, ItsThreadsDoNotPreemptTheThreadsThatAsk) {
     const store::StoreReader* store;
     uint32_t latency_us;
   };
-  for (const Case& c : {Case{"page cache", s.reader.get(), 0}, Case{"1 ms a read", s.reader.get(), 1000},
+  for (const Case& c : {Case{"page cache", s.reader.get(), 0},
+                        Case{"1 ms a read", s.reader.get(), 1000},
                         Case{"direct reads (AIO)", direct.get(), 0}}) {
     SCOPED_TRACE(c.name);
     slave::FaultOptions faults;
