@@ -3,8 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
 #include <fstream>
 #include <regex>
+#include <thread>
 
 #include "common/base/temp_dir.h"
 #include "common/store/store_reader.h"
@@ -45,6 +49,27 @@ class PrepCliTest : public ::testing::Test {
 
   std::unique_ptr<TempDir> dir_;
 };
+
+// The harness itself: a run past its deadline is killed with what it started (a shell and
+// the sleep it put in the background, as mpirun and its ranks), and says so.
+TEST_F(PrepCliTest, ARunPastItsDeadlineIsKilledWithItsChildren) {
+  const ProcessResult r = RunProcess({"/bin/sh", "-c", "sleep 600 & echo $!; wait"},
+                                     dir_->path(), {}, /*deadline_seconds=*/1);
+  EXPECT_TRUE(r.timed_out);
+  EXPECT_EQ(r.signal, SIGKILL);
+  EXPECT_NE(r.err.find("killed after 1 s"), std::string::npos) << r.err;
+  // The background sleep went with the group: gone, or a zombie about to be reaped.
+  const std::string stat_path = "/proc/" + std::to_string(std::atoi(r.out.c_str())) + "/stat";
+  ASSERT_GT(std::atoi(r.out.c_str()), 0) << r.out;
+  bool gone = false;
+  for (int i = 0; i < 1000 && !gone; ++i) {
+    const std::string stat = testing::Slurp(stat_path);
+    gone = stat.empty() || stat.find(") Z ") != std::string::npos ||
+           stat.find(") X ") != std::string::npos;
+    if (!gone) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_TRUE(gone) << testing::Slurp(stat_path);
+}
 
 TEST_F(PrepCliTest, HelpMentionsEveryOption) {
   const ProcessResult r = Prep({"--help"});
