@@ -7,7 +7,9 @@
 // a virtual machine that keeps the guest's page tables itself (a PVM guest, as on the
 // 2026-11-25 machines) each fault leaves the guest: ~11 us a page, 0.2 s of CPU to fill a
 // 72 MB cache. Here the pages are asked for 2 MB at a time, as huge pages, and mapped in one
-// call before anything touches them (madvise MADV_POPULATE_WRITE): 72 MB in 7-18 ms.
+// call before anything touches them (madvise MADV_POPULATE_WRITE): 72 MB in 7-18 ms where the
+// host already backs the memory; memory new to the guest still costs its zeroing (~400 MB/s
+// there), but no fault per page.
 //
 // Address space only becomes memory as the high-water mark of the pieces grows, a 2 MB step
 // at a time, so a large capacity costs nothing until it is used. Allocate returns null when no
