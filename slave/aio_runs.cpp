@@ -87,7 +87,7 @@ int AioRuns::Prepare(std::span<const uint32_t> ids) {
   Status s = Fill(slot, ids);
   std::lock_guard lock(mu_);
   if (s.ok()) {
-    prepared_.push_back(slot);
+    prepared_.push_back(&slot->request);
   } else {
     failed_.push_back({slot->index, std::move(s), {}});
   }
@@ -95,24 +95,23 @@ int AioRuns::Prepare(std::span<const uint32_t> ids) {
 }
 
 void AioRuns::SubmitPrepared() {
-  std::vector<Slot*> batch;
+  // Per thread, so the swap below trades buffers instead of allocating one per call.
+  thread_local std::vector<iocb*> requests;
+  requests.clear();
   {
     std::lock_guard lock(mu_);
-    batch.swap(prepared_);
+    requests.swap(prepared_);
   }
-  std::vector<iocb*> requests;
-  requests.reserve(batch.size());
-  for (Slot* slot : batch) requests.push_back(&slot->request);
   size_t done = 0;
   while (done < requests.size()) {
     const long n =
         IoSubmit(context_, static_cast<long>(requests.size() - done), requests.data() + done);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {  // the first of the rest cannot start (n = 0: the kernel took none)
+      const Slot& slot = *slots_[requests[done]->aio_data];
       std::lock_guard lock(mu_);
-      failed_.push_back({batch[done]->index,
-                         StartFailure(*batch[done], n < 0 ? std::strerror(errno) : "not submitted"),
-                         {}});
+      failed_.push_back(
+          {slot.index, StartFailure(slot, n < 0 ? std::strerror(errno) : "not submitted"), {}});
       ++done;
       continue;
     }

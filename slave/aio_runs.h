@@ -18,6 +18,8 @@
 #include "common/base/status.h"
 #include "common/store/store_reader.h"
 
+struct iocb;  // <linux/aio_abi.h>
+
 namespace raystack::slave {
 
 class DiskBlockSource;
@@ -67,7 +69,7 @@ class AioRuns {
   mutable std::mutex mu_;
   std::vector<int> free_;        // slots not in use
   std::vector<Finished> failed_;  // reads that failed to start, reported by the next Wait
-  std::vector<Slot*> prepared_;   // readied, not yet submitted
+  std::vector<iocb*> prepared_;   // readied, not yet submitted (aio_data: the slot)
 };
 
 }  // namespace raystack::slave
