@@ -6,12 +6,28 @@
 #include "common/base/log.h"
 
 namespace raystack::slave {
+namespace {
+
+// What a block costs the budget: its decoded bytes, 64-byte rounded (the memory it really uses).
+uint64_t ChargeOf(const store::BlockEntry& e) {
+  return (uint64_t{e.raw_bytes} + 63) & ~uint64_t{63};
+}
+
+// The arena's size: the budget and an eighth, or the whole store decoded when that is less
+// (an in-core cache, or a budget above the store: then nothing is evicted and no gap forms).
+uint64_t ArenaCapacity(const store::StoreReader& store, uint64_t budget) {
+  uint64_t total = 0;
+  for (const store::BlockEntry& e : store.blocks()) total += ChargeOf(e);
+  return budget >= total ? total : std::min(total, budget + budget / 8);  // kUnlimited: no overflow
+}
+
+}  // namespace
 
 Expected<std::unique_ptr<BlockCache>> BlockCache::Create(const store::StoreReader& store,
                                                          uint64_t budget_bytes) {
   uint64_t largest = 0;
   for (const store::BlockEntry& e : store.blocks())
-    largest = std::max<uint64_t>(largest, (uint64_t{e.raw_bytes} + 63) & ~uint64_t{63});
+    largest = std::max(largest, ChargeOf(e));
   if (budget_bytes < largest)
     return Status::Error(StrFormat(
         "cache budget of %llu bytes is smaller than the largest block of %s (%llu bytes); "
@@ -22,19 +38,6 @@ Expected<std::unique_ptr<BlockCache>> BlockCache::Create(const store::StoreReade
   return std::unique_ptr<BlockCache>(new BlockCache(store, budget_bytes));
 }
 
-namespace {
-
-// The arena's size: the budget and an eighth, or the whole store decoded when that is less
-// (an in-core cache, or a budget above the store: then nothing is evicted and no gap forms).
-uint64_t ArenaCapacity(const store::StoreReader& store, uint64_t budget) {
-  uint64_t total = 0;
-  for (const store::BlockEntry& e : store.blocks())
-    total += (uint64_t{e.raw_bytes} + 63) & ~uint64_t{63};
-  return budget >= total ? total : std::min(total, budget + budget / 8);  // kUnlimited: no overflow
-}
-
-}  // namespace
-
 BlockCache::BlockCache(const store::StoreReader& store, uint64_t budget)
     : store_(store),
       budget_(budget),
@@ -42,7 +45,7 @@ BlockCache::BlockCache(const store::StoreReader& store, uint64_t budget)
       entries_(store.blocks().size()) {}
 
 uint64_t BlockCache::Charge(uint32_t id) const {
-  return (uint64_t{store_.blocks()[id].raw_bytes} + 63) & ~uint64_t{63};
+  return ChargeOf(store_.blocks()[id]);
 }
 
 const store::BlockView* BlockCache::TryAcquire(uint32_t id) {
