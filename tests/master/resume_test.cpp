@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <optional>
 
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
@@ -88,22 +89,30 @@ TEST_F(Resume, TheResumedImageEqualsAnUninterruptedRun) {
   }
 }
 
-// The whole job really dies (SIGKILL right after its 2nd checkpoint; under mpirun the others
-// go with it), and --resume finishes from that checkpoint.
+// The whole job really dies (SIGKILL right after a checkpoint; under mpirun the others go
+// with it), and --resume finishes from that checkpoint.
 TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
   const std::string expected = Uninterrupted();
   ASSERT_FALSE(expected.empty());
   for (int np : {0, 3}) {
     const std::string out = dir_->File("killed" + std::to_string(np) + ".exr");
-    std::vector<std::string> killed = WholeTiles();
-    killed.insert(killed.end(), {"--fault-kill-after-checkpoints", "2"});
-    const ProcessResult died = Render(out, np, killed);
-    ASSERT_NE(died.exit_code, 0) << "np " << np << ": the job was not killed " << died.out;
-    Expected<image::ImageLayers> checkpoint = image::ReadExr(out);
-    ASSERT_TRUE(checkpoint.ok()) << checkpoint.status().message();
+    // Checkpoints come by the clock, tiles as fast as the machine renders them: on a loaded
+    // machine the 2nd checkpoint can come before the first tile is finished (seen once in a
+    // full ctest: "no finished pixel"). Such a checkpoint resumes too, but does not test
+    // keeping pixels, so the job is killed later until its checkpoint holds finished ones.
     uint64_t finished = 0;
-    for (uint32_t n : checkpoint->samples) finished += n == 48;
-    EXPECT_GT(finished, 0u) << "np " << np << ": the checkpoint holds no finished pixel";
+    std::optional<image::ImageLayers> checkpoint;
+    for (int kill_after = 2; kill_after <= 32 && finished == 0; kill_after *= 2) {
+      std::vector<std::string> killed = WholeTiles();
+      killed.insert(killed.end(), {"--fault-kill-after-checkpoints", std::to_string(kill_after)});
+      const ProcessResult died = Render(out, np, killed);
+      ASSERT_NE(died.exit_code, 0) << "np " << np << ": the job was not killed " << died.out;
+      Expected<image::ImageLayers> read = image::ReadExr(out);
+      ASSERT_TRUE(read.ok()) << read.status().message();
+      checkpoint = *read;
+      for (uint32_t n : checkpoint->samples) finished += n == 48;
+    }
+    EXPECT_GT(finished, 0u) << "np " << np << ": no checkpoint held a finished pixel";
     EXPECT_LT(finished, checkpoint->samples.size()) << "np " << np << ": the checkpoint is whole";
     const ProcessResult resumed = Render(out, np, {"--spp", "48", "--pass-spp", "48", "--resume"});
     ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
