@@ -106,6 +106,7 @@ void AioRuns::SubmitPrepared() {
   while (done < requests.size()) {
     const long n =
         IoSubmit(context_, static_cast<long>(requests.size() - done), requests.data() + done);
+    submit_calls_.fetch_add(1, std::memory_order_relaxed);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {  // the first of the rest cannot start (n = 0: the kernel took none)
       const Slot& slot = *slots_[requests[done]->aio_data];

@@ -9,6 +9,7 @@
 // Raw system calls: glibc has no wrappers, and libaio would be a package for four calls
 // (liburing's io_uring, the newer interface, likewise; this kernel API is enough for reads).
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <mutex>
@@ -53,6 +54,7 @@ class AioRuns {
   void Wait(int timeout_ms, int max, std::vector<Finished>* finished);
   void Release(int slot);  // Thread-safe.
   int in_flight() const;   // slots taken. Thread-safe.
+  uint64_t submit_calls() const { return submit_calls_.load(); }  // io_submit calls made
 
  private:
   struct Slot;
@@ -70,6 +72,7 @@ class AioRuns {
   std::vector<int> free_;        // slots not in use
   std::vector<Finished> failed_;  // reads that failed to start, reported by the next Wait
   std::vector<iocb*> prepared_;   // readied, not yet submitted (aio_data: the slot)
+  std::atomic<uint64_t> submit_calls_{0};
 };
 
 }  // namespace raystack::slave

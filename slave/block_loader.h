@@ -68,6 +68,7 @@ class BlockLoader {
   // Whether direct reads are kept in flight with Linux AIO (slave/aio_runs.h) rather than by
   // a blocking thread each.
   bool aio() const { return aio_ != nullptr; }
+  uint64_t aio_submits() const { return aio_ ? aio_->submit_calls() : 0; }  // io_submit calls
   uint64_t runs() const { return runs_.load(); }
   // Runs the loader thread read itself (see the top of this file). Call after Stop().
   uint64_t inline_runs() const { return inline_runs_; }

@@ -182,6 +182,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
     s.io_workers = loader->workers();
     s.loader_reads = loader->inline_runs();
     s.aio_reads = loader->aio();
+    s.aio_submits = loader->aio_submits();
   }
 
   uint64_t visits = 0, waited = 0;

@@ -29,6 +29,7 @@ std::string RenderStats::ToJson() const {
     << ",\n  \"loader_reads\": " << loader_reads
     << ",\n  \"direct_reads\": " << (direct_reads ? "true" : "false")
     << ",\n  \"aio_reads\": " << (aio_reads ? "true" : "false")
+    << ",\n  \"aio_submits\": " << aio_submits
     << ",\n  \"block_visits\": " << block_visits << ",\n  \"cache_hit_rate\": " << cache_hit_rate
     << ",\n  \"loader_busy_seconds\": " << loader_busy_seconds
     << ",\n  \"ray_idle_seconds\": " << ray_idle_seconds

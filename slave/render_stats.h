@@ -43,6 +43,7 @@ struct RenderStats {
   uint64_t loader_reads = 0;     // of `reads`, made by the loader thread itself (reads had not waited)
   bool direct_reads = false;     // blocks.bin read past the page cache (--direct-io)
   bool aio_reads = false;        // the loader kept those reads in flight with Linux AIO
+  uint64_t aio_submits = 0;      // its io_submit calls: each one notification of the disk
   uint64_t block_visits = 0;
   double cache_hit_rate = 0;     // visits whose block was resident when the ray got there
   double loader_busy_seconds = 0;  // T_io: time with at least one read in flight
