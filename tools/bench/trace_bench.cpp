@@ -25,9 +25,12 @@ double Seconds(std::chrono::steady_clock::time_point since) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    std::fprintf(stderr, "usage: trace_bench STORE [--width W] [--height H] [--random N]\n");
-    return 2;
+  if (argc < 2 || !std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
+    std::fprintf(argc < 2 ? stderr : stdout,
+                 "usage: trace_bench STORE [--width W] [--height H] [--random N]\n"
+                 "In-core closest-hit rays/s through a block store, one thread: primary rays of\n"
+                 "a W x H pinhole camera (default 1024 x 768) and N random rays (default 1000000).\n");
+    return argc < 2 ? 2 : 0;
   }
   int width = 1024, height = 768, random = 1000000;
   for (int i = 2; i + 1 < argc; i += 2) {
