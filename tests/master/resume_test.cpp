@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
-#include <optional>
 
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
@@ -101,7 +100,7 @@ TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
     // full ctest: "no finished pixel"). Such a checkpoint resumes too, but does not test
     // keeping pixels, so the job is killed later until its checkpoint holds finished ones.
     uint64_t finished = 0;
-    std::optional<image::ImageLayers> checkpoint;
+    image::ImageLayers checkpoint;
     for (int kill_after = 2; kill_after <= 32 && finished == 0; kill_after *= 2) {
       std::vector<std::string> killed = WholeTiles();
       killed.insert(killed.end(), {"--fault-kill-after-checkpoints", std::to_string(kill_after)});
@@ -110,10 +109,10 @@ TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
       Expected<image::ImageLayers> read = image::ReadExr(out);
       ASSERT_TRUE(read.ok()) << read.status().message();
       checkpoint = *read;
-      for (uint32_t n : checkpoint->samples) finished += n == 48;
+      for (uint32_t n : checkpoint.samples) finished += n == 48;
     }
     EXPECT_GT(finished, 0u) << "np " << np << ": no checkpoint held a finished pixel";
-    EXPECT_LT(finished, checkpoint->samples.size()) << "np " << np << ": the checkpoint is whole";
+    EXPECT_LT(finished, checkpoint.samples.size()) << "np " << np << ": the checkpoint is whole";
     const ProcessResult resumed = Render(out, np, {"--spp", "48", "--pass-spp", "48", "--resume"});
     ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
     EXPECT_NE(resumed.out.find(std::to_string(finished) + " of 6144 pixels finished"),
