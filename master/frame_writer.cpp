@@ -12,9 +12,6 @@
 namespace raystack::master {
 
 FrameWriter::FrameWriter(bool announce) : announce_(announce) {
-  // From here, not from the writer's thread, which drops to nice 19 for background images:
-  // the last frame's all-core compression runs at the job's priority.
-  image::StartExrThreads();
   thread_ = std::thread([this] {
     SetThreadName("rs-write");
     Loop();
@@ -60,15 +57,28 @@ void FrameWriter::Loop() {
     writing_ = true;
     cv_.notify_all();  // a Write waiting for room may queue the next one
     lock.unlock();
-    // Linux applies a thread id's priority to that thread alone. Unprivileged, the priority
-    // cannot be raised back, hence "for good"; a refusal only leaves it where it was.
-    if (image.background) (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 19);
-    Status s = image::WriteExr(image.exr, image.layers,
-                               image.background ? image::ExrThreads::kCallingThread
-                                                : image::ExrThreads::kAllCores);
-    if (s.ok() && !image.png.empty()) s = image::WritePng(image.png, image.layers, image.exposure);
-    if (image.done) image.done(s);
-    else if (s.ok() && announce_) std::printf("  wrote %s\n", image.exr.c_str());
+    Status s;
+    auto write = [&](image::ExrThreads threads) {
+      s = image::WriteExr(image.exr, image.layers, threads);
+      if (s.ok() && !image.png.empty())
+        s = image::WritePng(image.png, image.layers, image.exposure);
+      if (image.done) image.done(s);
+    };
+    if (image.background) {
+      // On a thread of its own at nice 19: Linux applies a nice value to one thread, and an
+      // unprivileged one cannot raise it back, so this thread stays at the job's priority for
+      // the last frame (whose compression threads start from it). A refused nice only leaves
+      // the priority where it was.
+      std::thread low([&] {
+        SetThreadName("rs-write-low");
+        (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 19);
+        write(image::ExrThreads::kCallingThread);
+      });
+      low.join();
+    } else {
+      write(image::ExrThreads::kAllCores);
+    }
+    if (!image.done && s.ok() && announce_) std::printf("  wrote %s\n", image.exr.c_str());
     lock.lock();
     writing_ = false;
     if (error_.ok() && !image.done) error_ = s;

@@ -5,12 +5,12 @@
 // tile of the next frame: half a frame at 8 slaves. At most one image waits while another is
 // written (Write waits for room), so a slow disk slows the job rather than fill memory.
 //
-// An image written while later frames render (`background`) is compressed on the writer's
-// thread alone, and that thread then runs at the lowest priority (nice 19) for good: it takes
-// the cores the render leaves idle instead of taking them from the render. On a 2-core machine
-// with 8 slaves at 20% of a core, the compression of a 1920x1080 frame (0.58 CPU-s on both
-// cores) otherwise slowed the next frame by ~6% (tools/bench/RESULTS.md). The last frame, which
-// the user waits for, is compressed on every core; by then nothing else runs.
+// An image written while later frames render (`background`) is compressed on one thread at the
+// lowest priority (nice 19), started for it: it takes the cores the render leaves idle instead
+// of taking them from the render. On a 2-core machine with 8 slaves at 20% of a core, the
+// compression of a 1920x1080 frame (0.58 CPU-s on both cores) otherwise slowed the next frame by
+// ~6% (tools/bench/RESULTS.md). The last frame, which the user waits for, is compressed on every
+// core at the job's priority; by then nothing else runs.
 //
 // Checkpoints (master/checkpoints.h) go through the same queue, so a frame's checkpoints are
 // always written before its final image, which replaces them at the same path. Only one thread
@@ -36,7 +36,7 @@ class FrameWriter {
     float exposure = 0;
     bool background = false;  // later frames render while it is written
     image::ImageLayers layers;
-    // Set for a checkpoint: called on the writer's thread with the write's result, which then
+    // Set for a checkpoint: called with the write's result by the thread that wrote it, which then
     // is not the writer's error (a failed checkpoint is retried, never the end of the job),
     // and nothing is announced.
     std::function<void(const Status&)> done;

@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <exception>
 #include <filesystem>
+#include <mutex>
 #include <new>
 #include <thread>
 #include <vector>
@@ -99,19 +100,25 @@ void ReadLayer(const Imath::Box2i& window, size_t pixels, const ChannelSpec (&sp
   }
 }
 
-// OpenEXR's pool, sized once for the whole process (its threads sleep between writes).
-int WriterThreads() {
-  static const int threads = [] {
-    const int n = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-    Imf::setGlobalThreadCount(n);
-    return n;
-  }();
-  return threads;
+// OpenEXR compresses (and decompresses) a file's chunks as tasks of its one process-wide pool,
+// whichever thread writes and whatever thread count OutputFile is given: that count only sets how
+// many chunks are in flight, and with a pool of threads they all run there. So a write on the
+// calling thread alone first empties the pool (tasks then run where they are added), and an
+// all-core write fills it again from the calling thread, whose priority the new threads inherit
+// (Linux threads inherit their creator's nice value). Reads and writes take turns on this mutex,
+// so no file's tasks see the pool resized under them.
+std::mutex pool_mu;
+
+// Sizes OpenEXR's pool (under pool_mu); returns the size. Its threads sleep between files.
+int SizePool(ExrThreads threads) {
+  const int n = threads == ExrThreads::kAllCores
+                    ? static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))
+                    : 0;
+  if (Imf::globalThreadCount() != n) Imf::setGlobalThreadCount(n);
+  return n;
 }
 
 }  // namespace
-
-void StartExrThreads() { (void)WriterThreads(); }
 
 Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads threads) {
   if (image.width < 1 || image.height < 1)
@@ -145,8 +152,8 @@ Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads th
     // Chunks compressed on every core (the file is byte for byte the same): the last frame is
     // written after the render, while the user waits. The dragon 1024x768 job without PNG,
     // medians of 5 interleaved runs on 2 cores: 1.18 -> 0.97 s.
-    const int pool = threads == ExrThreads::kAllCores ? WriterThreads() : 0;
-    Imf::OutputFile file(output->temp_path().c_str(), header, pool);
+    const std::lock_guard lock(pool_mu);
+    Imf::OutputFile file(output->temp_path().c_str(), header, SizePool(threads));
     file.setFrameBuffer(frame);
     file.writePixels(image.height);
   } catch (const std::exception& e) {
@@ -161,6 +168,7 @@ Expected<ImageLayers> ReadExr(const std::string& path) {
     return Status::Error(path + ": cannot read: no such file");
   if (std::filesystem::is_directory(path, ec))
     return Status::Error(path + ": cannot read: it is a folder");
+  const std::lock_guard lock(pool_mu);  // the pool as the last write left it
   try {
     Imf::InputFile file(path.c_str());
     const Imf::Header& header = file.header();

@@ -2,7 +2,8 @@
 // The render's output file: all layers of an ImageLayers in one OpenEXR file, readable by any
 // EXR viewer or compositor (channels named as they expect: R G B A Z, N.X..., albedo.R...).
 // This library is the only place OpenEXR is linked; its exceptions never leave it. Both
-// functions may run on several threads at once (each call has its own file and temporary).
+// functions may be called from several threads at once; they take turns (OpenEXR has one
+// process-wide pool of threads, sized for each file: see WriteExr).
 
 #include <string>
 
@@ -17,17 +18,13 @@ namespace raystack::image {
 // file in the same folder then rename, so a reader never sees half a file. Errors name the path.
 // rgba is required; any other layer may be empty, and its channels are then left out. A layer
 // that is neither empty nor exactly the image's size is an error.
-// Chunks are compressed on every core (kAllCores, for a file the user waits for) or on the
-// calling thread alone (kCallingThread, for one written while rendering goes on); the file is
-// byte for byte the same.
+// Chunks are compressed on every core (kAllCores, for a file the user waits for; OpenEXR's
+// threads are started from the calling thread and take its priority) or on the calling thread
+// alone (kCallingThread, for one written while rendering goes on: at that thread's priority);
+// the file is byte for byte the same.
 enum class ExrThreads { kAllCores, kCallingThread };
 Status WriteExr(const std::string& path, const ImageLayers& image,
                 ExrThreads threads = ExrThreads::kAllCores);
-// Starts the threads of kAllCores writes now, from the calling thread, whose name and priority
-// they inherit (Linux threads inherit both); otherwise the first such write starts them. A
-// writer thread that lowers its own priority calls this first, so its later all-core writes
-// are not made at that priority.
-void StartExrThreads();
 
 // Reads a file written by WriteExr (or any EXR with at least R G B; missing layers left empty;
 // a missing A reads as 1). Errors name the path (missing file, not an EXR, truncated). A header

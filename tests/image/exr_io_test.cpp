@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "common/base/temp_dir.h"
+#include "common/base/thread_cpu.h"
 
 namespace raystack::image {
 namespace {
@@ -109,6 +110,27 @@ TEST(ExrIo, EveryCoreAndTheCallingThreadWriteTheSameBytes) {
   Expected<ImageLayers> read = ReadExr(dir.File("one.exr"));
   ASSERT_TRUE(read.ok());
   ExpectBitEqual(image, *read);
+}
+
+// OpenEXR runs every file's chunks on its process-wide pool once the pool has threads, whatever
+// thread writes: a file written "on the calling thread" must really be compressed there (at that
+// thread's priority, nice 19 for a frame written while the next renders), not on the pool's
+// threads at the job's. An all-core write first starts the pool, as the master's last frame does.
+TEST(ExrIo, AFileWrittenOnTheCallingThreadIsCompressedThere) {
+  TempDir dir = TempDir::Create().value();
+  const ImageLayers image = TestImage(512, 512, 3);
+  ASSERT_TRUE(WriteExr(dir.File("all.exr"), image, ExrThreads::kAllCores).ok());
+  const double thread_began = ThreadCpuSeconds(), process_began = ProcessCpuSeconds();
+  for (int i = 0; i < 3; ++i)
+    ASSERT_TRUE(WriteExr(dir.File("one.exr"), image, ExrThreads::kCallingThread).ok());
+  const double on_thread = ThreadCpuSeconds() - thread_began;
+  const double in_process = ProcessCpuSeconds() - process_began;
+  EXPECT_GT(on_thread, 0.0);
+  EXPECT_GE(on_thread, 0.9 * in_process)
+      << "the calling thread spent " << on_thread << " CPU-s of the process's " << in_process;
+  // And an all-core write after it still works (the pool comes back).
+  ASSERT_TRUE(WriteExr(dir.File("again.exr"), image, ExrThreads::kAllCores).ok());
+  EXPECT_TRUE(FileBytes(dir.File("again.exr")) == FileBytes(dir.File("one.exr")));
 }
 
 TEST(ExrIo, OnlyRgbaWritesAndReadsBackTheOthersEmpty) {
