@@ -16,6 +16,7 @@
 #include <sys/mman.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <cstdlib>
 #include <limits>
 #include <new>
@@ -28,6 +29,16 @@ inline constexpr int kMadvPopulateWrite = MADV_POPULATE_WRITE;
 #else
 inline constexpr int kMadvPopulateWrite = 23;  // Linux 5.14; older headers lack the name
 #endif
+
+// Maps the whole pages of [p, p + bytes) in one call (MADV_POPULATE_WRITE), for memory about to
+// be written whole: the same as kPopulate below for memory some other allocator handed out (a
+// std::vector's). Where the kernel lacks it, the pages come one fault at a time as without it.
+inline void PopulateForWrite(void* p, size_t bytes) {
+  const size_t page = 4096;
+  const auto begin = (reinterpret_cast<uintptr_t>(p) + page - 1) / page * page;
+  const auto end = (reinterpret_cast<uintptr_t>(p) + bytes) / page * page;
+  if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, kMadvPopulateWrite);
+}
 
 template <typename T, bool kPopulate = false>
 struct HugePageAllocator {

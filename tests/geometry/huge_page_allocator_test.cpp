@@ -5,6 +5,7 @@
 #include "tests/support/resident_pages.h"
 
 #include <gtest/gtest.h>
+#include <sys/mman.h>
 
 #include <cstdint>
 #include <filesystem>
@@ -85,6 +86,26 @@ TEST(HugePageAllocator, PopulatedArraysAreInMemoryBeforeTheFirstWrite) {
   Line* p = populated.allocate(n);
   EXPECT_EQ(testing::ResidentShare(p, n * sizeof(Line)), 1.0);
   populated.deallocate(p, n);
+}
+
+// PopulateForWrite (another allocator's memory, such as a resolved image's layers): the whole
+// pages inside the range are in memory after it, before any write; the pages it only partly
+// covers are left alone.
+TEST(HugePageAllocator, PopulateForWriteMapsTheWholePagesOfARange) {
+  if (!testing::KernelPopulatesOnRequest())
+    GTEST_SKIP() << "this kernel cannot map pages in on request (MADV_POPULATE_WRITE, Linux 5.14)";
+  const size_t page = 4096, pages = 64;
+  void* mapped = mmap(nullptr, pages * page, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS,
+                      -1, 0);
+  ASSERT_NE(mapped, MAP_FAILED);
+  char* base = static_cast<char*>(mapped);
+  EXPECT_EQ(testing::ResidentShare(base, pages * page), 0.0);
+  // From the middle of page 1 to the middle of page 61: pages 2-60 are whole inside it.
+  PopulateForWrite(base + page + page / 2, 60 * page);
+  EXPECT_EQ(testing::ResidentShare(base + 2 * page, 59 * page), 1.0);
+  EXPECT_EQ(testing::ResidentShare(base, 2 * page), 0.0);
+  EXPECT_EQ(testing::ResidentShare(base + 61 * page, 3 * page), 0.0);
+  munmap(mapped, pages * page);
 }
 
 }  // namespace
