@@ -244,7 +244,7 @@ Status PeerBlocks::OnRequest(int from, const wire::Message& m) {
   return OkStatus();
 }
 
-Status PeerBlocks::OnData(int from, const wire::Message& m) {
+Status PeerBlocks::OnData(int from, const wire::Message& m, std::vector<uint8_t>* received) {
   const wire::BlockDataHeader d = m.block_data_header();
   std::lock_guard lock(mu_);
   auto it = sent_.find(d.request);
@@ -267,8 +267,11 @@ Status PeerBlocks::OnData(int from, const wire::Message& m) {
                                           head.first + head.count - 1, b->runs.size() - 1, from,
                                           bytes.size(),
                                           static_cast<unsigned long long>(b->expected_bytes)));
-    else
-      b->bytes.assign(bytes.begin(), bytes.end());
+    else {
+      // Moving a vector keeps its buffer, so `bytes` still points into it.
+      b->message = std::move(*received);
+      b->bytes = bytes;
+    }
   }
   b->done = true;
   b->cv.notify_all();

@@ -29,6 +29,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <thread>
 #include <unordered_map>
 #include <vector>
@@ -82,9 +83,10 @@ class PeerBlocks final : public BlockSource {
 
   // From the receiving thread (only): a peer's request (a kBlockRequest message: answered at
   // once when its blocks are in memory, else on the server thread), an answer. A malformed one
-  // is an error naming the sender.
+  // is an error naming the sender. An answer's fetches take their runs from the message's own
+  // buffer, `*received` (the bytes `data` was decoded from), which it takes over: not copied.
   Status OnRequest(int from, const wire::Message& request);
-  Status OnData(int from, const wire::Message& data);
+  Status OnData(int from, const wire::Message& data, std::vector<uint8_t>* received);
   // Fails every wait for an answer (the job is ending).
   void Stop();
   // `rank` is gone (the master said so): its blocks are read from disk from now on, and the
@@ -103,7 +105,8 @@ class PeerBlocks final : public BlockSource {
     std::vector<wire::BlockRun> runs;
     uint64_t expected_bytes = 0;  // the index's stored bytes of the runs
     int members = 0;              // fetches that have not taken their bytes yet
-    std::vector<uint8_t> bytes;   // the answer
+    std::vector<uint8_t> message;    // the answer as received
+    std::span<const uint8_t> bytes;  // its runs' stored bytes, back to back (in `message`)
     std::condition_variable cv;   // its fetches wait here
   };
   struct OwnerQueue {

@@ -264,7 +264,7 @@ void SlaveNode::ReceiveLoop() {
       const Status s = peers_->OnRequest(from, m.value());
       if (!s.ok()) Failed(s);
     } else if (from > 0 && peers_ && type == wire::MessageType::kBlockData) {
-      const Status s = peers_->OnData(from, m.value());
+      const Status s = peers_->OnData(from, m.value(), &(*got)->bytes);
       if (!s.ok()) Failed(s);
     } else {
       Failed(Status::Error(StrFormat("rank %d sent this slave a %s it has no use for", from,

@@ -43,7 +43,8 @@ struct TwoSlaves {
     const Expected<wire::Message> m = wire::Decode((*got)->bytes, (*got)->from);
     if (!m.ok()) return m.status();
     if (m->type() == wire::MessageType::kBlockRequest) return peers.OnRequest((*got)->from, m.value());
-    if (m->type() == wire::MessageType::kBlockData) return peers.OnData((*got)->from, m.value());
+    if (m->type() == wire::MessageType::kBlockData)
+      return peers.OnData((*got)->from, m.value(), &(*got)->bytes);
     return Status::Error("unexpected message");
   }
 
@@ -180,7 +181,7 @@ TEST(PeerBlocks, TheCacheBudgetHoldsWithBatchedAnswers) {
         ASSERT_TRUE(m.ok()) << m.status().message();
         const Status st = m->type() == wire::MessageType::kBlockRequest
                               ? peers.OnRequest((*got)->from, m.value())
-                              : peers.OnData((*got)->from, m.value());
+                              : peers.OnData((*got)->from, m.value(), &(*got)->bytes);
         ASSERT_TRUE(st.ok()) << st.message();
       }
     });
@@ -283,7 +284,7 @@ TEST(PeerBlocks, AMalformedRequestOrAnswerNamesItsSender) {
   bytes = wire::EncodeBlockData(2, wire::BlockDataHeader{77, 1, 0, 0}, std::vector<uint8_t>(8));
   m = wire::Decode(bytes, 2);
   ASSERT_TRUE(m.ok());
-  st = job.peers1.OnData(2, *m);
+  st = job.peers1.OnData(2, *m, &bytes);
   ASSERT_FALSE(st.ok());
   EXPECT_NE(st.message().find("rank 2"), std::string::npos) << st.message();
 
