@@ -588,7 +588,8 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
                    "\"bytes_from_master\": %llu, \"ray_threads\": %u, \"busy_seconds\": %g, "
                    "\"fetches\": %llu, \"fetch_wait_seconds\": %g, \"fetch_runs\": %llu, "
                    "\"ray_cpu_seconds\": %g, \"loader_cpu_seconds\": %g, "
-                   "\"process_cpu_seconds\": %g, \"direct_reads\": %s}",
+                   "\"process_cpu_seconds\": %g, \"tile_wait_seconds\": %g, "
+                   "\"block_wait_seconds\": %g, \"engine_seconds\": %g, \"direct_reads\": %s}",
                    i ? "," : "", x.rank, x.done.seconds,
                    static_cast<unsigned long long>(x.done.rays),
                    static_cast<unsigned long long>(x.done.samples),
@@ -604,6 +605,7 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
                    x.done.busy_seconds, static_cast<unsigned long long>(x.done.fetches),
                    x.done.fetch_wait_seconds, static_cast<unsigned long long>(x.done.fetch_runs),
                    x.done.ray_cpu_seconds, x.done.loader_cpu_seconds, x.done.process_cpu_seconds,
+                   x.done.tile_wait_seconds, x.done.block_wait_seconds, x.done.engine_seconds,
                    x.done.flags & wire::kFrameDoneDirectReads ? "true" : "false");
   }
   return s + "\n  ]\n}";

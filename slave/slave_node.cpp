@@ -295,6 +295,7 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   const double fetch_wait = peers_ ? peers_->fetch_wait_seconds() : 0;
   const uint64_t fetch_runs = peers_ ? peers_->runs_fetched() : 0;
   const double cpu_before = ProcessCpuSeconds();
+  const auto began = std::chrono::steady_clock::now();
   Status status = engine_->RenderFrame(scene, materials, camera, tiles, sink, stats);
   const double process_cpu = ProcessCpuSeconds() - cpu_before;
   const auto rendered = std::chrono::steady_clock::now();
@@ -331,6 +332,9 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
                   ? 0.0
                   : std::chrono::duration<double>(rendered - tiles.first_tile()).count();
   d.busy_seconds = stats->ray_busy_seconds;
+  d.tile_wait_seconds = stats->ray_tile_wait_seconds;
+  d.block_wait_seconds = stats->ray_idle_seconds;
+  d.engine_seconds = std::chrono::duration<double>(rendered - began).count();
   d.ray_cpu_seconds = stats->ray_cpu_seconds;
   d.loader_cpu_seconds = stats->loader_cpu_seconds;
   d.process_cpu_seconds = process_cpu;

@@ -29,7 +29,8 @@ inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
 // the owner's blocks (the fetches that queued for the same owner), its answer their bytes;
 // frame figures count the runs fetched. 6: frame figures carry the slave's CPU time.
 // 8: pixel batches carry the primary-hit layers of sample 0 only, the hit flag in the sample.
-inline constexpr uint16_t kProtocolVersion = 8;
+// 9: frame figures carry where the ray threads waited (for tiles, for blocks).
+inline constexpr uint16_t kProtocolVersion = 9;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
 // How often a slave says it is alive (the master drops one it has not heard from for
@@ -102,6 +103,13 @@ struct FrameDone {
   double process_cpu_seconds;  // CPU time of the whole slave process during the frame
   uint32_t flags;              // kFrameDoneDirectReads
   uint32_t reserved;
+  // Summed over ray threads (RenderStats): holding no ray, waiting for a tile (its first
+  // included); every ray waiting for the loader.
+  double tile_wait_seconds;
+  double block_wait_seconds;
+  // From the slave starting the frame to its end: minus `seconds`, the wait for its first tile
+  // (the master finishing the frame before).
+  double engine_seconds;
 };
 inline constexpr uint32_t kFrameDoneDirectReads = 1;  // blocks read past the page cache
 struct Shutdown {
@@ -158,7 +166,7 @@ struct PrimaryRecord {
   float albedo[3];
 };
 static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
-              sizeof(FrameDone) == 144 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 24 &&
+              sizeof(FrameDone) == 168 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 24 &&
               sizeof(SampleRecord) == 20 && sizeof(PrimaryRecord) == 28 &&
               sizeof(BlockRequest) == 16 && sizeof(BlockRun) == 8 && sizeof(BlockDataHeader) == 16 &&
               sizeof(Heartbeat) == 8 && sizeof(RankLost) == 8);

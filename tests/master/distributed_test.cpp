@@ -228,6 +228,14 @@ TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
           // CPU time: the process's clock over the frame holds its ray threads' own.
           EXPECT_GT(x.done.ray_cpu_seconds, 0.0) << "rank " << x.rank;
           EXPECT_GE(x.done.process_cpu_seconds + 1e-3, x.done.ray_cpu_seconds) << "rank " << x.rank;
+          // Where the ray threads' time went: busy, waiting for tiles, waiting for blocks, each
+          // part of the threads' run within the engine's frame, which began before the first tile.
+          EXPECT_GE(x.done.tile_wait_seconds, 0.0) << "rank " << x.rank;
+          EXPECT_GE(x.done.block_wait_seconds, 0.0) << "rank " << x.rank;
+          EXPECT_GE(x.done.engine_seconds + 1e-3, x.done.seconds) << "rank " << x.rank;
+          EXPECT_LE(x.done.busy_seconds + x.done.tile_wait_seconds + x.done.block_wait_seconds,
+                    x.done.ray_threads * x.done.engine_seconds + 1e-3)
+              << "rank " << x.rank;
         }
         EXPECT_EQ(x.done.ray_threads, 2u);
         busy += x.done.busy_seconds;
@@ -397,10 +405,10 @@ Status MasterFacing(const std::vector<uint8_t>& bytes) {
 
 TEST(Distributed, HostileMessagesEndTheFrameNamingTheSender) {
   std::vector<uint8_t> other_version = wire::Encode(1, wire::TileRequest{0, 0});
-  other_version[4] = 9;
+  other_version[4] = 99;  // never this build's
   for (const auto& [bytes, expected] :
        std::vector<std::pair<std::vector<uint8_t>, std::string>>{
-           {other_version, "rank 1: protocol version 9"},
+           {other_version, "rank 1: protocol version 99"},
            {std::vector<uint8_t>(40, 0xab), "rank 1: not a raystack message"},
            {wire::Encode(2, wire::TileRequest{0, 0}), "claims to come from rank 2"},
            {wire::EncodeError(1, "block 9: checksum mismatch (the block is damaged)"),

@@ -65,12 +65,18 @@ TEST(Message, EveryTypeRoundTrips) {
     done.seconds = 1.5;
     done.process_cpu_seconds = 0.25;
     done.flags = kFrameDoneDirectReads;
+    done.tile_wait_seconds = 0.125;
+    done.block_wait_seconds = 0.0625;
+    done.engine_seconds = 1.75;
     const Expected<Message> m = Decode(Encode(5, done), 5);
     ASSERT_TRUE(m.ok());
     EXPECT_EQ(m->frame_done().samples, 123456789012ull);
     EXPECT_EQ(m->frame_done().seconds, 1.5);
     EXPECT_EQ(m->frame_done().process_cpu_seconds, 0.25);
     EXPECT_EQ(m->frame_done().flags, kFrameDoneDirectReads);
+    EXPECT_EQ(m->frame_done().tile_wait_seconds, 0.125);
+    EXPECT_EQ(m->frame_done().block_wait_seconds, 0.0625);
+    EXPECT_EQ(m->frame_done().engine_seconds, 1.75);
   }
   {
     const Expected<Message> m = Decode(EncodeError(2, "block 7: damaged\x1b[2J"), 2);
@@ -241,7 +247,8 @@ TEST(Message, NoTruncationOrFlippedByteCrashesOrMisreads) {
   std::vector<render::SampleResult> samples(3, Sample(5));
   const std::vector<std::vector<uint8_t>> messages = {
       Encode(2, TileAssign{1, 0, 0, 0, 32, 32, 0, 0, 1, 0, 256}), EncodePixelBatch(2, 1, samples),
-      Encode(2, FrameDone{1, 2, 9, 0, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0, 0, 0, 0, 0, kFrameDoneDirectReads, 0})};
+      Encode(2, FrameDone{1, 2, 9, 0, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+                          kFrameDoneDirectReads, 0, 0.25, 0.125, 0.75})};
   for (const auto& good : messages) {
     for (size_t n = 0; n < good.size(); ++n)  // every truncation
       EXPECT_FALSE(Decode(std::span(good).first(n), 2).ok()) << n;

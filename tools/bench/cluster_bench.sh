@@ -5,7 +5,8 @@
 # block cache smaller than the model; two frames of the same view (first, then warm); block
 # modes loc and rem (loc also with LATENCY_US injected per read). Prints a Markdown table, with
 # the master's utilisation (slaves' busy ray-thread time over N x frame time) and, for rem, the
-# requests to owners, the loader's runs they carried, and a request's mean round trip, and the
+# requests to owners, the loader's runs they carried, and a request's mean round trip, where the
+# slaves' ray threads waited (for tiles, for blocks, for their first tile), and the
 # slaves' CPU time (whole processes, and their ray and loader threads) against N = 1's. SLAVES
 # (default "1 2 4 8") picks the cluster sizes; rem skips 1. REPEATS (default 3) runs the whole
 # set that many times, interleaved, so a noisy moment hits every configuration alike: frame
@@ -81,8 +82,8 @@ repeats = max(len(v) for v in by_config.values())
 print(f"each slave: {quota}% of a core, 1 ray thread, {cache} MB block cache; seconds on the master's clock, "
       f"medians of {repeats} interleaved runs (each run's seconds in brackets)")
 print()
-print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN), per repeat | utilisation | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers | peer requests / runs (mean wait ms) | slaves' CPU s: process (ray, loader) | CPU / N=1's |")
-print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+print("| blocks | latency us | slaves | frame | seconds | efficiency T1/(N TN), per repeat | utilisation | ray threads' waits per slave, s: tiles / blocks / first tile | imbalance | MB over the network | pixel stream share | blocks MB from disk or peers | MB between peers | peer requests / runs (mean wait ms) | slaves' CPU s: process (ray, loader) | CPU / N=1's |")
+print("|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 for (blocks, lat, n), frames in sorted(data.items(), key=lambda kv: (kv[0][0], int(kv[0][1]), kv[0][2])):
     base = data.get(("loc", lat, 1)) or data.get(("loc", "0", 1))
     for f, fr in enumerate(frames):
@@ -104,7 +105,15 @@ for (blocks, lat, n), frames in sorted(data.items(), key=lambda kv: (kv[0][0], i
                     f"{cpu(fr, 'loader_cpu_seconds'):.2f})")
         base_cpu = cpu(base[f], "process_cpu_seconds") if base else 0
         cpu_ratio = f"{cpu(fr, 'process_cpu_seconds') / base_cpu:.2f}" if base_cpu else "-"
+        # The wait for the first tile (the master finishing the frame before) is outside the
+        # frame's seconds; the tile waits shown are those after it.
+        first = [max(0.0, s.get("engine_seconds", 0) - s["seconds"]) for s in fr["slaves"]]
+        tiles_wait = [max(0.0, s.get("tile_wait_seconds", 0) - s["ray_threads"] * w)
+                      for s, w in zip(fr["slaves"], first)]
+        mean = lambda xs: sum(xs) / max(1, len(xs))
+        blocks_wait = mean([s.get("block_wait_seconds", 0) for s in fr["slaves"]])
+        waits = f"{mean(tiles_wait):.2f} / {blocks_wait:.2f} / {mean(first):.2f}"
         print(f"| {blocks} | {lat} | {n} | {'first' if f == 0 else 'warm'} | {fr['seconds']:.2f} ({every}) | {eff} | "
-              f"{fr['utilisation']:.2f} | {fr['imbalance']*100:.1f}% | {net:.1f} | {pixel/1e6/max(net,1e-9)*100:.0f}% | "
+              f"{fr['utilisation']:.2f} | {waits} | {fr['imbalance']*100:.1f}% | {net:.1f} | {pixel/1e6/max(net,1e-9)*100:.0f}% | "
               f"{blocks_mb:.1f} | {peers/1e6:.1f} | {fetch_text} | {cpu_text} | {cpu_ratio} |")
 PY
