@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <utility>
 
 #include "common/base/thread_name.h"
 #include "common/image/exr_io.h"
@@ -34,6 +35,11 @@ Status FrameWriter::Write(Image image) {
   queued_ = std::move(image);
   cv_.notify_all();
   return OkStatus();
+}
+
+image::ImageLayers FrameWriter::TakeSpare() {
+  std::lock_guard lock(mu_);
+  return std::exchange(spare_, image::ImageLayers{});
 }
 
 bool FrameWriter::HasRoom() {
@@ -80,6 +86,7 @@ void FrameWriter::Loop() {
     }
     if (!image.done && s.ok() && announce_) std::printf("  wrote %s\n", image.exr.c_str());
     lock.lock();
+    if (!image.done) spare_ = std::move(image.layers);
     writing_ = false;
     if (error_.ok() && !image.done) error_ = s;
     cv_.notify_all();

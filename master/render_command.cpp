@@ -553,7 +553,8 @@ Status Run(const Args& args) {
       preview->EndFrame(std::numeric_limits<double>::quiet_NaN());
       return status;
     }
-    image::ImageLayers resolved = film.Resolve();
+    image::ImageLayers resolved = writer.TakeSpare();
+    film.ResolveInto(&resolved);
     monitor.Finish(resolved);
     preview->SetErrorEstimate(monitor.last().error_estimate);  // the last pass's
     preview->EndFrame(stats.rays_per_second);
@@ -669,9 +670,9 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
                                },
                                &figures);
     }
-    image::ImageLayers resolved;
+    image::ImageLayers resolved = writer.TakeSpare();
     if (status.ok()) {
-      resolved = film.Resolve();
+      film.ResolveInto(&resolved);
       monitor.Finish(resolved);
       preview->SetErrorEstimate(monitor.last().error_estimate);  // the last pass's
       ReportStop(args, monitor);

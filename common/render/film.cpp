@@ -142,8 +142,14 @@ uint64_t Film::pixels_covered() const {
 }
 
 image::ImageLayers Film::Resolve() const {
-  std::lock_guard lock(mu_);
   image::ImageLayers out;
+  ResolveInto(&out);
+  return out;
+}
+
+void Film::ResolveInto(image::ImageLayers* into) const {
+  std::lock_guard lock(mu_);
+  image::ImageLayers& out = *into;
   out.Resize(width_, height_);
   for (size_t i = 0; i < pixels_.size(); ++i) {
     const Pixel& p = pixels_[i];
@@ -178,7 +184,6 @@ image::ImageLayers Film::Resolve() const {
     if (!r.samples.empty()) out.samples[i] = r.samples[i];
     if (!r.variance.empty()) out.variance[i] = r.variance[i];
   }
-  return out;
 }
 
 void Film::ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts) const {

@@ -56,6 +56,9 @@ class Film {
   // The current image: mean radiance, coverage alpha, Z/normal/albedo, counts and the
   // variance of the mean (luminance). Thread-safe.
   image::ImageLayers Resolve() const;
+  // The same into `out`, whose layers' memory is used again where large enough (an image
+  // written earlier: new memory costs a page fault a page, see ImageLayers::Resize).
+  void ResolveInto(image::ImageLayers* out) const;
   // Only the mean radiance (3 floats per pixel, 0 without samples) and the sample counts, into
   // the caller's buffers (resized): the light copy the live preview takes several times a
   // second, holding the lock far shorter than Resolve. Thread-safe.

@@ -141,6 +141,26 @@ TEST(FrameWriter, AFrameWrittenWhileOthersRenderLeavesThemTheCores) {
   EXPECT_EQ(getpriority(PRIO_PROCESS, 0), own);
 }
 
+// A written frame's layers come back for the next frame to resolve into (memory already
+// mapped); a checkpoint's do not (its frame goes on, and its own image comes later), and each
+// comes back once.
+TEST(FrameWriter, AWrittenFramesLayersComeBackOnce) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  master::FrameWriter writer(false);
+  EXPECT_TRUE(writer.TakeSpare().rgba.empty());
+  ASSERT_TRUE(writer.Write(ImageAt(dir->File("f0.exr"), 5)).ok());
+  ASSERT_TRUE(writer.Finish().ok());
+  const image::ImageLayers spare = writer.TakeSpare();
+  EXPECT_EQ(spare.rgba, ImageAt(dir->File("x.exr"), 5).layers.rgba);
+  EXPECT_TRUE(writer.TakeSpare().rgba.empty());
+  master::FrameWriter::Image checkpoint = ImageAt(dir->File("f1.exr"), 6);
+  checkpoint.done = [](const Status&) {};
+  ASSERT_TRUE(writer.Write(std::move(checkpoint)).ok());
+  ASSERT_TRUE(writer.Finish().ok());
+  EXPECT_TRUE(writer.TakeSpare().rgba.empty());
+}
+
 TEST(FrameWriter, AFailedWriteIsReportedNamingTheFile) {
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());

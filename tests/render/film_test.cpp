@@ -7,6 +7,7 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "common/render/film.h"
@@ -102,6 +103,31 @@ TEST(Film, AClearedFilmIsANewFilm) {
   EXPECT_EQ(std::memcmp(a.z.data(), b.z.data(), a.z.size() * sizeof(float)), 0);
   EXPECT_EQ(std::memcmp(a.normal.data(), b.normal.data(), a.normal.size() * sizeof(float)), 0);
   EXPECT_EQ(std::memcmp(a.albedo.data(), b.albedo.data(), a.albedo.size() * sizeof(float)), 0);
+}
+
+// The master resolves each frame into the layers of the frame written before it: whatever they
+// held (another frame, another size), the result is the film's image bit for bit.
+TEST(Film, ResolvingIntoAnEarlierImageGivesTheFilmsImage) {
+  std::vector<SampleResult> samples = RandomSamples(9, 7, 300, 6);
+  samples[5].sample = 0;
+  samples[5].z = 4.5f;
+  samples[5].normal[2] = 1.0f;
+  Film film(9, 7);
+  film.Merge(samples, 50);
+  for (const auto& [w, h] : {std::pair{9, 7}, std::pair{20, 11}, std::pair{3, 2}}) {
+    Film other(w, h);
+    other.Merge(RandomSamples(w, h, 500, 7), 10);
+    image::ImageLayers earlier = other.Resolve();
+    film.ResolveInto(&earlier);
+    const image::ImageLayers fresh = film.Resolve();
+    EXPECT_EQ(earlier.width, 9);
+    EXPECT_EQ(earlier.height, 7);
+    ExpectSameImage(earlier, fresh);
+    ASSERT_EQ(earlier.z.size(), fresh.z.size());
+    EXPECT_EQ(std::memcmp(earlier.z.data(), fresh.z.data(), fresh.z.size() * sizeof(float)), 0);
+    EXPECT_EQ(earlier.normal, fresh.normal);
+    EXPECT_EQ(earlier.albedo, fresh.albedo);
+  }
 }
 
 // A sample 0 taken back takes its pixel's primary-hit layers (Z, normal, albedo) with it: a
