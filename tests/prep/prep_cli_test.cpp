@@ -58,6 +58,11 @@ TEST_F(PrepCliTest, ARunPastItsDeadlineIsKilledWithItsChildren) {
   EXPECT_TRUE(r.timed_out);
   EXPECT_EQ(r.signal, SIGKILL);
   EXPECT_NE(r.err.find("killed after 1 s"), std::string::npos) << r.err;
+  // Where there is gdb, the stacks of the group's threads come with it (the sleep's, waiting).
+  if (access("/usr/bin/gdb", X_OK) == 0) {
+    EXPECT_NE(r.err.find("[run_process] its threads then:"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("sleep 600"), std::string::npos) << r.err;
+  }
   // The background sleep went with the group: gone, or a zombie about to be reaped.
   const std::string stat_path = "/proc/" + std::to_string(std::atoi(r.out.c_str())) + "/stat";
   ASSERT_GT(std::atoi(r.out.c_str()), 0) << r.out;
