@@ -32,7 +32,7 @@ class RemoteTiles final : public TileSource {
   bool Next(uint32_t thread, Tile* tile) override {
     Slot& s = slots_[thread];
     std::unique_lock lock(mu_);
-    if (s.tiles.empty() && s.requested == 0) Request(thread, &s);
+    if (s.tiles.empty() && s.requested == 0) Request(thread, &s, &lock);
     // Not over while an answer is still to come: it would reach the next frame's slots.
     cv_.wait(lock, [&] { return !s.tiles.empty() || Over(s) || failed_; });
     if (s.tiles.empty()) return false;
@@ -56,8 +56,8 @@ class RemoteTiles final : public TileSource {
   // The next tiles, fetched while this one renders (at --tile-ahead of it).
   void Ahead(uint32_t thread) override {
     Slot& s = slots_[thread];
-    std::lock_guard lock(mu_);
-    TopUp(thread, &s);
+    std::unique_lock lock(mu_);
+    TopUp(thread, &s, &lock);
   }
 
   // From the receiving thread.
@@ -116,17 +116,23 @@ class RemoteTiles final : public TileSource {
   static constexpr uint32_t kAhead = 2;
   // No more tiles, and every request answered.
   static bool Over(const Slot& s) { return s.exhausted && s.requested == 0; }
-  void TopUp(uint32_t thread, Slot* s) {  // holds mu_
-    while (!s->exhausted && !failed_ && s->requested + s->tiles.size() < kAhead) Request(thread, s);
+  void TopUp(uint32_t thread, Slot* s, std::unique_lock<std::mutex>* lock) {
+    while (!s->exhausted && !failed_ && s->requested + s->tiles.size() < kAhead)
+      Request(thread, s, lock);
   }
-  void Request(uint32_t thread, Slot* s) {  // holds mu_
+  // Counted as asked for under the lock, sent without it: the receiving thread takes the lock
+  // to deliver tiles, and must never wait for a send (it also sends the heartbeats).
+  void Request(uint32_t thread, Slot* s, std::unique_lock<std::mutex>* lock) {
     if (s->exhausted || failed_) return;
     ++s->requested;
+    lock->unlock();
     const Status st =
         net_->Send(0, wire::Encode(static_cast<uint32_t>(net_->rank()), wire::TileRequest{frame_, thread}));
+    lock->lock();
     if (!st.ok()) {
       LOG_ERROR("slave", "%s", st.message().c_str());
       failed_ = true;
+      cv_.notify_all();
     }
   }
 
