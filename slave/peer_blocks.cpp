@@ -142,6 +142,7 @@ Status PeerBlocks::Fetch(int owner, uint32_t first, uint32_t count, std::vector<
       lock.unlock();
       return from_disk();
     }
+    transport::AnswerWait waiting(net_);  // the receiving thread looks for the answer at once
     OwnerQueue& q = owners_[static_cast<size_t>(owner)];
     if (q.open && (q.open->runs.size() >= kMaxBatchRuns ||
                    q.open->expected_bytes + run_bytes > kMaxBatchBytes)) {

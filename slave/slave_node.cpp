@@ -34,7 +34,10 @@ class RemoteTiles final : public TileSource {
     std::unique_lock lock(mu_);
     if (s.tiles.empty() && s.requested == 0) Request(thread, &s, &lock);
     // Not over while an answer is still to come: it would reach the next frame's slots.
-    cv_.wait(lock, [&] { return !s.tiles.empty() || Over(s) || failed_; });
+    if (s.tiles.empty() && !Over(s) && !failed_) {
+      transport::AnswerWait waiting(net_);
+      cv_.wait(lock, [&] { return !s.tiles.empty() || Over(s) || failed_; });
+    }
     if (s.tiles.empty()) return false;
     *tile = s.tiles.front();
     s.tiles.pop_front();
@@ -190,6 +193,10 @@ class RemoteSink final : public render::SampleSink {
 SlaveNode::SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers,
                      int64_t kill_after_tiles)
     : net_(net), engine_(engine), peers_(peers), kill_after_tiles_(kill_after_tiles) {
+  // The receiving thread looks for messages at its quickest only while a thread here waits
+  // for one (a tile, a block from a peer, the last pixels out); otherwise every kIdlePause:
+  // each look costs the capped CPU the rays need (tools/bench/RESULTS.md).
+  net_->SetIdlePause(kIdlePause);
   receiver_ = std::thread([this] {
     SetThreadName("rs-receive");
     ReceiveLoop();
@@ -303,6 +310,7 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   const double cpu_before = ProcessCpuSeconds();
   const auto began = std::chrono::steady_clock::now();
   Status status = engine_->RenderFrame(scene, materials, camera, tiles, sink, stats);
+  if (status.ok()) FlushPixels();
   const double process_cpu = ProcessCpuSeconds() - cpu_before;
   const auto rendered = std::chrono::steady_clock::now();
   bool shut_down;
@@ -353,6 +361,21 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
     d.fetch_runs = peers_->runs_fetched() - fetch_runs;
   }
   return net_->Send(0, wire::Encode(me, d));
+}
+
+void SlaveNode::FlushPixels() {
+  // The master ends the frame once it has every pixel: the last batches go out at the quickest
+  // pace, not at the idle one. Only a matter of pace: after a while (a receiver that takes
+  // nothing) they go on at the idle one.
+  transport::AnswerWait waiting(net_);
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+  while (net_->posted_bytes() > 0 && std::chrono::steady_clock::now() < give_up) {
+    {
+      std::lock_guard lock(mu_);
+      if (shut_down_ || !error_.ok()) return;
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
 }
 
 Expected<uint32_t> SlaveNode::WaitForShutdown(std::chrono::milliseconds timeout) {

@@ -49,7 +49,12 @@ class SlaveNode {
   Expected<uint32_t> WaitForShutdown(std::chrono::milliseconds timeout = std::chrono::hours(24 * 365));
 
  private:
+  // How long the receiving thread sleeps between looks for messages while nothing waits for
+  // one (Transport::SetIdlePause).
+  static constexpr std::chrono::microseconds kIdlePause{5000};
   void ReceiveLoop();
+  // Returns once the frame's posted pixel batches are out (or after a while).
+  void FlushPixels();
   void Failed(const Status& status);  // holds mu_
   // Tells the master, once, that this rank has stopped sending (after its shutdown).
   Status Acknowledge();

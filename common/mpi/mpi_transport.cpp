@@ -204,6 +204,7 @@ Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
       std::lock_guard posted_lock(posted_mu_);
       RAYSTACK_RETURN_IF_ERROR(ProgressPosted());
     }
+    probes_.fetch_add(1, std::memory_order_relaxed);
     // One probe for any sender first: when nothing has come (most wake-ups) that is one
     // progress call instead of one per rank.
     bool any_active = false;
@@ -265,6 +266,16 @@ Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
     }
     const auto now = std::chrono::steady_clock::now();
     if (now >= deadline) return std::optional<transport::Envelope>();
+    const std::chrono::microseconds idle(idle_pause_us_.load());
+    if (idle.count() > 0 && waiters_.load() == 0) {
+      // Nothing on this rank waits for an answer: one look per idle pause, or at once when a
+      // thread begins to wait.
+      std::unique_lock wake_lock(wake_mu_);
+      wake_.wait_for(wake_lock, std::min<std::chrono::steady_clock::duration>(idle, deadline - now),
+                     [&] { return waiters_.load() > 0; });
+      pause = std::chrono::microseconds(20);
+      continue;
+    }
     std::this_thread::sleep_for(pause);
     // While messages come (a peer's block requests, pixel batches) a sender waits little; once
     // none has come for a while, each wake-up costs more than the latency it saves (on a
@@ -273,6 +284,15 @@ Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
     pause = std::min(pause * 2, longest);
   }
 }
+
+void MpiTransport::BeginWait() {
+  if (waiters_.fetch_add(1) == 0) {
+    std::lock_guard lock(wake_mu_);  // so a Receive between its check and its wait hears it
+    wake_.notify_all();
+  }
+}
+
+void MpiTransport::EndWait() { waiters_.fetch_sub(1); }
 
 void MpiTransport::ExitWithoutFinalize(int code) {
   std::fflush(nullptr);

@@ -7,12 +7,14 @@
 //
 // Receive probes for any sender and sleeps between probes (MPI has no wait-with-timeout): at
 // most 500 us while messages come, so a peer's block request waits little, and up to 1 ms
-// once none has come for 2 ms, so an idle rank (or a slave rendering between tile answers)
-// spends little CPU on wake-ups. A message larger than kMaxMessageBytes is an error naming its
+// once none has come for 2 ms, so an idle rank spends little CPU on wake-ups. With an idle
+// pause (SetIdlePause, a slave's), it sleeps that long between probes while no thread waits
+// for an answer, and a BeginWait wakes it at once. A message larger than kMaxMessageBytes is an error naming its
 // sender (it is still drained, so the next one can be read).
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <list>
 #include <memory>
 #include <mutex>
@@ -40,6 +42,11 @@ class MpiTransport final : public transport::Transport {
   Status Post(int to, std::vector<uint8_t> bytes) override;
   Expected<std::optional<transport::Envelope>> Receive(std::chrono::milliseconds timeout) override;
   uint64_t posted_bytes() const override { return posted_bytes_.load(); }
+  void SetIdlePause(std::chrono::microseconds pause) override { idle_pause_us_ = pause.count(); }
+  void BeginWait() override;
+  void EndWait() override;
+  // Looks for messages Receive has taken so far (what waiting costs, for tests and benches).
+  uint64_t probes() const { return probes_.load(); }
   // Ends every rank of the job (MPI_Abort), for errors that one rank cannot recover from.
   [[noreturn]] void Abort(int code);
   void NoteRankDied(int rank) override;
@@ -74,6 +81,11 @@ class MpiTransport final : public transport::Transport {
   static constexpr std::chrono::microseconds kBusyPause{500}, kQuietPause{1000};
   static constexpr std::chrono::milliseconds kQuietAfter{2};
   std::chrono::steady_clock::time_point last_message_{};
+  std::atomic<int64_t> idle_pause_us_{0};
+  std::atomic<int> waiters_{0};  // threads between BeginWait and EndWait
+  std::atomic<uint64_t> probes_{0};
+  std::mutex wake_mu_;           // Receive sleeps on wake_ until a BeginWait
+  std::condition_variable wake_;
   int next_source_ = 0;
 };
 

@@ -49,10 +49,29 @@ class Transport {
   virtual uint64_t posted_bytes() const { return 0; }
   // The next message for this rank, waiting up to `timeout`; nullopt if none came.
   virtual Expected<std::optional<Envelope>> Receive(std::chrono::milliseconds timeout) = 0;
+  // For a backend that polls (MPI): while no thread of this rank waits for an answer, Receive
+  // may look for messages only every `pause` (a look costs a capped node CPU its work needs);
+  // between BeginWait and EndWait (an AnswerWait) it looks at its quickest, from at once.
+  // Zero, the default: always at its quickest (a master, which serves every message at once).
+  virtual void SetIdlePause(std::chrono::microseconds /*pause*/) {}
+  virtual void BeginWait() {}
+  virtual void EndWait() {}
   // Rank `rank` died (killed, its node gone; -1: some rank, which one this rank was not told):
   // a send to it gives up rather than wait for it forever, and the job cannot end in step
   // with it (MPI_Finalize would wait for it too).
   virtual void NoteRankDied(int /*rank*/) {}
+};
+
+// A thread of this rank waits for an answer while this lives (Transport::BeginWait).
+class AnswerWait {
+ public:
+  explicit AnswerWait(Transport* net) : net_(net) { net_->BeginWait(); }
+  ~AnswerWait() { net_->EndWait(); }
+  AnswerWait(const AnswerWait&) = delete;
+  AnswerWait& operator=(const AnswerWait&) = delete;
+
+ private:
+  Transport* net_;
 };
 
 // Every rank as a thread of this process: Endpoint(r) is rank r's transport. The hub must

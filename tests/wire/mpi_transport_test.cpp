@@ -5,8 +5,10 @@
 // the bytes they posted count as posted until then only.
 // Prints "N passed, N failed" on rank 0; exit code 0 only if every rank passed.
 
+#include <chrono>
 #include <cstdio>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "common/mpi/mpi_transport.h"
@@ -135,6 +137,31 @@ int main(int argc, char** argv) {
     // Nothing else is on its way: a receive times out.
     auto e = net.Receive(std::chrono::milliseconds(50));
     Expect(e.ok() && !e->has_value(), "idle receive times out", rank);
+    // 4. With an idle pause, a receive that nothing waits for looks once a pause (at the
+    //    quickest pace it would look every 0.5-1 ms, ~200 times here) ...
+    mpi::MpiTransport& mpi_net = **t;
+    net.SetIdlePause(std::chrono::milliseconds(50));
+    uint64_t before = mpi_net.probes();
+    e = net.Receive(std::chrono::milliseconds(200));
+    Expect(e.ok() && !e->has_value(), "idle receive with an idle pause times out", rank);
+    const uint64_t idle_probes = mpi_net.probes() - before;
+    Expect(idle_probes >= 2 && idle_probes <= 200 / 50 + 2,
+           "an idle receive looks once per idle pause (" + std::to_string(idle_probes) + " looks)",
+           rank);
+    //    ... and a thread that begins to wait for an answer wakes it from its pause: looks at
+    //    the quickest pace from then on (without the wake: one look in the whole receive).
+    net.SetIdlePause(std::chrono::seconds(60));
+    before = mpi_net.probes();
+    std::thread receiver([&] { e = net.Receive(std::chrono::milliseconds(500)); });
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    {
+      transport::AnswerWait waiting(&net);
+      receiver.join();
+    }
+    const uint64_t hurried_probes = mpi_net.probes() - before;
+    Expect(hurried_probes > 20, "a waiting thread wakes the receive from its idle pause (" +
+                                    std::to_string(hurried_probes) + " looks)", rank);
+    net.SetIdlePause(std::chrono::microseconds(0));
     std::printf("%d passed, %d failed\n", passes, failures);
   }
   return failures == 0 ? 0 : 1;
