@@ -177,7 +177,14 @@ Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
   SlaveState& s = slaves_[static_cast<size_t>(rank)];
   s.dropped = true;
   s.lost = lost;
-  if (lost) net_->NoteRankDied(rank);
+  if (lost) {
+    net_->NoteRankDied(rank);
+    // Silent is not always dead (a starved process, a stalled node): a rank that is still
+    // alive must stop now, not wait for tiles this master no longer gives it, and must end
+    // without waiting for the ranks taken for dead. A dead one never reads it (the send gives
+    // up after a short grace).
+    (void)Send(rank, wire::Encode(0, wire::Shutdown{1, wire::kShutdownRankDied}), f->figures);
+  }
   s.failure = why;
   SlaveFigures& figures = f->figures->slaves[static_cast<size_t>(rank - 1)];
   figures.dropped = true;

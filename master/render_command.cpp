@@ -126,6 +126,9 @@ fault injection (for tests and drills):
   --fault-rank R            apply the faults below on rank R only (default: every slave)
   --fault-kill-after-tiles N  the slave kills itself (SIGKILL, as kill -9) when given its
                             N-th tile
+  --fault-stall-after-tiles N  the slave's whole process stops (SIGSTOP) when given its N-th
+                            tile, and goes on after --fault-stall-s S (default 5): a stalled
+                            node, alive but silent
   --fault-fail-read K       the slave's K-th block read (0-based) fails, as a disk error
   --fault-kill-after-checkpoints N  the one process, or the master, kills itself (SIGKILL)
                             right after its N-th checkpoint: the whole job dies (--resume)
@@ -155,6 +158,8 @@ struct Args {
   bool resume = false;
   int fault_rank = 0;  // 0: every slave
   int64_t kill_after_tiles = -1;
+  int64_t stall_after_tiles = -1;
+  double stall_s = 5;
   int64_t fail_read = -1;
   int64_t kill_after_checkpoints = -1;
   int64_t fail_checkpoints = 0;
@@ -275,6 +280,10 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->fault_rank, 1, 1 << 20));
     } else if (arg == "--fault-kill-after-tiles") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->kill_after_tiles, 1, 1e12));
+    } else if (arg == "--fault-stall-after-tiles") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->stall_after_tiles, 1, 1e12));
+    } else if (arg == "--fault-stall-s") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->stall_s, 0.0, 3600.0));
     } else if (arg == "--fault-kill-after-checkpoints") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->kill_after_checkpoints, 1, 1e12));
     } else if (arg == "--fault-fail-checkpoints") {
@@ -786,7 +795,9 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
     return waiting.WaitForShutdown().ok() ? OkStatus() : s;
   }
   const render::MaterialTable materials = render::MaterialTable::Build((*store)->materials(), scene);
-  slave::SlaveNode node(net, engine->get(), peers.get(), faulty ? args.kill_after_tiles : -1);
+  slave::NodeFaults faults;
+  if (faulty) faults = {args.kill_after_tiles, args.stall_after_tiles, args.stall_s};
+  slave::SlaveNode node(net, engine->get(), peers.get(), faults);
   for (size_t f = 0; f < scene.cameras.size(); ++f) {
     const render::Camera camera(scene.cameras[f]);
     slave::RenderStats stats;

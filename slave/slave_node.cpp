@@ -9,6 +9,10 @@
 #include <thread>
 #include <vector>
 
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
 #include "common/base/log.h"
 #include "common/base/thread_cpu.h"
 #include "common/base/thread_name.h"
@@ -16,6 +20,28 @@
 #include "slave/peer_blocks.h"
 
 namespace raystack::slave {
+namespace {
+
+// Every thread of this process stops (SIGSTOP), as on a stalled node, and goes on after
+// `seconds`: a child, which does only what is safe after fork in a threaded process, sends
+// the SIGCONT.
+void StopWholeProcess(double seconds) {
+  const pid_t self = getpid();
+  const pid_t child = fork();
+  if (child == 0) {
+    timespec t{static_cast<time_t>(seconds),
+               static_cast<long>((seconds - static_cast<double>(static_cast<time_t>(seconds))) * 1e9)};
+    while (nanosleep(&t, &t) != 0) {
+    }
+    kill(self, SIGCONT);
+    _exit(0);
+  }
+  if (child < 0) return;  // no stall then; the test that asked for it fails visibly
+  kill(self, SIGSTOP);
+  waitpid(child, nullptr, 0);
+}
+
+}  // namespace
 
 // Tiles from the master: one slot per ray thread, holding up to kAhead tiles in reserve, asked
 // for or come (or the news that there are no more). The receiving thread fills slots; ray
@@ -25,9 +51,9 @@ namespace raystack::slave {
 class RemoteTiles final : public TileSource {
  public:
   RemoteTiles(transport::Transport* net, uint32_t frame, int threads,
-              std::atomic<int64_t>* given, int64_t kill_after)
+              std::atomic<int64_t>* given, const NodeFaults& faults)
       : net_(net), frame_(frame), slots_(static_cast<size_t>(threads)), given_(given),
-        kill_after_(kill_after) {}
+        faults_(faults) {}
 
   bool Next(uint32_t thread, Tile* tile) override {
     Slot& s = slots_[thread];
@@ -42,10 +68,16 @@ class RemoteTiles final : public TileSource {
     *tile = s.tiles.front();
     s.tiles.pop_front();
     if (tiles_++ == 0) first_tile_ = std::chrono::steady_clock::now();
-    if (given_->fetch_add(1) + 1 == kill_after_) {  // fault injection: die as kill -9 does
+    const int64_t given = given_->fetch_add(1) + 1;
+    if (given == faults_.kill_after_tiles) {  // fault injection: die as kill -9 does
       LOG_WARNING("slave", "rank %d: killing itself at its tile %lld (--fault-kill-after-tiles)",
-                  net_->rank(), static_cast<long long>(kill_after_));
+                  net_->rank(), static_cast<long long>(given));
       std::raise(SIGKILL);
+    }
+    if (given == faults_.stall_after_tiles) {
+      LOG_WARNING("slave", "rank %d: stopping for %.1f s at its tile %lld (--fault-stall-after-tiles)",
+                  net_->rank(), faults_.stall_seconds, static_cast<long long>(given));
+      StopWholeProcess(faults_.stall_seconds);
     }
     return true;
   }
@@ -148,7 +180,7 @@ class RemoteTiles final : public TileSource {
   std::atomic<uint64_t> tiles_{0};
   std::chrono::steady_clock::time_point first_tile_{};  // (under mu_)
   std::atomic<int64_t>* given_;  // tiles given to this node in the job
-  const int64_t kill_after_;
+  const NodeFaults faults_;
 };
 
 namespace {
@@ -191,8 +223,8 @@ class RemoteSink final : public render::SampleSink {
 }  // namespace
 
 SlaveNode::SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers,
-                     int64_t kill_after_tiles)
-    : net_(net), engine_(engine), peers_(peers), kill_after_tiles_(kill_after_tiles) {
+                     NodeFaults faults)
+    : net_(net), engine_(engine), peers_(peers), faults_(faults) {
   // The receiving thread looks for messages at its quickest only while a thread here waits
   // for one (a tile, a block from a peer, the last pixels out); otherwise every kIdlePause:
   // each look costs the capped CPU the rays need (tools/bench/RESULTS.md).
@@ -290,7 +322,7 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
                            const render::MaterialTable& materials, const render::Camera& camera,
                            RenderStats* stats) {
   const uint32_t me = static_cast<uint32_t>(net_->rank());
-  RemoteTiles tiles(net_, frame, engine_->options().threads, &tiles_given_, kill_after_tiles_);
+  RemoteTiles tiles(net_, frame, engine_->options().threads, &tiles_given_, faults_);
   RemoteSink sink(net_, frame);
   {
     std::unique_lock lock(mu_);

@@ -26,15 +26,20 @@ namespace raystack::slave {
 class RemoteTiles;
 class PeerBlocks;
 
+// Fault injection (tests and drills), at the node's N-th tile of the job (> 0; -1: never).
+struct NodeFaults {
+  int64_t kill_after_tiles = -1;   // the process kills itself with SIGKILL, as `kill -9` would
+  int64_t stall_after_tiles = -1;  // the whole process stops (SIGSTOP), as a stalled node,
+  double stall_seconds = 0;        // for this long
+};
+
 // A receiving thread runs for the node's whole life: tile assignments for the frame being
 // rendered, the master's shutdown, and (with --blocks rem) the peers' block requests and
 // answers, which must be served between frames and after this slave's last frame too.
 class SlaveNode {
  public:
-  // `kill_after_tiles` (fault injection, > 0): the process kills itself with SIGKILL, as
-  // `kill -9` would, when it is given that many tiles in the job.
   SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers = nullptr,
-            int64_t kill_after_tiles = -1);
+            NodeFaults faults = {});
   ~SlaveNode();
 
   // Renders this slave's share of frame `frame`, then reports it done (with its figures) to
@@ -71,7 +76,7 @@ class SlaveNode {
   uint32_t shutdown_reason_ = 0;
   bool acknowledged_ = false;
   Status error_;                  // a failure on the receiving side
-  const int64_t kill_after_tiles_;
+  const NodeFaults faults_;
   std::atomic<int64_t> tiles_given_{0};
 };
 

@@ -102,15 +102,20 @@ Status MpiTransport::Send(int to, std::span<const uint8_t> bytes) {
     return Status::Error(StrFormat("rank %d: message of %zu bytes is too large", rank_,
                                    bytes.size()));
   // Not MPI_Send: a large message waits for its receiver (rendezvous), and a receiver that
-  // died never comes. So the send is watched, and given up once `to` is known dead.
+  // died never comes. So the send is watched, and given up once `to` is known dead and has
+  // had kDeadRankGrace to take it: "dead" may be a verdict on a rank that was only silent
+  // (the master's --lost-after), and a message it must still hear (its shutdown) that needs
+  // a few progress calls to go out would otherwise be dropped at the first one.
   MPI_Request request;
   int rc = MPI_Isend(bytes.data(), static_cast<int>(bytes.size()), MPI_BYTE, to, kTag,
                      MPI_COMM_WORLD, &request);
   auto pause = std::chrono::microseconds(5);
+  const auto began = std::chrono::steady_clock::now();
   for (int done = 0; rc == MPI_SUCCESS;) {
     rc = MPI_Test(&request, &done, MPI_STATUS_IGNORE);
     if (done) break;
-    if (dead_[static_cast<size_t>(to)].load()) {
+    if (dead_[static_cast<size_t>(to)].load() &&
+        std::chrono::steady_clock::now() - began >= kDeadRankGrace) {
       MPI_Request_free(&request);  // never completes; the process ends without MPI_Finalize
       return Status::Error(StrFormat("rank %d: rank %d is gone, the message to it is dropped",
                                      rank_, to));

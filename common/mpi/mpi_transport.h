@@ -80,6 +80,8 @@ class MpiTransport final : public transport::Transport {
   // faster in interleaved runs, tools/bench/RESULTS.md.)
   static constexpr std::chrono::microseconds kBusyPause{500}, kQuietPause{1000};
   static constexpr std::chrono::milliseconds kQuietAfter{2};
+  // How long Send still tries to reach a rank known dead (see Send).
+  static constexpr std::chrono::milliseconds kDeadRankGrace{200};
   std::chrono::steady_clock::time_point last_message_{};
   std::atomic<int64_t> idle_pause_us_{0};
   std::atomic<int> waiters_{0};  // threads between BeginWait and EndWait

@@ -127,7 +127,8 @@ TEST_F(DistributedCli, DirectReadsUnderMpirunKeepTheImageAndAreReported) {
 }
 
 // kill -9 of a slave mid-render (the slave does it to itself at its 3rd tile, so the test
-// knows it happens mid-render), and a slave whose store reads fail: the master drops it, the
+// knows it happens mid-render), a slave whose whole process stops for longer than the
+// master waits for word from it, and a slave whose store reads fail: the master drops it, the
 // others render its unfinished tiles (with --blocks rem, the others read the killed owner's
 // blocks from disk), and the image equals the one-process image.
 TEST_F(DistributedCli, ALostSlaveCostsTimeNeverPixels) {
@@ -142,6 +143,11 @@ TEST_F(DistributedCli, ALostSlaveCostsTimeNeverPixels) {
   for (const Case& c : std::vector<Case>{
            {"killed", "loc", {"--fault-rank", "2", "--fault-kill-after-tiles", "3"}, "is lost"},
            {"killed", "rem", {"--fault-rank", "2", "--fault-kill-after-tiles", "3"}, "is lost"},
+           // Alive but silent past --lost-after (a stalled node): dropped as lost, and told
+           // so, so it ends with the job rather than wait for tiles nobody gives it.
+           {"stalled", "loc",
+            {"--fault-rank", "2", "--fault-stall-after-tiles", "3", "--fault-stall-s", "4"},
+            "is lost"},
            {"unreadable", "loc", {"--fault-rank", "3", "--fault-fail-read", "0"}, "failed"}}) {
     std::vector<std::string> extra = c.faults;
     extra.insert(extra.end(), {"--lost-after", "2"});
