@@ -342,9 +342,9 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   const double cpu_before = ProcessCpuSeconds();
   const auto began = std::chrono::steady_clock::now();
   Status status = engine_->RenderFrame(scene, materials, camera, tiles, sink, stats);
-  if (status.ok()) FlushPixels();
   const double process_cpu = ProcessCpuSeconds() - cpu_before;
   const auto rendered = std::chrono::steady_clock::now();
+  if (status.ok()) FlushPixels();  // after the figures: they are the render's
   bool shut_down;
   {
     std::lock_guard lock(mu_);
