@@ -9,8 +9,8 @@
 // most 500 us while messages come, so a peer's block request waits little, and up to 1 ms
 // once none has come for 2 ms, so an idle rank spends little CPU on wake-ups. With an idle
 // pause (SetIdlePause, a slave's), it sleeps that long between probes while no thread waits
-// for an answer, and a BeginWait wakes it at once. A message larger than kMaxMessageBytes is an error naming its
-// sender (it is still drained, so the next one can be read).
+// for an answer, and a BeginWait wakes it at once. A message larger than kMaxMessageBytes is
+// an error naming its sender (it is still drained, so the next one can be read).
 
 #include <atomic>
 #include <chrono>
