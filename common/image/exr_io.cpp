@@ -7,15 +7,11 @@
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
-#include <ImfThreading.h>
 
-#include <algorithm>
 #include <cstddef>
 #include <exception>
 #include <filesystem>
-#include <mutex>
 #include <new>
-#include <thread>
 #include <vector>
 
 namespace raystack::image {
@@ -100,24 +96,6 @@ void ReadLayer(const Imath::Box2i& window, size_t pixels, const ChannelSpec (&sp
   }
 }
 
-// OpenEXR compresses (and decompresses) a file's chunks as tasks of its one process-wide pool,
-// whichever thread writes and whatever thread count OutputFile is given: that count only sets how
-// many chunks are in flight, and with a pool of threads they all run there. So a write on the
-// calling thread alone first empties the pool (tasks then run where they are added), and an
-// all-core write fills it again from the calling thread, whose priority the new threads inherit
-// (Linux threads inherit their creator's nice value). Reads and writes take turns on this mutex,
-// so no file's tasks see the pool resized under them.
-std::mutex pool_mu;
-
-// Sizes OpenEXR's pool (under pool_mu); returns the size. Its threads sleep between files.
-int SizePool(ExrThreads threads) {
-  const int n = threads == ExrThreads::kAllCores
-                    ? static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))
-                    : 0;
-  if (Imf::globalThreadCount() != n) Imf::setGlobalThreadCount(n);
-  return n;
-}
-
 }  // namespace
 
 Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads threads) {
@@ -152,8 +130,8 @@ Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads th
     // Chunks compressed on every core (the file is byte for byte the same): the last frame is
     // written after the render, while the user waits. The dragon 1024x768 job without PNG,
     // medians of 5 interleaved runs on 2 cores: 1.18 -> 0.97 s.
-    const std::lock_guard lock(pool_mu);
-    Imf::OutputFile file(output->temp_path().c_str(), header, SizePool(threads));
+    const ExrPoolLease pool(threads);
+    Imf::OutputFile file(output->temp_path().c_str(), header, pool.threads());
     file.setFrameBuffer(frame);
     file.writePixels(image.height);
   } catch (const std::exception& e) {
@@ -168,9 +146,11 @@ Expected<ImageLayers> ReadExr(const std::string& path) {
     return Status::Error(path + ": cannot read: no such file");
   if (std::filesystem::is_directory(path, ec))
     return Status::Error(path + ": cannot read: it is a folder");
-  const std::lock_guard lock(pool_mu);  // the pool as the last write left it
+  // On the calling thread: a reference read as a frame starts then shares the pool with the
+  // last frame's image, compressed aside on its thread, instead of waiting for it.
+  const ExrPoolLease pool(ExrThreads::kCallingThread);
   try {
-    Imf::InputFile file(path.c_str());
+    Imf::InputFile file(path.c_str(), pool.threads());
     const Imf::Header& header = file.header();
     const Imath::Box2i window = header.dataWindow();
     const int64_t width = int64_t{window.max.x} - window.min.x + 1;

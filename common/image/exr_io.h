@@ -2,12 +2,13 @@
 // The render's output file: all layers of an ImageLayers in one OpenEXR file, readable by any
 // EXR viewer or compositor (channels named as they expect: R G B A Z, N.X..., albedo.R...).
 // This library is the only place OpenEXR is linked; its exceptions never leave it. Both
-// functions may be called from several threads at once; they take turns (OpenEXR has one
-// process-wide pool of threads, sized for each file: see WriteExr).
+// functions may be called from several threads at once (OpenEXR has one process-wide pool of
+// threads, sized for each file: see exr_pool.h).
 
 #include <string>
 
 #include "common/base/status.h"
+#include "common/image/exr_pool.h"  // ExrThreads
 #include "common/image/image_layers.h"
 #include "common/image/output_file.h"  // CheckWritable, for the callers of WriteExr
 
@@ -22,12 +23,11 @@ namespace raystack::image {
 // threads are started from the calling thread and take its priority) or on the calling thread
 // alone (kCallingThread, for one written while rendering goes on: at that thread's priority);
 // the file is byte for byte the same.
-enum class ExrThreads { kAllCores, kCallingThread };
 Status WriteExr(const std::string& path, const ImageLayers& image,
                 ExrThreads threads = ExrThreads::kAllCores);
 
 // Reads a file written by WriteExr (or any EXR with at least R G B; missing layers left empty;
-// a missing A reads as 1). Errors name the path (missing file, not an EXR, truncated). A header
+// a missing A reads as 1), decompressed on the calling thread. Errors name the path (missing file, not an EXR, truncated). A header
 // claiming more than 2^28 pixels (16384 x 16384) or a side above 65536 is refused rather than
 // allocated: a damaged file must not take the machine's memory.
 Expected<ImageLayers> ReadExr(const std::string& path);

@@ -1,16 +1,23 @@
 #include "common/image/exr_io.h"
 
 #include <ImfRgbaFile.h>
+#include <ImfThreading.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <iterator>
+#include <memory>
 #include <limits>
 #include <random>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "common/base/temp_dir.h"
@@ -232,6 +239,38 @@ TEST(ExrIo, FailedWriteKeepsThePreviousFile) {
   read = ReadExr(path);
   ASSERT_TRUE(read.ok());
   ExpectBitEqual(second, *read);
+}
+
+
+// Files on the calling thread share OpenEXR's pool (a frame compressed aside and a reference
+// read as the next frame starts: neither waits for the other); an all-core file waits until
+// they are done, then has the pool at every core.
+TEST(ExrPoolLease, FilesOfOneSizeShareThePoolAndAnotherSizeWaits) {
+  auto held = std::make_unique<ExrPoolLease>(ExrThreads::kCallingThread);
+  EXPECT_EQ(held->threads(), 0);
+  std::promise<void> second_taken;
+  std::thread second([&] {
+    ExrPoolLease again(ExrThreads::kCallingThread);
+    second_taken.set_value();
+  });
+  // A mutex in its place would hold the second one until the first ends.
+  EXPECT_EQ(second_taken.get_future().wait_for(std::chrono::seconds(60)),
+            std::future_status::ready);
+  second.join();
+
+  std::atomic<int> all_core_threads{-1};
+  std::thread all_cores([&] {
+    ExrPoolLease wide(ExrThreads::kAllCores);
+    all_core_threads = Imf::globalThreadCount();
+  });
+  for (int i = 0; i < 60000 && ExrPoolLease::Waiting() == 0; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  EXPECT_EQ(ExrPoolLease::Waiting(), 1);  // waits while the calling-thread file holds the pool
+  EXPECT_EQ(all_core_threads.load(), -1);
+  EXPECT_EQ(Imf::globalThreadCount(), 0);
+  held.reset();
+  all_cores.join();
+  EXPECT_EQ(all_core_threads.load(), static_cast<int>(std::max(1u, std::thread::hardware_concurrency())));
 }
 
 }  // namespace
