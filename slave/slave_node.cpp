@@ -196,8 +196,11 @@ class RemoteSink final : public render::SampleSink {
   void Consume(std::span<const render::SampleResult> batch, uint64_t rays) override {
     for (size_t i = 0; i < batch.size(); i += wire::kMaxBatchSamples) {
       const size_t n = std::min<size_t>(wire::kMaxBatchSamples, batch.size() - i);
-      while (net_->posted_bytes() > kMaxBacklogBytes)
-        std::this_thread::sleep_for(std::chrono::microseconds(200));
+      if (net_->posted_bytes() > kMaxBacklogBytes) {
+        transport::AnswerWait waiting(net_);  // the batches out go at the quickest pace
+        while (net_->posted_bytes() > kMaxBacklogBytes)
+          std::this_thread::sleep_for(std::chrono::microseconds(200));
+      }
       const Status s = net_->Post(0, wire::EncodePixelBatch(static_cast<uint32_t>(net_->rank()),
                                                             frame_, batch.subspan(i, n),
                                                             i == 0 ? rays : 0));
