@@ -8,16 +8,22 @@
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
 
+#include <algorithm>
 #include <cstddef>
 #include <exception>
 #include <filesystem>
+#include <mutex>
 #include <new>
+#include <optional>
+#include <thread>
 #include <vector>
 
 namespace raystack::image {
 namespace {
 
 constexpr int64_t kMaxSide = int64_t{1} << 16;
+constexpr int kRowsPerBand = 64;  // fewer rows a band: not worth a thread
+constexpr int kMaxBands = 8;
 constexpr int64_t kMaxPixels = int64_t{1} << 28;
 
 // One EXR channel: which layer it lives in, how many values per pixel that layer has, and
@@ -96,6 +102,43 @@ void ReadLayer(const Imath::Box2i& window, size_t pixels, const ChannelSpec (&sp
   }
 }
 
+// The rows of `window` into `frame` (already set on `file`): bands of rows read at once, each
+// by a thread of its own with its own InputFile (the chunks are decompressed where they are
+// read, the pool being empty: see ReadExr), the first band by `file` on this thread. A
+// 960x540 image with every layer took 230-350 ms on one thread.
+Status ReadRows(const std::string& path, Imf::InputFile& file, const Imf::FrameBuffer& frame,
+                const Imath::Box2i& window) {
+  const int rows = window.max.y - window.min.y + 1;
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int bands = std::clamp(rows / kRowsPerBand, 1, std::min(cores, kMaxBands));
+  std::mutex mu;
+  std::string error;  // the first band's failure (under mu)
+  auto read = [&](int band, Imf::InputFile* in) {
+    const int y0 = window.min.y + static_cast<int>(int64_t{rows} * band / bands);
+    const int y1 = window.min.y + static_cast<int>(int64_t{rows} * (band + 1) / bands) - 1;
+    try {
+      std::optional<Imf::InputFile> own;
+      if (!in) {
+        in = &own.emplace(path.c_str(), 0);
+        in->setFrameBuffer(frame);
+      }
+      in->readPixels(y0, y1);
+    } catch (const std::bad_alloc&) {
+      std::lock_guard lock(mu);
+      if (error.empty()) error = "out of memory";
+    } catch (const std::exception& e) {
+      std::lock_guard lock(mu);
+      if (error.empty()) error = e.what();
+    }
+  };
+  std::vector<std::thread> others;
+  for (int band = 1; band < bands; ++band) others.emplace_back(read, band, nullptr);
+  read(0, &file);
+  for (std::thread& t : others) t.join();
+  if (!error.empty()) return Status::Error(path + ": cannot read EXR: " + error);
+  return OkStatus();
+}
+
 }  // namespace
 
 Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads threads) {
@@ -146,8 +189,9 @@ Expected<ImageLayers> ReadExr(const std::string& path) {
     return Status::Error(path + ": cannot read: no such file");
   if (std::filesystem::is_directory(path, ec))
     return Status::Error(path + ": cannot read: it is a folder");
-  // On the calling thread: a reference read as a frame starts then shares the pool with the
-  // last frame's image, compressed aside on its thread, instead of waiting for it.
+  // With the pool empty, decompressed where read (ReadRows' threads): a reference read as a
+  // frame starts then shares the pool with the last frame's image, compressed aside on its
+  // thread, instead of waiting for it.
   const ExrPoolLease pool(ExrThreads::kCallingThread);
   try {
     Imf::InputFile file(path.c_str(), pool.threads());
@@ -185,7 +229,7 @@ Expected<ImageLayers> ReadExr(const std::string& path) {
     if (HasLayer(channels, kVariance))
       ReadLayer(window, pixels, kVariance, &image.variance, &frame);
     file.setFrameBuffer(frame);
-    file.readPixels(window.min.y, window.max.y);
+    RAYSTACK_RETURN_IF_ERROR(ReadRows(path, file, frame, window));
     return image;
   } catch (const std::bad_alloc&) {
     return Status::Error(path + ": cannot read EXR: out of memory");

@@ -27,7 +27,8 @@ Status WriteExr(const std::string& path, const ImageLayers& image,
                 ExrThreads threads = ExrThreads::kAllCores);
 
 // Reads a file written by WriteExr (or any EXR with at least R G B; missing layers left empty;
-// a missing A reads as 1), decompressed on the calling thread. Errors name the path (missing file, not an EXR, truncated). A header
+// a missing A reads as 1), decompressed in bands of rows on threads of its own (one per core).
+// Errors name the path (missing file, not an EXR, truncated). A header
 // claiming more than 2^28 pixels (16384 x 16384) or a side above 65536 is refused rather than
 // allocated: a damaged file must not take the machine's memory.
 Expected<ImageLayers> ReadExr(const std::string& path);

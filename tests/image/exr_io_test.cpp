@@ -182,6 +182,37 @@ TEST(ExrIo, ForeignRgbExrWithOffsetWindowReads) {
   EXPECT_TRUE(read->samples.empty());
 }
 
+// Tall enough to be read in bands of rows on several threads (one per core, 64 rows or more
+// each), with a data window that starts below row 0: every band's rows land where they belong.
+TEST(ExrIo, ATallImageReadInBandsIsBitExact) {
+  TempDir dir = TempDir::Create().value();
+  const ImageLayers image = TestImage(45, 517, 17);
+  ASSERT_TRUE(WriteExr(dir.File("tall.exr"), image).ok());
+  Expected<ImageLayers> read = ReadExr(dir.File("tall.exr"));
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  ExpectBitEqual(image, *read);
+
+  const std::string path = dir.File("offset.exr");
+  const Imath::Box2i window(Imath::V2i(3, 40), Imath::V2i(9, 339));  // 7 x 300
+  std::vector<Imf::Rgba> pixels(7 * 300);
+  // Row and column in R and G (exact in half floats): a band read into the wrong rows shows.
+  for (size_t i = 0; i < pixels.size(); ++i)
+    pixels[i] = Imf::Rgba(float(i / 7), float(i % 7), 1.0f, 0.5f);
+  {
+    Imf::RgbaOutputFile file(path.c_str(), window, window, Imf::WRITE_RGBA);
+    file.setFrameBuffer(pixels.data() - 3 - 40 * 7, 1, 7);
+    file.writePixels(300);
+  }
+  read = ReadExr(path);
+  ASSERT_TRUE(read.ok()) << read.status().message();
+  ASSERT_EQ(read->rgba.size(), 4u * 7 * 300);
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    ASSERT_EQ(read->rgba[4 * i + 0], float(i / 7)) << i;
+    ASSERT_EQ(read->rgba[4 * i + 1], float(i % 7)) << i;
+    EXPECT_EQ(read->rgba[4 * i + 3], 0.5f);
+  }
+}
+
 TEST(ExrIo, ReadErrorsNameThePath) {
   TempDir dir = TempDir::Create().value();
   ExpectErrorNaming(ReadExr(dir.File("missing.exr")).status(), dir.File("missing.exr"),
