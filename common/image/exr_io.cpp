@@ -103,6 +103,17 @@ void ReadLayer(const Imath::Box2i& window, size_t pixels, const ChannelSpec (&sp
   }
 }
 
+template <typename T, size_t N>
+void ReadLayerIfThere(const Imf::ChannelList& channels, const Imath::Box2i& window, size_t pixels,
+                      const ChannelSpec (&specs)[N], std::vector<T>* values,
+                      Imf::FrameBuffer* frame) {
+  if (HasLayer(channels, specs)) {
+    ReadLayer(window, pixels, specs, values, frame);
+  } else {
+    values->clear();
+  }
+}
+
 // The rows of `window` into `frame` (already set on `file`): bands of rows read at once, each
 // by a thread of its own with its own InputFile (the chunks are decompressed where they are
 // read, the pool being empty: see ReadExr), the first band by `file` on this thread. A
@@ -191,6 +202,12 @@ Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads th
 }
 
 Expected<ImageLayers> ReadExr(const std::string& path) {
+  ImageLayers image;
+  RAYSTACK_RETURN_IF_ERROR(ReadExrInto(path, &image));
+  return image;
+}
+
+Status ReadExrInto(const std::string& path, ImageLayers* into) {
   std::error_code ec;
   if (!std::filesystem::exists(path, ec))
     return Status::Error(path + ": cannot read: no such file");
@@ -222,22 +239,21 @@ Expected<ImageLayers> ReadExr(const std::string& path) {
     if (!file.isComplete())
       return Status::Error(path + ": truncated EXR: some scanlines are missing");
 
-    ImageLayers image;
+    ImageLayers& image = *into;
     image.width = static_cast<int>(width);
     image.height = static_cast<int>(height);
     const size_t pixels = image.pixel_count();
     Imf::FrameBuffer frame;
     // A file without alpha is opaque; the other three RGBA channels are checked above.
+    // A layer the file lacks is left empty (cleared: `into` may hold an earlier image's).
     ReadLayer(window, pixels, kRgba, &image.rgba, &frame, /*fill=*/1.0);
-    if (HasLayer(channels, kZ)) ReadLayer(window, pixels, kZ, &image.z, &frame);
-    if (HasLayer(channels, kNormal)) ReadLayer(window, pixels, kNormal, &image.normal, &frame);
-    if (HasLayer(channels, kAlbedo)) ReadLayer(window, pixels, kAlbedo, &image.albedo, &frame);
-    if (HasLayer(channels, kSamples)) ReadLayer(window, pixels, kSamples, &image.samples, &frame);
-    if (HasLayer(channels, kVariance))
-      ReadLayer(window, pixels, kVariance, &image.variance, &frame);
+    ReadLayerIfThere(channels, window, pixels, kZ, &image.z, &frame);
+    ReadLayerIfThere(channels, window, pixels, kNormal, &image.normal, &frame);
+    ReadLayerIfThere(channels, window, pixels, kAlbedo, &image.albedo, &frame);
+    ReadLayerIfThere(channels, window, pixels, kSamples, &image.samples, &frame);
+    ReadLayerIfThere(channels, window, pixels, kVariance, &image.variance, &frame);
     file.setFrameBuffer(frame);
-    RAYSTACK_RETURN_IF_ERROR(ReadRows(path, file, frame, window));
-    return image;
+    return ReadRows(path, file, frame, window);
   } catch (const std::bad_alloc&) {
     return Status::Error(path + ": cannot read EXR: out of memory");
   } catch (const std::exception& e) {

@@ -32,5 +32,9 @@ Status WriteExr(const std::string& path, const ImageLayers& image,
 // claiming more than 2^28 pixels (16384 x 16384) or a side above 65536 is refused rather than
 // allocated: a damaged file must not take the machine's memory.
 Expected<ImageLayers> ReadExr(const std::string& path);
+// The same into `image`, whose layers' memory is used again where large enough (each frame's
+// reference read into the last one's: new memory costs a page fault a page). On failure
+// `image` holds no usable image.
+Status ReadExrInto(const std::string& path, ImageLayers* image);
 
 }  // namespace raystack::image

@@ -213,6 +213,29 @@ TEST(ExrIo, ATallImageReadInBandsIsBitExact) {
   }
 }
 
+// Each frame's reference is read into the memory of the frame before's: what the earlier image
+// had and the new file lacks must not stay behind.
+TEST(ExrIo, ReadingIntoAnEarlierImageLeavesNothingOfIt) {
+  TempDir dir = TempDir::Create().value();
+  const ImageLayers full = TestImage(40, 30, 5);
+  ImageLayers rgba_only = TestImage(20, 70, 6);
+  rgba_only.z.clear();
+  rgba_only.normal.clear();
+  rgba_only.albedo.clear();
+  rgba_only.samples.clear();
+  rgba_only.variance.clear();
+  ASSERT_TRUE(WriteExr(dir.File("full.exr"), full).ok());
+  ASSERT_TRUE(WriteExr(dir.File("rgba.exr"), rgba_only).ok());
+  ImageLayers into;
+  ASSERT_TRUE(ReadExrInto(dir.File("full.exr"), &into).ok());
+  ExpectBitEqual(full, into);
+  ASSERT_TRUE(ReadExrInto(dir.File("rgba.exr"), &into).ok());
+  ExpectBitEqual(rgba_only, into);
+  ASSERT_TRUE(ReadExrInto(dir.File("full.exr"), &into).ok());
+  ExpectBitEqual(full, into);
+  ExpectErrorNaming(ReadExrInto(dir.File("missing.exr"), &into), dir.File("missing.exr"));
+}
+
 TEST(ExrIo, ReadErrorsNameThePath) {
   TempDir dir = TempDir::Create().value();
   ExpectErrorNaming(ReadExr(dir.File("missing.exr")).status(), dir.File("missing.exr"),
