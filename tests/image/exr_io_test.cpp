@@ -58,6 +58,16 @@ bool BitEqual(const std::vector<T>& a, const std::vector<T>& b) {
   return a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0;
 }
 
+// `image` with its colour layer only.
+ImageLayers RgbaOnly(ImageLayers image) {
+  image.z.clear();
+  image.normal.clear();
+  image.albedo.clear();
+  image.samples.clear();
+  image.variance.clear();
+  return image;
+}
+
 void ExpectBitEqual(const ImageLayers& a, const ImageLayers& b) {
   EXPECT_EQ(a.width, b.width);
   EXPECT_EQ(a.height, b.height);
@@ -142,12 +152,7 @@ TEST(ExrIo, AFileWrittenOnTheCallingThreadIsCompressedThere) {
 
 TEST(ExrIo, OnlyRgbaWritesAndReadsBackTheOthersEmpty) {
   TempDir dir = TempDir::Create().value();
-  ImageLayers image = TestImage(8, 4, 1);
-  image.z.clear();
-  image.normal.clear();
-  image.albedo.clear();
-  image.samples.clear();
-  image.variance.clear();
+  const ImageLayers image = RgbaOnly(TestImage(8, 4, 1));
   ASSERT_TRUE(WriteExr(dir.File("rgba.exr"), image).ok());
   Expected<ImageLayers> read = ReadExr(dir.File("rgba.exr"));
   ASSERT_TRUE(read.ok()) << read.status().message();
@@ -218,12 +223,7 @@ TEST(ExrIo, ATallImageReadInBandsIsBitExact) {
 TEST(ExrIo, ReadingIntoAnEarlierImageLeavesNothingOfIt) {
   TempDir dir = TempDir::Create().value();
   const ImageLayers full = TestImage(40, 30, 5);
-  ImageLayers rgba_only = TestImage(20, 70, 6);
-  rgba_only.z.clear();
-  rgba_only.normal.clear();
-  rgba_only.albedo.clear();
-  rgba_only.samples.clear();
-  rgba_only.variance.clear();
+  const ImageLayers rgba_only = RgbaOnly(TestImage(20, 70, 6));
   ASSERT_TRUE(WriteExr(dir.File("full.exr"), full).ok());
   ASSERT_TRUE(WriteExr(dir.File("rgba.exr"), rgba_only).ok());
   ImageLayers into;
