@@ -317,6 +317,26 @@ TEST(WideBvh, PacketsOfCameraRaysMatchBruteForceBitForBit) {
   ExpectPacketsMatchBruteForce(m, bvh, CameraPackets({1.6f, 1.7f, -0.8f}, 48, 32, 2));
 }
 
+// Camera packets whose rays share the eye bit for bit take a walk that moves each corner to it
+// once for all lanes; here one lane of each packet starts a little off the eye (still close
+// enough to share the packet), in either register of lanes, or at -0 where the eye has +0.
+// Every lane must still come out as brute force from its own origin.
+TEST(WideBvh, PacketsWithOneLaneFromElsewhereMatchBruteForceBitForBit) {
+  const Mesh m = Soup(3000, 10);
+  const WideBvh bvh(m.vertices, m.ids, m.origins);
+  std::vector<std::vector<Ray>> packets = CameraPackets({0.0f, 0.5f, -1.0f}, 64, 48, 4);
+  for (size_t k = 0; k < packets.size(); ++k) {
+    std::vector<Ray>& rays = packets[k];
+    Ray& r = rays[(k * 7) % rays.size()];
+    if (k % 3 == 0) {
+      r.origin.x = -0.0f;
+    } else {
+      r.origin = r.origin + Vec3f{0.003f, -0.002f, 0.001f};
+    }
+  }
+  ExpectPacketsMatchBruteForce(m, bvh, packets);
+}
+
 // Shadow-like packets: nearby origins on a patch, towards one point (a light).
 TEST(WideBvh, PacketsFromNearbyOriginsMatchBruteForceBitForBit) {
   const Mesh m = Soup(3000, 6);
