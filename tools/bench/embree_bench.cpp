@@ -203,7 +203,7 @@ int main(int argc, char** argv) {
     const std::span<const Ray> rays = kind.rays;
     std::vector<Hit> single_hits(n), batch_hits(n), flat_hits(n), packet_hits(n);
     std::vector<uint8_t> single_occ(n), batch_occ(n), flat_occ(n), packet_occ(n), embree_occ(n);
-    std::vector<float> embree_t(n);
+    std::vector<Hit> embree_hits(n);
     for (int threads : o.threads) {
       const double single = MedianSeconds(o.repeats, [&] {
         ParallelChunks(threads, n, 4096, [&](size_t b, size_t e, int) {
@@ -284,7 +284,7 @@ int main(int argc, char** argv) {
         ParallelChunks(threads, n, 4096, [&](size_t b, size_t e, int) {
           if (kind.closest) {
             embree.Intersect(api, kind.coherent, rays.subspan(b, e - b),
-                             std::span<float>(embree_t).subspan(b, e - b));
+                             std::span<Hit>(embree_hits).subspan(b, e - b));
           } else {
             embree.Occluded(api, kind.coherent, rays.subspan(b, e - b),
                             std::span<uint8_t>(embree_occ).subspan(b, e - b));
@@ -303,7 +303,7 @@ int main(int argc, char** argv) {
         const double sec = MedianSeconds(o.repeats, [&] { run_embree(api); }, o.cpu_time);
         size_t agree = 0;
         for (size_t i = 0; i < n; ++i) {
-          agree += kind.closest ? CloseT(single_hits[i].t, embree_t[i])
+          agree += kind.closest ? CloseT(single_hits[i].t, embree_hits[i].t)
                                 : single_occ[i] == embree_occ[i];
         }
         char buffer[96];

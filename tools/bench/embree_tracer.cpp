@@ -48,9 +48,16 @@ void SetPacket(std::span<const Ray> rays, RayN* p, int* valid) {
   }
 }
 
+// What a closest-hit query hands back, in the record ours fills (raystack::Hit: distance,
+// barycentrics, triangle and geometry ids), so both sides of the comparison write the same bytes.
+Hit HitOf(float tfar, float u, float v, unsigned prim_id, unsigned geom_id) {
+  if (geom_id == RTC_INVALID_GEOMETRY_ID) return Hit{kInf};
+  return Hit{tfar, u, v, prim_id, geom_id, kInvalidId};
+}
+
 template <int N, typename RayHitN>
 void IntersectPackets(RTCScene scene, RTCIntersectContext* ctx, std::span<const Ray> rays,
-                      std::span<float> t) {
+                      std::span<Hit> hits) {
   alignas(64) RayHitN p;
   alignas(64) int valid[N];
   for (size_t i = 0; i < rays.size(); i += N) {
@@ -61,7 +68,7 @@ void IntersectPackets(RTCScene scene, RTCIntersectContext* ctx, std::span<const 
     if constexpr (N == 8) rtcIntersect8(valid, scene, ctx, &p);
     if constexpr (N == 16) rtcIntersect16(valid, scene, ctx, &p);
     for (size_t k = 0; k < n; ++k)
-      t[i + k] = p.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : p.ray.tfar[k];
+      hits[i + k] = HitOf(p.ray.tfar[k], p.hit.u[k], p.hit.v[k], p.hit.primID[k], p.hit.geomID[k]);
   }
 }
 
@@ -152,7 +159,7 @@ std::string EmbreeTracer::Version() const {
 }
 
 void EmbreeTracer::Intersect(EmbreeApi api, bool coherent, std::span<const Ray> rays,
-                             std::span<float> t) const {
+                             std::span<Hit> hits) const {
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   ctx.flags = coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
@@ -163,12 +170,12 @@ void EmbreeTracer::Intersect(EmbreeApi api, bool coherent, std::span<const Ray> 
         SetRay(rays[i], &rh.ray);
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rtcIntersect1(scene_, &ctx, &rh);
-        t[i] = rh.hit.geomID == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar;
+        hits[i] = HitOf(rh.ray.tfar, rh.hit.u, rh.hit.v, rh.hit.primID, rh.hit.geomID);
       }
       return;
-    case EmbreeApi::kPacket4: return IntersectPackets<4, RTCRayHit4>(scene_, &ctx, rays, t);
-    case EmbreeApi::kPacket8: return IntersectPackets<8, RTCRayHit8>(scene_, &ctx, rays, t);
-    case EmbreeApi::kPacket16: return IntersectPackets<16, RTCRayHit16>(scene_, &ctx, rays, t);
+    case EmbreeApi::kPacket4: return IntersectPackets<4, RTCRayHit4>(scene_, &ctx, rays, hits);
+    case EmbreeApi::kPacket8: return IntersectPackets<8, RTCRayHit8>(scene_, &ctx, rays, hits);
+    case EmbreeApi::kPacket16: return IntersectPackets<16, RTCRayHit16>(scene_, &ctx, rays, hits);
     case EmbreeApi::kStream: {
       RTCRayHit stream[kStream];
       for (size_t i = 0; i < rays.size(); i += kStream) {
@@ -178,8 +185,10 @@ void EmbreeTracer::Intersect(EmbreeApi api, bool coherent, std::span<const Ray> 
           stream[k].hit.geomID = RTC_INVALID_GEOMETRY_ID;
         }
         rtcIntersect1M(scene_, &ctx, stream, static_cast<unsigned>(n), sizeof(RTCRayHit));
-        for (size_t k = 0; k < n; ++k)
-          t[i + k] = stream[k].hit.geomID == RTC_INVALID_GEOMETRY_ID ? kInf : stream[k].ray.tfar;
+        for (size_t k = 0; k < n; ++k) {
+          const RTCRayHit& r = stream[k];
+          hits[i + k] = HitOf(r.ray.tfar, r.hit.u, r.hit.v, r.hit.primID, r.hit.geomID);
+        }
       }
       return;
     }

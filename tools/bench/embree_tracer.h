@@ -2,8 +2,9 @@
 // The same mesh in Embree 3, traced with each of its ray APIs (single rays, packets of 4, 8
 // and 16, and streams), so the benchmark can report the best Embree figure. Settings as
 // asked for a fair comparison: build quality high, robust mode off, one triangle geometry.
-// Results are reduced to what the comparison checks: the hit distance (infinity for a
-// miss) or the occlusion flag.
+// A closest hit comes back as the record ours fills (raystack::Hit: distance, infinity for a
+// miss, barycentrics, Embree's primitive and geometry ids), so both sides write the same bytes
+// per ray; an any-hit query as the occlusion flag.
 
 #include <embree3/rtcore.h>
 
@@ -31,9 +32,9 @@ class EmbreeTracer {
   bool Supports(EmbreeApi api) const;
   std::string Version() const;
 
-  // Closest hit distances (infinity for a miss) of rays[i], i in [0, n). `coherent` sets the
+  // Closest hits of rays[i], i in [0, n) (Hit::t infinity for a miss). `coherent` sets the
   // context flag Embree uses to pick its stream traversal.
-  void Intersect(EmbreeApi api, bool coherent, std::span<const Ray> rays, std::span<float> t) const;
+  void Intersect(EmbreeApi api, bool coherent, std::span<const Ray> rays, std::span<Hit> hits) const;
   // Any hit: occluded[i] = 1 when something lies in (tmin, tmax).
   void Occluded(EmbreeApi api, bool coherent, std::span<const Ray> rays,
                 std::span<uint8_t> occluded) const;
