@@ -68,9 +68,10 @@ render::ConvergencePoint ConvergenceMonitor::Measure(const image::ImageLayers* r
   if (!measured_ || measured_samples_ != samples) {
     error_ = {};
     if (resolved) {
-      render::EstimateError(*resolved, reference_, &error_);
+      render::EstimateError(*resolved, reference_, &error_, &luminance_);
     } else {
-      render::EstimateError(film_.Resolve(), reference_, &error_);
+      film_.ResolveInto(&resolved_);
+      render::EstimateError(resolved_, reference_, &error_, &luminance_);
     }
     measured_ = true;
     measured_samples_ = samples;

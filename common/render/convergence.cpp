@@ -15,9 +15,10 @@ double PixelLuminance(const image::ImageLayers& image, size_t i) {
 
 }  // namespace
 
-std::vector<double> FilledLuminance(const image::ImageLayers& image) {
+void FilledLuminance(const image::ImageLayers& image, std::vector<double>* luminance) {
   const size_t n = static_cast<size_t>(image.width) * static_cast<size_t>(image.height);
-  std::vector<double> y(n, 0.0);
+  std::vector<double>& y = *luminance;
+  y.assign(n, 0.0);
   for (size_t i = 0; i < n; ++i)
     if (image.samples[i] > 0) y[i] = PixelLuminance(image, i);
   for (int py = 0; py < image.height; ++py)
@@ -35,11 +36,10 @@ std::vector<double> FilledLuminance(const image::ImageLayers& image) {
         if ((px & mask) == 0 && (py & mask) == 0) break;
       }
     }
-  return y;
 }
 
 void EstimateError(const image::ImageLayers& image, const image::ImageLayers* reference,
-                   ConvergencePoint* point) {
+                   ConvergencePoint* point, std::vector<double>* scratch) {
   const size_t n = static_cast<size_t>(image.width) * static_cast<size_t>(image.height);
   uint64_t covered = 0, with_variance = 0;
   uint32_t min_samples = n > 0 ? image.samples[0] : 0;
@@ -62,7 +62,9 @@ void EstimateError(const image::ImageLayers& image, const image::ImageLayers* re
   point->rel_error_estimate = with_variance ? rel_sum / static_cast<double>(with_variance) : nan;
   point->rmse = point->relmse = nan;
   if (!reference || n == 0) return;
-  const std::vector<double> y = FilledLuminance(image);
+  std::vector<double> own;
+  std::vector<double>& y = scratch ? *scratch : own;
+  FilledLuminance(image, &y);
   double se = 0, rel = 0;
   for (size_t i = 0; i < n; ++i) {
     const double r = PixelLuminance(*reference, i);

@@ -41,11 +41,13 @@ struct ConvergencePoint {
 // Fills pixels_covered, min_samples and the error figures from a resolved film (counts and
 // variance layers); rmse and relmse only when `reference` is given (same size: checked by
 // CheckReference first).
+// `scratch` (optional): memory for the image's luminance, kept by a caller that measures often.
 void EstimateError(const image::ImageLayers& image, const image::ImageLayers* reference,
-                   ConvergencePoint* point);
+                   ConvergencePoint* point, std::vector<double>* scratch = nullptr);
 
-// Luminance per pixel, pixels without samples filled from their nearest computed ancestor.
-std::vector<double> FilledLuminance(const image::ImageLayers& image);
+// Luminance per pixel into *y (resized), pixels without samples filled from their nearest
+// computed ancestor.
+void FilledLuminance(const image::ImageLayers& image, std::vector<double>* y);
 
 // An error naming `path` unless `reference` is width x height.
 Status CheckReference(const image::ImageLayers& reference, int width, int height,

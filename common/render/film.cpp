@@ -148,9 +148,11 @@ image::ImageLayers Film::Resolve() const {
 }
 
 void Film::ResolveInto(image::ImageLayers* into) const {
-  std::lock_guard lock(mu_);
   image::ImageLayers& out = *into;
+  // Cleared before the lock is taken: on a film merging while it is measured (a convergence
+  // log, one process), ray threads wait for this lock to merge their samples.
   out.Resize(width_, height_);
+  std::lock_guard lock(mu_);
   for (size_t i = 0; i < pixels_.size(); ++i) {
     const Pixel& p = pixels_[i];
     out.samples[i] = p.count;

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/render/film.h"
@@ -62,7 +63,10 @@ TEST(Convergence, UncoveredPixelsTakeTheirNearestComputedAncestor) {
   };
   set(0, 0, 1.0f);
   set(8, 8, 2.0f);
-  const std::vector<double> y = FilledLuminance(im);
+  std::vector<double> y(300, 7.0);  // a caller's memory: nothing of it may remain
+  FilledLuminance(im, &y);
+  ASSERT_EQ(y.size(), 256u);
+  EXPECT_EQ(std::count(y.begin(), y.end(), 7.0), 0);
   EXPECT_NEAR(y[5 * 16 + 3], 1.0, 1e-6);    // (3,5): ancestors (2,4), (0,4), (0,0)
   EXPECT_NEAR(y[9 * 16 + 15], 2.0, 1e-6);   // (15,9): ... (8,8)
   EXPECT_NEAR(y[12 * 16 + 3], 1.0, 1e-6);   // (3,12): (0,8) is not computed, (0,0) is
