@@ -25,7 +25,8 @@ void Checkpoints::Maybe(const render::Film& film) {
   FrameWriter::Image image;
   image.exr = path_;
   image.background = true;  // the frame goes on rendering
-  image.layers = film.Resolve();
+  image.layers = writer_->TakeSpare();  // the last image's memory, when there is one
+  film.ResolveInto(&image.layers);
   image.done = [written = written_](const Status& s) {
     if (!s.ok()) {  // tried again at the next interval
       LOG_WARNING("render", "checkpoint: %s", s.message().c_str());

@@ -86,7 +86,7 @@ void FrameWriter::Loop() {
     }
     if (!image.done && s.ok() && announce_) std::printf("  wrote %s\n", image.exr.c_str());
     lock.lock();
-    if (!image.done) spare_ = std::move(image.layers);
+    spare_ = std::move(image.layers);  // a frame's or a checkpoint's: the next resolve's memory
     writing_ = false;
     if (error_.ok() && !image.done) error_ = s;
     cv_.notify_all();

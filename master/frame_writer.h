@@ -55,9 +55,10 @@ class FrameWriter {
   bool HasRoom();
   // Waits until everything queued is written; the first failed write, if any.
   Status Finish();
-  // The layers of the last frame written (not a checkpoint's), handed back for the next frame
-  // to resolve into: memory already mapped, where a new image costs a page fault a page (~40
-  // ms for 960x540 on a VM that returns freed memory to its host). Empty when there is none.
+  // The layers of the last image written (a frame's or a checkpoint's), handed back for the next
+  // resolve (a frame's end, a checkpoint) to use: memory already mapped, where a new image costs
+  // a page fault a page (~40 ms for 960x540 on a VM that returns freed memory to its host).
+  // Empty when there is none, or when it was taken and not written back yet.
   image::ImageLayers TakeSpare();
 
  private:

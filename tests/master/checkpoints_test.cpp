@@ -92,6 +92,29 @@ TEST(Checkpoints, AreWrittenByTheWriterWhileTheLoopGoesOn) {
   EXPECT_EQ(read->rgba[0], 5.0f);
 }
 
+// A checkpoint resolves into the layers of the last image written (memory already mapped: new
+// layers cost a page fault a page), and its own come back after it is written.
+TEST(Checkpoints, ResolveIntoTheLastWrittenImagesLayers) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  render::Film film(4, 2);
+  Fill(&film, 5);
+  master::FrameWriter writer(false);
+  ASSERT_TRUE(writer.Write(Flat(dir->File("earlier.exr"), 1)).ok());
+  ASSERT_TRUE(writer.Finish().ok());  // its layers are the writer's spare now
+  Gate gate;
+  ASSERT_TRUE(writer.Write(gate.Holding(Flat(dir->File("slow.exr"), 2))).ok());
+  gate.WaitEntered();  // nothing comes back while this one is held
+  master::Checkpoints checkpoints(0.01, dir->File("frame.exr"), &writer);
+  MaybeWhenDue(&checkpoints, film, 0.01);
+  EXPECT_TRUE(writer.TakeSpare().rgba.empty()) << "the checkpoint took the spare layers";
+  gate.Release();
+  ASSERT_TRUE(writer.Finish().ok());
+  const image::ImageLayers back = writer.TakeSpare();  // the checkpoint's, written last
+  ASSERT_FALSE(back.rgba.empty());
+  EXPECT_EQ(back.rgba[0], 5.0f);
+}
+
 TEST(Checkpoints, WaitForNoRoomButAreTriedAtTheNextCall) {
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());

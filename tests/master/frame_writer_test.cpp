@@ -141,10 +141,9 @@ TEST(FrameWriter, AFrameWrittenWhileOthersRenderLeavesThemTheCores) {
   EXPECT_EQ(getpriority(PRIO_PROCESS, 0), own);
 }
 
-// A written frame's layers come back for the next frame to resolve into (memory already
-// mapped); a checkpoint's do not (its frame goes on, and its own image comes later), and each
-// comes back once.
-TEST(FrameWriter, AWrittenFramesLayersComeBackOnce) {
+// A written image's layers, a frame's or a checkpoint's, come back for the next resolve (memory
+// already mapped), and each comes back once.
+TEST(FrameWriter, AWrittenImagesLayersComeBackOnce) {
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());
   master::FrameWriter writer(false);
@@ -158,6 +157,7 @@ TEST(FrameWriter, AWrittenFramesLayersComeBackOnce) {
   checkpoint.done = [](const Status&) {};
   ASSERT_TRUE(writer.Write(std::move(checkpoint)).ok());
   ASSERT_TRUE(writer.Finish().ok());
+  EXPECT_EQ(writer.TakeSpare().rgba, ImageAt(dir->File("x.exr"), 6).layers.rgba);
   EXPECT_TRUE(writer.TakeSpare().rgba.empty());
 }
 
