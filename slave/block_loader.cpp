@@ -24,10 +24,23 @@ size_t Cores() { return std::max(1u, std::thread::hardware_concurrency()); }
 
 }  // namespace
 
+std::unique_ptr<ReadBuffers> BufferShelf::Take() {
+  std::lock_guard lock(mu_);
+  if (kept_.empty()) return std::make_unique<ReadBuffers>();
+  std::unique_ptr<ReadBuffers> b = std::move(kept_.back());
+  kept_.pop_back();
+  return b;
+}
+
+void BufferShelf::Put(std::unique_ptr<ReadBuffers> buffers) {
+  std::lock_guard lock(mu_);
+  kept_.push_back(std::move(buffers));
+}
+
 BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, BlockSource* source,
-                         LoaderOptions options, Deliver deliver)
+                         LoaderOptions options, Deliver deliver, BufferShelf* shelf)
     : store_(store), cache_(cache), source_(source), options_(options),
-      deliver_(std::move(deliver)),
+      deliver_(std::move(deliver)), shelf_(shelf ? shelf : &own_shelf_),
       max_workers_(static_cast<size_t>(std::max(1, options.io_threads))),
       allowed_workers_(std::min<size_t>(max_workers_, Cores())),
       aio_(source->OpenAio(static_cast<int>(max_workers_))) {
@@ -73,6 +86,7 @@ void BlockLoader::Stop() {
   requests_cv_.notify_all();
   cache_->Shutdown();  // the loader may be waiting for room that will never be freed
   loader_.join();
+  if (inline_buffers_) shelf_->Put(std::move(inline_buffers_));
   {
     std::lock_guard lock(runs_mu_);
     workers_stop_ = true;
@@ -240,14 +254,14 @@ void BlockLoader::ReadInline(const Run& run) {
   // Reads have to wait once two in a row gave up the CPU. One alone is not enough: a read from
   // the page cache now and then does too (8 slaves: in about one frame of two, some slave's
   // loader met one among its first few dozen reads).
-  const bool waited = ReadAndComplete(run, &inline_bytes_, &inline_scratch_);
+  if (!inline_buffers_) inline_buffers_ = shelf_->Take();
+  const bool waited = ReadAndComplete(run, &inline_buffers_->bytes, &inline_buffers_->scratch);
   waited_in_a_row_ = waited ? waited_in_a_row_ + 1 : 0;
   if (waited_in_a_row_ == 2) read_inline_ = false;
 }
 
 void BlockLoader::WorkerLoop() {
-  std::vector<uint8_t> bytes;
-  store::AlignedBuffer scratch;
+  std::unique_ptr<ReadBuffers> buffers = shelf_->Take();
   for (;;) {
     Run run;
     {
@@ -255,12 +269,13 @@ void BlockLoader::WorkerLoop() {
       ++idle_workers_;
       runs_cv_.wait(lock, [&] { return !run_queue_.empty() || workers_stop_; });
       --idle_workers_;
-      if (run_queue_.empty()) return;
+      if (run_queue_.empty()) break;
       run = std::move(run_queue_.front());
       run_queue_.pop_front();
     }
-    ReadAndComplete(run, &bytes, &scratch);
+    ReadAndComplete(run, &buffers->bytes, &buffers->scratch);
   }
+  shelf_->Put(std::move(buffers));
 }
 
 void BlockLoader::StartQueuedAio() {
@@ -286,14 +301,14 @@ void BlockLoader::StartQueuedAio() {
 
 void BlockLoader::AioLoop() {
   std::vector<AioRuns::Finished> finished;
-  store::AlignedBuffer scratch;
+  std::unique_ptr<ReadBuffers> buffers = shelf_->Take();  // its scratch
   for (;;) {
     {
       std::unique_lock lock(aio_mu_);
       aio_cv_.wait(lock, [&] { return aio_stop_ || aio_->in_flight() > 0; });
       // Runs wait in the queue only while half the slots or more are taken (StartQueuedAio),
       // so nothing in flight means nothing left.
-      if (aio_->in_flight() == 0) return;
+      if (aio_->in_flight() == 0) break;
     }
     // A few reads at a time, so the other threads share the decoding of a burst. The
     // timeout only matters when another thread took the last reads in flight.
@@ -305,7 +320,7 @@ void BlockLoader::AioLoop() {
         std::lock_guard lock(aio_mu_);
         run = std::move(aio_runs_[f.slot]);
       }
-      CompleteRun(run, f.status, f.bytes.data(), &scratch);
+      CompleteRun(run, f.status, f.bytes.data(), &buffers->scratch);
       aio_->Release(f.slot);
       BusyEnd();
     }

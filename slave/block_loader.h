@@ -24,6 +24,7 @@
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <unordered_map>
@@ -42,6 +43,26 @@ struct LoaderOptions {
   uint32_t max_run_bytes = 256 << 10;  // neighbouring blocks merged into one read, up to this
 };
 
+// What a read and its decoding need: the stored bytes of a run, and the decoder's scratch.
+struct ReadBuffers {
+  std::vector<uint8_t> bytes;
+  store::AlignedBuffer scratch;
+};
+
+// ReadBuffers kept from one frame's loader to the next (the engine holds the shelf), so a warm
+// frame's reads and decodes touch no memory that is new: each new page is a fault, ~12 us on a
+// VM whose host takes freed memory back, and each frame's new I/O threads made ~140 of them a
+// frame per slave. Thread-safe.
+class BufferShelf {
+ public:
+  std::unique_ptr<ReadBuffers> Take();  // a kept set, or a new one
+  void Put(std::unique_ptr<ReadBuffers> buffers);
+
+ private:
+  std::mutex mu_;
+  std::vector<std::unique_ptr<ReadBuffers>> kept_;
+};
+
 class BlockLoader {
  public:
   static constexpr int kMaxRayThreads = 64;  // requesters are a 64-bit mask
@@ -49,8 +70,10 @@ class BlockLoader {
   // taken) or failed (`status` names the block; no pin).
   using Deliver = std::function<void(uint32_t thread, uint32_t block, const Status& status)>;
 
+  // `shelf`: where the loader's threads take their buffers and put them back when it stops (it
+  // must outlive the loader); without one, the loader keeps its own.
   BlockLoader(const store::StoreReader& store, BlockCache* cache, BlockSource* source,
-              LoaderOptions options, Deliver deliver);
+              LoaderOptions options, Deliver deliver, BufferShelf* shelf = nullptr);
   ~BlockLoader();
 
   // Ray thread `thread` needs block `block`. Non-blocking.
@@ -103,6 +126,8 @@ class BlockLoader {
   BlockSource* source_;
   const LoaderOptions options_;
   const Deliver deliver_;
+  BufferShelf own_shelf_;  // used when none is given
+  BufferShelf* const shelf_;
 
   std::mutex mu_;
   std::condition_variable requests_cv_;
@@ -116,8 +141,7 @@ class BlockLoader {
   bool read_inline_ = true;
   int waited_in_a_row_ = 0;
   uint64_t inline_runs_ = 0;
-  std::vector<uint8_t> inline_bytes_;
-  store::AlignedBuffer inline_scratch_;
+  std::unique_ptr<ReadBuffers> inline_buffers_;  // taken when first needed
 
   std::mutex runs_mu_;
   std::condition_variable runs_cv_;

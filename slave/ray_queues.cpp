@@ -1,5 +1,7 @@
 #include "slave/ray_queues.h"
 
+#include <algorithm>
+
 namespace raystack::slave {
 
 uint32_t RayQueues::Create(uint32_t block, State state) {
@@ -95,6 +97,21 @@ void RayQueues::Close(uint32_t q) {
   CHECK(queue.rays == 0);
   queue_of_[queue.block] = kNone;
   free_queues_.push_back(q);
+}
+
+void RayQueues::Reset() {
+  std::fill(queue_of_.begin(), queue_of_.end(), kNone);
+  free_queues_.clear();
+  for (uint32_t q = static_cast<uint32_t>(queues_.size()); q-- > 0;) {
+    queues_[q].chunks.clear();
+    free_queues_.push_back(q);
+  }
+  free_chunks_.clear();
+  for (uint32_t c = static_cast<uint32_t>(chunks_.size()); c-- > 0;) free_chunks_.push_back(c);
+  ready_ = {};
+  sequence_ = 0;
+  rays_ = waiting_rays_ = peak_rays_ = 0;
+  chunks_in_use_ = peak_chunks_ = 0;
 }
 
 }  // namespace raystack::slave

@@ -50,6 +50,9 @@ class RayQueues {
   void Recycle(const std::vector<uint32_t>& chunks);
   // Deletes an empty queue.
   void Close(uint32_t q);
+  // Empties every queue and zeroes the peaks for a new frame; the chunks and queue records stay
+  // allocated for reuse.
+  void Reset();
 
   uint64_t rays() const { return rays_; }
   uint64_t waiting_rays() const { return waiting_rays_; }

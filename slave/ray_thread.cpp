@@ -22,10 +22,27 @@ void FrameShared::Fail(const Status& status) {
   if (tiles) tiles->Abort();
 }
 
-RayThread::RayThread(FrameShared* shared, uint32_t index)
-    : shared_(shared),
-      index_(index),
-      queues_(static_cast<uint32_t>(shared->store->blocks().size())) {}
+RayThread::RayThread(uint32_t index, uint32_t block_count)
+    : index_(index), queues_(block_count) {}
+
+void RayThread::BeginFrame(FrameShared* shared) {
+  shared_ = shared;
+  queues_.Reset();
+  slots_.Reset();
+  counters_ = ThreadCounters{};
+  tiles_.clear();
+  newest_tile_ = 0;
+  open_tiles_ = 0;
+  ahead_asked_ = false;
+  tiles_exhausted_ = false;
+  results_.clear();
+  rays_reported_ = 0;
+  pending_.clear();
+  taken_chunks_.clear();
+  std::lock_guard lock(inbox_mu_);
+  inbox_.clear();
+  inbox_local_.clear();
+}
 
 void RayThread::Wake() {
   std::lock_guard lock(inbox_mu_);

@@ -146,10 +146,15 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   shared.stack = options_.mode != TraceMode::kSync && options_.mode != TraceMode::kBvh;
   shared.bvh = bvh_.get();
 
-  std::vector<std::unique_ptr<RayThread>> threads;
-  for (int i = 0; i < options_.threads; ++i)
-    threads.push_back(std::make_unique<RayThread>(&shared, static_cast<uint32_t>(i)));
-  for (auto& t : threads) shared.threads.push_back(t.get());
+  // The ray threads' memory is kept from frame to frame (see RayThread); the threads are not.
+  std::vector<std::unique_ptr<RayThread>>& threads = ray_threads_;
+  for (int i = static_cast<int>(threads.size()); i < options_.threads; ++i)
+    threads.push_back(std::make_unique<RayThread>(static_cast<uint32_t>(i),
+                                                  static_cast<uint32_t>(store_.blocks().size())));
+  for (auto& t : threads) {
+    t->BeginFrame(&shared);
+    shared.threads.push_back(t.get());
+  }
 
   std::unique_ptr<BlockLoader> loader;
   cache_->Reopen();  // the last frame's loader shut it
@@ -158,7 +163,8 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
         store_, cache_.get(), source_, options_.loader,
         [&threads](uint32_t thread, uint32_t block, const Status& status) {
           threads[thread]->Deliver(block, status);
-        });
+        },
+        &read_buffers_);
     shared.loader = loader.get();
   }
 

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "common/base/status.h"
 #include "common/render/camera.h"
@@ -40,6 +41,8 @@ struct EngineOptions {
   render::PixelOrder pixel_order = render::PixelOrder::kPriority;  // within a tile
 };
 
+class RayThread;
+
 class RenderEngine {
  public:
   // `source`: where blocks come from instead of the store's own file (e.g. the peers, for
@@ -73,6 +76,8 @@ class RenderEngine {
   BlockWalk walk_;
   bool preloaded_ = false;
   std::unique_ptr<store::StoreBvh> bvh_;  // bvh mode: every triangle in one tree
+  std::vector<std::unique_ptr<RayThread>> ray_threads_;  // made by the first frame
+  BufferShelf read_buffers_;  // the loader's, from frame to frame
 };
 
 }  // namespace raystack::slave

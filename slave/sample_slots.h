@@ -72,6 +72,14 @@ class SampleSlots {
     return true;
   }
 
+  // Frees every slot for a new frame (the memory stays) and zeroes the peak.
+  void Reset() {
+    free_.clear();
+    for (uint32_t id = static_cast<uint32_t>(slots_.size()); id-- > 0;) free_.push_back(id);
+    open_ = 0;
+    peak_open_ = 0;
+  }
+
   uint64_t open() const { return open_; }
   uint64_t peak_open() const { return peak_open_; }
   static constexpr uint64_t kSlotBytes = 128;

@@ -333,6 +333,9 @@ TEST(RenderEngine, FramesInSequenceMatchAFreshEngineAndKeepTheCacheWarm) {
         const Status st = (*engine)->RenderFrame(scene, materials, camera, tiles, sink, &stats);
         ASSERT_TRUE(st.ok()) << "frame " << frame << ": " << st.message();
         EXPECT_TRUE(SameBits(film.Resolve().rgba, fresh.image.rgba)) << "frame " << frame;
+        // The ray threads are kept from frame to frame; what they count starts again.
+        EXPECT_EQ(stats.rays, fresh.stats.rays) << "frame " << frame;
+        EXPECT_EQ(stats.samples, fresh.stats.samples) << "frame " << frame;
         // #U and #C count this frame's loads: a warm frame that loads nothing uses no
         // distinct loaded block, and no frame has more distinct blocks than loads.
         EXPECT_LE(stats.blocks_distinct, stats.blocks_loaded) << "frame " << frame;
