@@ -83,6 +83,7 @@ Expected<BlockView> BlockView::Parse(const uint8_t* raw, uint64_t size, uint32_t
   if (!(h.flags & kBlockIndices32) && h.vertex_count > 65536)
     return Bad(block_id, "16-bit indices with more than 65536 vertices");
 
+  v.bytes_ = size;
   v.nodes_ = reinterpret_cast<const BvhNode*>(raw + layout.nodes);
   const auto* pos = reinterpret_cast<const float*>(raw + layout.positions);
   v.x_ = pos;

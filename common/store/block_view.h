@@ -59,6 +59,15 @@ class BlockView {
   // Any hit in (ray.tmin, ray.tmax).
   bool Occluded(const Ray& ray) const;
 
+  // Asks the CPU to bring the whole block into its caches, without waiting. A batch's walk
+  // goes from node to node, each load waiting for the last; a block resident but not touched
+  // lately is in none of the caches, so every step missed. The prefetches are all in flight at
+  // once (see slave/ray_thread.cpp for what it gained).
+  void Prefetch() const {
+    const auto* p = reinterpret_cast<const char*>(header_);
+    for (uint64_t offset = 0; offset < bytes_; offset += 64) __builtin_prefetch(p + offset, 0, 3);
+  }
+
   // The same queries for a batch of rays (a block's waiting queue): results equal, bit for
   // bit, n calls of the single-ray forms. Rays are grouped by direction octant and traced
   // as packets of 4 (SSE2) within each group, so coherent queues gain most; any order, size
@@ -86,6 +95,7 @@ class BlockView {
 
   uint32_t id_ = 0;
   const BlockHeader* header_ = nullptr;
+  uint64_t bytes_ = 0;  // the raw block's size, from header_
   const BvhNode* nodes_ = nullptr;
   const float *x_ = nullptr, *y_ = nullptr, *z_ = nullptr;
   const uint16_t* indices16_ = nullptr;
