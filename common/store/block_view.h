@@ -62,10 +62,14 @@ class BlockView {
   // Asks the CPU to bring the whole block into its caches, without waiting. A batch's walk
   // goes from node to node, each load waiting for the last; a block resident but not touched
   // lately is in none of the caches, so every step missed. The prefetches are all in flight at
-  // once (see slave/ray_thread.cpp for what it gained).
+  // once (see slave/ray_thread.cpp for what it gained). Blocks are ~32 KB (raystack-prep's
+  // --max-block-kb caps them at 128 KB by default); past kMaxPrefetchBytes, a bound rather than
+  // a tuned figure, a batch meets a small part of a block and would find its lines pushed out.
+  static constexpr uint64_t kMaxPrefetchBytes = 256 << 10;
   void Prefetch() const {
     const auto* p = reinterpret_cast<const char*>(header_);
-    for (uint64_t offset = 0; offset < bytes_; offset += 64) __builtin_prefetch(p + offset, 0, 3);
+    const uint64_t end = bytes_ < kMaxPrefetchBytes ? bytes_ : kMaxPrefetchBytes;
+    for (uint64_t offset = 0; offset < end; offset += 64) __builtin_prefetch(p + offset, 0, 3);
   }
 
   // The same queries for a batch of rays (a block's waiting queue): results equal, bit for
