@@ -17,6 +17,12 @@
 // tested with the store's OctreeChildHits (IntersectBox's exact expressions and slack, 4
 // children at a time), so no hit on a cell boundary is lost.
 //
+// A ray that starts inside the octree (a shadow or a bounced ray, a camera inside the model)
+// does not walk down from the root: the walk's first leaf is the cell holding its start, found
+// by point location, whenever that start lies clear of the cell's faces by the box tests'
+// margin (every sibling on the way down is then entered strictly later, or missed). From that
+// cell the walk resumes as Next does, so the blocks and their order are the same bit for bit.
+//
 // Thread-safe after construction (read-only).
 
 #include <algorithm>
@@ -76,6 +82,12 @@ class BlockWalk {
   static void Push(Frame* f, uint32_t keep, const float enter[8], const float exit[8]);
   // Continues the walk on `frames`; returns the first block of the next leaf, or kInvalidId.
   uint32_t Descend(const Slabs& s, Frame* frames, int depth) const;
+  // The first block after the subtree of `node` (any node but the root): climbs through its
+  // ancestors, visiting at each the children the walk visits after the one it comes from.
+  uint32_t Climb(const Slabs& s, uint32_t node) const;
+  // The leaf or empty node whose cell holds the ray's start when the walk from the root is
+  // sure to visit it first (see the file comment), or kInvalidId.
+  uint32_t StartCell(const Slabs& s, const Ray& ray) const;
 
   std::span<const store::OctreeNode> nodes_;
   store::NodeBounds node_bounds_;
@@ -171,9 +183,49 @@ inline uint32_t BlockWalk::Descend(const Slabs& s, Frame* frames, int depth) con
   return kInvalidId;
 }
 
+inline uint32_t BlockWalk::StartCell(const Slabs& s, const Ray& ray) const {
+  // Point location: child i holds the upper half along axis a when bit a of i is set, and
+  // child 7's lower corner is the node's mid point.
+  uint32_t n = 0;
+  const Vec3f& o = s.box.origin;
+  while (nodes_[n].kind == store::kOctreeInner) {
+    const Cell& upper_child = cells_[nodes_[n].first + 7];
+    n = nodes_[n].first + static_cast<uint32_t>((o.x >= upper_child.lower[0]) |
+                                                ((o.y >= upper_child.lower[1]) << 1) |
+                                                ((o.z >= upper_child.lower[2]) << 2));
+  }
+  // The cell is first if, on every axis, with the expressions of the box tests: its face
+  // ahead is entered after tmin (so is every face ahead of it, the near faces of the siblings
+  // on that side, at every level up), and its face behind is left before tmin (every sibling
+  // on that side is missed). Then that face is also entered before tmin (pads are >= 0), so
+  // the cell and each ancestor are entered at exactly tmin, before any sibling. A NaN
+  // anywhere fails a comparison: the walk starts at the root.
+  if (!(ray.tmin >= 0 && ray.tmin <= ray.tmax)) return kInvalidId;
+  const Cell& c = cells_[n];
+  for (int a = 0; a < 3; ++a) {
+    const float ahead = s.box.dir_is_neg[a] ? c.lower[a] : c.upper[a];
+    const float behind = s.box.dir_is_neg[a] ? c.upper[a] : c.lower[a];
+    const float t_ahead = (ahead - s.box.origin[a]) * s.box.inv_dir[a];
+    const float t_behind = (behind - s.box.origin[a]) * s.box.inv_dir[a];
+    if (!(t_ahead - s.box.pad[a] > ray.tmin)) return kInvalidId;
+    if (!(t_behind * bvh_internal::kFarScale + s.box.pad[a] < ray.tmin)) return kInvalidId;
+  }
+  return n;
+}
+
 inline uint32_t BlockWalk::First(const Ray& ray) const {
   if (nodes_.empty()) return kInvalidId;
   const Slabs s(ray, magnitude_);
+  if (const uint32_t start = StartCell(s, ray); start != kInvalidId) {
+    // The walk from the root would reach this cell first, having tested its bounds and every
+    // ancestor's; its blocks' own bounds lie inside those, so testing them alone is the same.
+    const store::OctreeNode& node = nodes_[start];
+    if (node.kind == store::kOctreeLeaf) {
+      const uint32_t block = FirstMet(s, node, node.first);
+      if (block != kInvalidId) return block;
+    }
+    return Climb(s, start);  // (nothing after the root)
+  }
   float enter;
   if (!IntersectBox(s.box, root_.lower, root_.upper, s.tmin, ray.tmax, &enter)) return kInvalidId;
   if (!store::MayHit(s.box, node_bounds_[0], s.tmin, s.t_best)) return kInvalidId;
@@ -193,11 +245,15 @@ inline uint32_t BlockWalk::Next(const Ray& ray, uint32_t block) const {
   const Slabs s(ray, magnitude_);
   const uint32_t mate = FirstMet(s, nodes_[leaf], block + 1);
   if (mate != kInvalidId) return mate;
-  // Climb: at each ancestor, the children visited after the one we come from, in order. The
-  // climb usually ends a level or two up, so ancestors are only visited as far as needed.
+  return Climb(s, leaf);
+}
+
+inline uint32_t BlockWalk::Climb(const Slabs& s, uint32_t node) const {
+  // At each ancestor, the children visited after the one we come from, in order. The climb
+  // usually ends a level or two up, so ancestors are only visited as far as needed.
   Frame frames[kMaxDepth];
   float enter[8], exit[8];
-  for (uint32_t child = leaf; child != 0;) {
+  for (uint32_t child = node; child != 0;) {
     const uint32_t parent = parent_[child];
     const uint32_t first = nodes_[parent].first;
     const int from = static_cast<int>(child - first);

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <random>
@@ -171,6 +172,46 @@ TEST(BlockWalk, VisitsEveryBlockTheRayCrossesOnceNearestFirst) {
   }
   EXPECT_GT(visited, 4000u);  // the rays do cross the model
   EXPECT_GT(skipped, visited / 10);  // and their cells hold blocks they miss
+}
+
+// Rays that start inside the octree take a short cut to their first cell (point location);
+// starts on a cell's faces, a few ulps either side of them, and later than the origin (tmin)
+// are where it could go wrong: the walk must still be the reference one, block for block.
+TEST(BlockWalk, RaysStartingOnAndNearCellFacesWalkAsFromTheRoot) {
+  TestStore s = BuildGenerated("spheres:60000", 4);
+  const store::OctreeView octree = s.reader->octree();
+  const BlockWalk walk(octree, s.reader->blocks());
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(0, 1);
+  const auto& blocks = s.reader->blocks();
+  size_t visited = 0;
+  for (int i = 0; i < 6000; ++i) {
+    const store::BlockEntry& e = blocks[rng() % blocks.size()];
+    Ray ray;
+    for (int a = 0; a < 3; ++a)
+      ray.origin[a] = e.cell_lower[a] + u(rng) * (e.cell_upper[a] - e.cell_lower[a]);
+    // Onto a face of the cell (or a corner), then nudged by a few ulps either way.
+    const int axis = i % 3;
+    float& x = ray.origin[axis];
+    x = (i & 4) ? e.cell_upper[axis] : e.cell_lower[axis];
+    for (int k = static_cast<int>(rng() % 9) - 4; k != 0; k += k > 0 ? -1 : 1)
+      x = std::nextafter(x, k > 0 ? std::numeric_limits<float>::infinity()
+                                  : -std::numeric_limits<float>::infinity());
+    if (i % 7 == 0) ray.origin[(axis + 1) % 3] = e.cell_upper[(axis + 1) % 3];
+    Vec3f d{u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1};
+    if (i % 5 == 0) d[axis] = 0;  // along the face
+    ray.direction = Normalize(d);
+    ray.tmin = (i % 3 == 1) ? u(rng) * 0.05f : 0.0f;
+    ray.tmax = (i % 2) ? std::numeric_limits<float>::infinity() : 0.1f + u(rng);
+    const std::vector<uint32_t> walked = BlocksByWalk(walk, ray);
+    std::vector<uint32_t> crossed, reference;
+    ReferenceWalk(octree, ray, 0, octree.root_cell(), &crossed);
+    for (uint32_t b : crossed)
+      if (MayHitBlock(*s.reader, ray, b)) reference.push_back(b);
+    ASSERT_EQ(walked, reference) << "ray " << i;
+    visited += walked.size();
+  }
+  EXPECT_GT(visited, 6000u);
 }
 
 // A block the walk leaves out (its bounds missed) is one whose triangles the ray does not hit:
