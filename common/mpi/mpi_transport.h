@@ -78,7 +78,7 @@ class MpiTransport final : public transport::Transport {
   // come for kQuietAfter. (kBusyPause was 100 us: with --blocks rem's requests batched, a
   // capped slave's receiving thread woke ~10^4 times a second for little; 500 us measured
   // faster in interleaved runs, tools/bench/RESULTS.md.)
-  static constexpr std::chrono::microseconds kBusyPause{500}, kQuietPause{1000};
+  static constexpr std::chrono::microseconds kFirstPause{20}, kBusyPause{500}, kQuietPause{1000};
   static constexpr std::chrono::milliseconds kQuietAfter{2};
   // How long Send still tries to reach a rank known dead (see Send).
   static constexpr std::chrono::milliseconds kDeadRankGrace{200};
