@@ -175,8 +175,9 @@ TEST(BlockWalk, VisitsEveryBlockTheRayCrossesOnceNearestFirst) {
 }
 
 // Rays that start inside the octree take a short cut to their first cell (point location);
-// starts on a cell's faces, a few ulps either side of them, and later than the origin (tmin)
-// are where it could go wrong: the walk must still be the reference one, block for block.
+// starts on a cell's faces, a few ulps either side of them, leaving a block whose bounds reach
+// the face, and later than the origin (tmin) are where it could go wrong: the walk must still
+// be the reference one, block for block.
 TEST(BlockWalk, RaysStartingOnAndNearCellFacesWalkAsFromTheRoot) {
   TestStore s = BuildGenerated("spheres:60000", 4);
   const store::OctreeView octree = s.reader->octree();
@@ -187,21 +188,29 @@ TEST(BlockWalk, RaysStartingOnAndNearCellFacesWalkAsFromTheRoot) {
   size_t visited = 0;
   for (int i = 0; i < 6000; ++i) {
     const store::BlockEntry& e = blocks[rng() % blocks.size()];
+    // Half the rays start within the block's bounds and leave it through a face of its cell:
+    // the walk must visit this block (met at its start) before the cell beyond the face.
+    const bool leaving = i % 2 == 0;
     Ray ray;
-    for (int a = 0; a < 3; ++a)
-      ray.origin[a] = e.cell_lower[a] + u(rng) * (e.cell_upper[a] - e.cell_lower[a]);
+    for (int a = 0; a < 3; ++a) {
+      const float lo = leaving ? e.bounds_lower[a] : e.cell_lower[a];
+      const float hi = leaving ? e.bounds_upper[a] : e.cell_upper[a];
+      ray.origin[a] = lo + u(rng) * (hi - lo);
+    }
     // Onto a face of the cell (or a corner), then nudged by a few ulps either way.
-    const int axis = i % 3;
+    const int axis = (i / 2) % 3;
+    const bool upper = (i & 8) != 0;
     float& x = ray.origin[axis];
-    x = (i & 4) ? e.cell_upper[axis] : e.cell_lower[axis];
+    x = upper ? e.cell_upper[axis] : e.cell_lower[axis];
     for (int k = static_cast<int>(rng() % 9) - 4; k != 0; k += k > 0 ? -1 : 1)
       x = std::nextafter(x, k > 0 ? std::numeric_limits<float>::infinity()
                                   : -std::numeric_limits<float>::infinity());
     if (i % 7 == 0) ray.origin[(axis + 1) % 3] = e.cell_upper[(axis + 1) % 3];
     Vec3f d{u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1};
+    if (leaving) d[axis] = (upper ? 1.0f : -1.0f) * (0.05f + u(rng));
     if (i % 5 == 0) d[axis] = 0;  // along the face
     ray.direction = Normalize(d);
-    ray.tmin = (i % 3 == 1) ? u(rng) * 0.05f : 0.0f;
+    ray.tmin = ((i / 4) % 3 == 1) ? u(rng) * 0.05f : 0.0f;
     ray.tmax = (i % 2) ? std::numeric_limits<float>::infinity() : 0.1f + u(rng);
     const std::vector<uint32_t> walked = BlocksByWalk(walk, ray);
     std::vector<uint32_t> crossed, reference;
