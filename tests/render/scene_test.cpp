@@ -352,5 +352,20 @@ TEST(Scene, TypeNames) {
   EXPECT_STREQ(IntegratorTypeName(IntegratorType::kPath), "path");
 }
 
+// The scenes the benchmarks in tools/bench render (tools/bench/RESULTS.md) stay valid as the
+// format grows; their stores are built by the commands there, so only the files are checked.
+TEST(Scene, TheBenchmarkScenesLoad) {
+  const std::filesystem::path dir =
+      std::filesystem::path(RAYSTACK_TEST_DATA) / ".." / ".." / "tools" / "bench" / "scenes";
+  int loaded = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) {
+    if (entry.path().extension() != ".json") continue;
+    const Expected<Scene> scene = LoadScene(entry.path().string());
+    EXPECT_TRUE(scene.ok()) << scene.status().message();
+    ++loaded;
+  }
+  EXPECT_GE(loaded, 6);
+}
+
 }  // namespace
 }  // namespace raystack::render
