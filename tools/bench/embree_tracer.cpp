@@ -104,7 +104,7 @@ const char* EmbreeApiName(EmbreeApi api) {
   return "?";
 }
 
-EmbreeTracer::EmbreeTracer(std::span<const Vec3f> vertices, int build_threads) {
+EmbreeTracer::EmbreeTracer(std::span<const Vec3f> vertices, int build_threads, bool robust) {
   const std::string config = "threads=" + std::to_string(build_threads);
   device_ = rtcNewDevice(config.c_str());
   if (!device_) {
@@ -113,7 +113,7 @@ EmbreeTracer::EmbreeTracer(std::span<const Vec3f> vertices, int build_threads) {
   }
   scene_ = rtcNewScene(device_);
   rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_HIGH);
-  rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_NONE);  // robust mode off
+  rtcSetSceneFlags(scene_, robust ? RTC_SCENE_FLAG_ROBUST : RTC_SCENE_FLAG_NONE);
   RTCGeometry geometry = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
   rtcSetGeometryBuildQuality(geometry, RTC_BUILD_QUALITY_HIGH);
   const size_t n = vertices.size() / 3;

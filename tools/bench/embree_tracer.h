@@ -1,7 +1,7 @@
 #pragma once
 // The same mesh in Embree 3, traced with each of its ray APIs (single rays, packets of 4, 8
-// and 16, and streams), so the benchmark can report the best Embree figure. Settings as
-// asked for a fair comparison: build quality high, robust mode off, one triangle geometry.
+// and 16, and streams), so the benchmark can report the best Embree figure. Settings: build
+// quality high, one triangle geometry, robust mode off (Embree's fastest) unless asked for.
 // A closest hit comes back as the record ours fills (raystack::Hit: distance, infinity for a
 // miss, barycentrics, Embree's primitive and geometry ids), so both sides write the same bytes
 // per ray; an any-hit query as the occlusion flag.
@@ -22,8 +22,9 @@ const char* EmbreeApiName(EmbreeApi api);
 
 class EmbreeTracer {
  public:
-  // `vertices` holds 3 points per triangle. `build_threads` only affects the build.
-  EmbreeTracer(std::span<const Vec3f> vertices, int build_threads);
+  // `vertices` holds 3 points per triangle. `build_threads` only affects the build. `robust`:
+  // RTC_SCENE_FLAG_ROBUST (watertight triangle tests).
+  EmbreeTracer(std::span<const Vec3f> vertices, int build_threads, bool robust = false);
   ~EmbreeTracer();
   EmbreeTracer(const EmbreeTracer&) = delete;
   EmbreeTracer& operator=(const EmbreeTracer&) = delete;
