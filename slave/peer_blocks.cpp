@@ -44,7 +44,7 @@ void PeerBlocks::OwnerLost(int rank) {
   if (rank < 0 || rank >= static_cast<int>(lost_.size())) return;
   lost_[static_cast<size_t>(rank)] = true;
   auto lose = [](Batch* b) {
-    b->owner_lost = b->done = true;
+    b->from_disk = b->done = true;
     b->cv.notify_all();
   };
   for (auto it = sent_.begin(); it != sent_.end();) {
@@ -183,7 +183,7 @@ Status PeerBlocks::Fetch(int owner, uint32_t first, uint32_t count, std::vector<
     }
     stopped = stopped_;
   }
-  if (b->owner_lost) return from_disk();
+  if (b->from_disk) return from_disk();
   if (!b->done)
     return stopped ? Status::Error("the job is ending")
                    : Status::Error(StrFormat("blocks %u-%u: rank %d did not answer", first,
@@ -249,6 +249,13 @@ Status PeerBlocks::OnData(int from, const wire::Message& m, std::vector<uint8_t>
   const wire::BlockDataHeader d = m.block_data_header();
   std::lock_guard lock(mu_);
   auto it = sent_.find(d.request);
+  if (it == sent_.end() && d.request < next_request_) {
+    // A request this rank stopped waiting for: its owner was given up as lost (a stalled
+    // rank answers its backlog when it runs again) or the wait timed out. Its fetches have
+    // read the runs from disk or failed already; the answer is dropped.
+    LOG_DEBUG("slave", "dropped rank %d's late answer to request %u", from, d.request);
+    return OkStatus();
+  }
   if (it == sent_.end() || it->second->owner != from || it->second->runs.size() != d.runs)
     return Status::Error(StrFormat("rank %d sent an answer (request %u, %u runs) this rank did "
                                    "not ask it for", from, d.request, d.runs));
@@ -257,9 +264,12 @@ Status PeerBlocks::OnData(int from, const wire::Message& m, std::vector<uint8_t>
   Answered(&owners_[static_cast<size_t>(from)]);
   const wire::BlockRun& head = b->runs.front();
   if (d.failed) {
-    b->status = Status::Error(StrFormat("blocks %u-%u (and %zu more runs): their owner, rank %d, "
-                                        "could not read them", head.first,
-                                        head.first + head.count - 1, b->runs.size() - 1, from));
+    // Its disk or its copy of the store failed; this rank's may not (with --blocks loc only
+    // the slave whose read failed is dropped, so it is here too).
+    LOG_WARNING("slave", "blocks %u-%u (and %zu more runs): their owner, rank %d, could not read "
+                "them; reading them from disk", head.first, head.first + head.count - 1,
+                b->runs.size() - 1, from);
+    b->from_disk = true;
   } else {
     const std::span<const uint8_t> bytes = m.block_data();
     if (bytes.size() != b->expected_bytes)

@@ -100,7 +100,8 @@ class PeerBlocks final : public BlockSource {
     int owner = 0;
     uint32_t request = 0;  // its number, once sent
     bool sent = false, full = false, done = false;
-    bool owner_lost = false;  // read the runs from disk instead
+    // Its owner was lost, or could not read the runs: the askers read them from disk instead.
+    bool from_disk = false;
     Status status;
     std::vector<wire::BlockRun> runs;
     uint64_t expected_bytes = 0;  // the index's stored bytes of the runs

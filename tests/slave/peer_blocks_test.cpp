@@ -161,6 +161,44 @@ TEST(PeerBlocks, FetchesWaitingForALostOwnerReadFromDisk) {
   EXPECT_EQ(job.peers1.bytes_from_peers(), 0u);
 }
 
+// An owner given up as lost may only have stalled: when it runs again it answers its backlog,
+// and that late answer is dropped (an error there failed a healthy slave). An owner whose own
+// read failed answers "failed": its askers read the blocks from their disks, as they would
+// had it been lost.
+TEST(PeerBlocks, AnOwnersLateOrFailedAnswerSendsItsAskersToDisk) {
+  TestStore s = BuildGenerated("sphere:20000", 4);
+  const store::StoreReader& store = *s.reader;
+  const uint32_t theirs = FirstOwnedBy(store, 2);
+  for (const bool failed : {false, true}) {
+    TwoSlaves job(store);
+    Status fetched;
+    std::vector<uint8_t> got;
+    std::thread fetcher([&] {
+      const uint32_t ids[1] = {theirs};
+      fetched = job.peers1.ReadRun(ids, &got);
+    });
+    Expected<std::optional<transport::Envelope>> request = job.net2->Receive(std::chrono::seconds(20));
+    ASSERT_TRUE(request.ok() && request->has_value());
+    const Expected<wire::Message> m = wire::Decode((*request)->bytes, 1);
+    ASSERT_TRUE(m.ok());
+    const uint32_t asked = m->block_request().request;
+    if (!failed) {
+      job.peers1.OwnerLost(2);
+      fetcher.join();
+    }
+    const std::vector<uint8_t> empty;
+    const std::vector<uint8_t> stored = FromDisk(store, theirs, 1);
+    ASSERT_TRUE(job.net2->Send(1, wire::EncodeBlockData(2, wire::BlockDataHeader{asked, 1, failed ? 1u : 0u, 0},
+                                                        failed ? empty : stored)).ok());
+    const Status handled = job.Pump(1);
+    EXPECT_TRUE(handled.ok()) << (failed ? "failed: " : "late: ") << handled.message();
+    if (failed) fetcher.join();
+    ASSERT_TRUE(fetched.ok()) << fetched.message();
+    EXPECT_EQ(got, stored);
+    EXPECT_EQ(job.peers1.bytes_from_peers(), 0u);
+  }
+}
+
 // The loader over PeerBlocks with a budget of a few blocks, many blocks wanted at once: every
 // block arrives intact and the cache never holds more than its budget.
 TEST(PeerBlocks, TheCacheBudgetHoldsWithBatchedAnswers) {
