@@ -106,8 +106,13 @@ Status MpiTransport::Send(int to, std::span<const uint8_t> bytes) {
   // had kDeadRankGrace to take it: "dead" may be a verdict on a rank that was only silent
   // (the master's --lost-after), and a message it must still hear (its shutdown) that needs
   // a few progress calls to go out would otherwise be dropped at the first one.
+  // Sent from a copy of its own: a send given up on may still be read by MPI (a large message
+  // goes when its receiver asks for it, and a rank judged dead may only have stalled), after
+  // the caller's buffer is gone. The copy is then kept to the end. (Sends are small and few:
+  // requests, tiles, reports.)
+  std::vector<uint8_t> owned(bytes.begin(), bytes.end());
   MPI_Request request;
-  int rc = MPI_Isend(bytes.data(), static_cast<int>(bytes.size()), MPI_BYTE, to, kTag,
+  int rc = MPI_Isend(owned.data(), static_cast<int>(owned.size()), MPI_BYTE, to, kTag,
                      MPI_COMM_WORLD, &request);
   auto pause = std::chrono::microseconds(5);
   const auto began = std::chrono::steady_clock::now();
@@ -117,6 +122,10 @@ Status MpiTransport::Send(int to, std::span<const uint8_t> bytes) {
     if (dead_[static_cast<size_t>(to)].load() &&
         std::chrono::steady_clock::now() - began >= kDeadRankGrace) {
       MPI_Request_free(&request);  // never completes; the process ends without MPI_Finalize
+      {
+        std::lock_guard posted_lock(posted_mu_);
+        abandoned_.push_back(std::move(owned));
+      }
       return Status::Error(StrFormat("rank %d: rank %d is gone, the message to it is dropped",
                                      rank_, to));
     }
@@ -254,6 +263,10 @@ Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
       if (!done && rc == MPI_SUCCESS) {
         if (dead_[static_cast<size_t>(from)].load()) {  // it will never come
           MPI_Request_free(&in.request);
+          // Kept to the end: "dead" may be a verdict on a rank that only stalled, and MPI
+          // would write the rest of its message here when it runs again.
+          std::lock_guard posted_lock(posted_mu_);
+          abandoned_.push_back(std::move(in.bytes));
           in.active = false;
         }
         continue;

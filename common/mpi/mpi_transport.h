@@ -68,7 +68,7 @@ class MpiTransport final : public transport::Transport {
   Status ProgressPosted();
   std::mutex posted_mu_;
   std::list<Posted> posted_;
-  std::list<std::vector<uint8_t>> abandoned_;  // sends to dead ranks: MPI may still read them
+  std::list<std::vector<uint8_t>> abandoned_;  // given up on (dead ranks): MPI may still use them
   std::atomic<size_t> posted_count_{0};
   std::atomic<uint64_t> posted_bytes_{0};
   Status posted_error_;
