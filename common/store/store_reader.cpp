@@ -261,21 +261,30 @@ Status StoreReader::OpenBlocks() {
                                    path.c_str(), h.version, kFormatVersion));
   if (h.body_bytes != blocks_file_bytes_ - sizeof h)
     return Status::Error(path + ": size does not match its header (truncated?)");
-  // Blocks lie in id order without overlap: the loader reads neighbouring ids as one run of
-  // bytes and finds each block at its offset from the run's first: an index out of order made
-  // it compute a negative run size (store_fuzz found the crash) or would make it read outside
-  // its buffer. In 64 bits, so a hostile offset cannot wrap.
+  // Blocks lie back to back in id order, as the writer puts them: the loader reads
+  // neighbouring ids as one run of bytes and finds each block at its offset from the run's
+  // first. An index out of order made it compute a negative run size (store_fuzz found the
+  // crash) or would make it read outside its buffer; a gap would make it read (and allocate)
+  // the gap's bytes with the run, and a peer that sends a run's blocks back to back would be
+  // read at the wrong places. In 64 bits, so a hostile offset cannot wrap.
   uint64_t end = sizeof h;
   for (uint32_t i = 0; i < blocks_.size(); ++i) {
     const BlockEntry& e = blocks_[i];
-    if (e.offset < end)
-      return Status::Error(BlockError(i, StrFormat("overlaps the block before it or the file header "
-                                                   "(blocks lie in id order from byte %llu)",
-                                                   static_cast<unsigned long long>(end))));
     if (e.offset > blocks_file_bytes_ || e.stored_bytes > blocks_file_bytes_ - e.offset)
       return Status::Error(BlockError(i, "lies outside the file (truncated?)"));
+    if (e.offset != end)
+      return Status::Error(BlockError(i, StrFormat("%s the block before it or the file header "
+                                                   "(blocks lie back to back in id order: this "
+                                                   "one at byte %llu)",
+                                                   e.offset < end ? "overlaps" : "leaves a gap after",
+                                                   static_cast<unsigned long long>(end))));
     end = e.offset + e.stored_bytes;
   }
+  if (end != blocks_file_bytes_)
+    return Status::Error(StrFormat("%s: %llu bytes after the last block (the index says the "
+                                   "blocks end at byte %llu)", path.c_str(),
+                                   static_cast<unsigned long long>(blocks_file_bytes_ - end),
+                                   static_cast<unsigned long long>(end)));
   return OkStatus();
 }
 

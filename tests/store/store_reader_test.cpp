@@ -204,6 +204,31 @@ TEST_F(StoreReaderTest, BlocksOutOfFileOrderAreRefusedAtOpen) {
   EXPECT_NE(s.status().message().find("overlaps"), std::string::npos) << s.status().message();
 }
 
+// Blocks lie back to back: a gap between two (which the loader would read, and allocate, with
+// a run of them) or bytes after the last are refused at open, naming where.
+TEST_F(StoreReaderTest, GapsBetweenOrAfterBlocksAreRefusedAtOpen) {
+  uint32_t last = 0;
+  {
+    Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+    ASSERT_TRUE(s.ok()) << s.status().message();
+    ASSERT_GT((*s)->blocks().size(), 5u);
+    last = static_cast<uint32_t>((*s)->blocks().size() - 1);
+  }
+  EditIndexEntry(4, [](BlockEntry* e) { e->stored_bytes -= 1; });
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("blocks.bin: block 5 "), std::string::npos)
+      << s.status().message();
+  EXPECT_NE(s.status().message().find("leaves a gap"), std::string::npos) << s.status().message();
+  EditIndexEntry(4, [](BlockEntry* e) { e->stored_bytes += 1; });
+  ASSERT_TRUE(StoreReader::Open(path_).ok());
+  EditIndexEntry(last, [](BlockEntry* e) { e->stored_bytes -= 1; });
+  s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("blocks.bin: 1 bytes after the last block"), std::string::npos)
+      << s.status().message();
+}
+
 // An offset near 2^64 must not wrap past the file-size test.
 TEST_F(StoreReaderTest, AnOffsetThatWouldWrapIsRefusedAtOpen) {
   EditIndexEntry(0, [](BlockEntry* e) { e->offset = ~uint64_t{0} - 7; });
