@@ -50,10 +50,10 @@ void StopWholeProcess(double seconds) {
 // its next tile (a fifth of a slave's frame with one slave, more with eight).
 class RemoteTiles final : public TileSource {
  public:
-  RemoteTiles(transport::Transport* net, uint32_t frame, int threads,
+  RemoteTiles(transport::Transport* net, uint32_t frame, int threads, int width, int height,
               std::atomic<int64_t>* given, const NodeFaults& faults)
-      : net_(net), frame_(frame), slots_(static_cast<size_t>(threads)), given_(given),
-        faults_(faults) {}
+      : net_(net), frame_(frame), width_(width), height_(height),
+        slots_(static_cast<size_t>(threads)), given_(given), faults_(faults) {}
 
   bool Next(uint32_t thread, Tile* tile) override {
     Slot& s = slots_[thread];
@@ -110,9 +110,11 @@ class RemoteTiles final : public TileSource {
     if (a.none) {
       s.exhausted = true;
     } else {
-      if (a.x0 < 0 || a.y0 < 0 || a.x1 <= a.x0 || a.y1 <= a.y0)
-        return Status::Error(StrFormat("the master assigned an empty tile [%d,%d)x[%d,%d)",
-                                       a.x0, a.x1, a.y0, a.y1));
+      // Inside the image, so a tile's pixels are the image's and their count is bounded.
+      if (a.x0 < 0 || a.y0 < 0 || a.x1 <= a.x0 || a.y1 <= a.y0 || a.x1 > width_ || a.y1 > height_)
+        return Status::Error(StrFormat("the master assigned the tile [%d,%d)x[%d,%d), empty or "
+                                       "outside the %dx%d image", a.x0, a.x1, a.y0, a.y1, width_,
+                                       height_));
       if (a.sample_end != 0 &&
           (a.sample_end <= a.sample_begin || a.sample_end - a.sample_begin > kMaxTileSamples))
         return Status::Error(StrFormat("the master assigned the samples [%u, %u) of a tile (at "
@@ -173,6 +175,7 @@ class RemoteTiles final : public TileSource {
 
   transport::Transport* net_;
   const uint32_t frame_;
+  const int width_, height_;  // the image's: tiles must lie inside it
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::vector<Slot> slots_;
@@ -325,7 +328,8 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
                            const render::MaterialTable& materials, const render::Camera& camera,
                            RenderStats* stats) {
   const uint32_t me = static_cast<uint32_t>(net_->rank());
-  RemoteTiles tiles(net_, frame, engine_->options().threads, &tiles_given_, faults_);
+  RemoteTiles tiles(net_, frame, engine_->options().threads, camera.width(), camera.height(),
+                    &tiles_given_, faults_);
   RemoteSink sink(net_, frame);
   {
     std::unique_lock lock(mu_);

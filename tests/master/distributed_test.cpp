@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include <functional>
 #include <set>
 #include <tuple>
@@ -537,6 +539,45 @@ TEST(Distributed, AFailingSlaveDoesNotWaitForATileHeldBack) {
   EXPECT_TRUE(error) << "the slave did not report its failure";
   ASSERT_TRUE(master->Send(1, wire::Encode(0, wire::Shutdown{0, 0})).ok());
   slave_thread.join();
+}
+
+// A master's tile outside the image (a hostile or broken master) is refused by the slave,
+// which reports it, rather than render 2^31 x 2^31 pixels or write over other pixels.
+TEST(Distributed, ASlaveRefusesATileOutsideTheImage) {
+  TestStore s = BuildGenerated("spheres:20000");
+  render::Scene scene = TestScene(*s.reader, render::IntegratorType::kWhitted);
+  const render::Camera camera(scene.cameras[0]);
+  for (const auto& [x1, y1] : std::vector<std::pair<int32_t, int32_t>>{
+           {camera.width() + 1, 8}, {8, std::numeric_limits<int32_t>::max()}}) {
+    transport::InProcessHub hub(2);
+    EngineOptions o = Options(*s.reader);
+    o.threads = 1;
+    std::thread slave_thread = SlaveAlone(&hub, *s.reader, scene, o, false);
+    auto master = hub.Endpoint(0);
+    std::string error;
+    bool assigned = false;
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (error.empty() && std::chrono::steady_clock::now() < deadline) {
+      auto e = master->Receive(std::chrono::milliseconds(100));
+      ASSERT_TRUE(e.ok());
+      if (!e->has_value()) continue;
+      const Expected<wire::Message> m = wire::Decode((*e)->bytes, 1);
+      ASSERT_TRUE(m.ok()) << m.status().message();
+      if (m->type() == wire::MessageType::kTileRequest && !assigned) {
+        wire::TileAssign a{};
+        a.x0 = 0, a.y0 = 0, a.x1 = x1, a.y1 = y1;
+        ASSERT_TRUE(master->Send(1, wire::Encode(0, a)).ok());
+        assigned = true;
+      }
+      if (m->type() == wire::MessageType::kError) error = m->error_text();
+    }
+    EXPECT_NE(error.find("outside the " + std::to_string(camera.width()) + "x" +
+                         std::to_string(camera.height()) + " image"),
+              std::string::npos)
+        << error;
+    ASSERT_TRUE(master->Send(1, wire::Encode(0, wire::Shutdown{0, 0})).ok());
+    slave_thread.join();
+  }
 }
 
 TEST(Distributed, WhenEverySlaveFailsTheJobEndsWithTheirErrors) {
