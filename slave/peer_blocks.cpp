@@ -130,6 +130,9 @@ Status PeerBlocks::Fetch(int owner, uint32_t first, uint32_t count, std::vector<
     return OkStatus();
   };
   const uint64_t run_bytes = RunBytes(first, count);
+  // A run no answer may carry (a block over kMaxAnswerBytes: a store made with a large
+  // --max-block-kb; the loader's runs of several blocks are far smaller) is read as with loc.
+  if (run_bytes > kMaxAnswerBytes) return from_disk();
   std::shared_ptr<Batch> b;
   uint64_t offset = 0;  // this run's bytes in the answer
   bool stopped = false;
