@@ -111,6 +111,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
                                  const render::MaterialTable& materials,
                                  const render::Camera& camera, TileSource& tiles,
                                  render::SampleSink& sink, RenderStats* stats) {
+  if (!failed_.ok()) return failed_;
   RenderStats s;
   s.mode = TraceModeName(options_.mode);
   s.threads = options_.threads;
@@ -221,6 +222,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   s.peak_rss_bytes = PeakRssBytes();
   if (stats) *stats = s;
   std::lock_guard lock(shared.error_mu);
+  failed_ = shared.error;
   return shared.error;
 }
 

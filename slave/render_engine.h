@@ -54,7 +54,8 @@ class RenderEngine {
 
   // Renders every tile `tiles` hands out, with `scene`'s lights, integrator and background,
   // through `camera`. Returns the first error (naming the block or file), after every thread
-  // has stopped.
+  // has stopped. After a failed frame the engine renders no more: the blocks its loader had
+  // claimed and the pins its queues held are not unwound, so later frames return that error.
   Status RenderFrame(const render::Scene& scene, const render::MaterialTable& materials,
                      const render::Camera& camera, TileSource& tiles, render::SampleSink& sink,
                      RenderStats* stats);
@@ -75,6 +76,7 @@ class RenderEngine {
   BlockSource* source_;  // disk_, or the one given to Create
   BlockWalk walk_;
   bool preloaded_ = false;
+  Status failed_;  // the first failed frame's error
   std::unique_ptr<store::StoreBvh> bvh_;  // bvh mode: every triangle in one tree
   std::vector<std::unique_ptr<RayThread>> ray_threads_;  // made by the first frame
   BufferShelf read_buffers_;  // the loader's, from frame to frame

@@ -300,6 +300,30 @@ TEST_P(Faults, CorruptedBlockEndsTheRenderNamingTheBlock) {
   }
 }
 
+// After a failed frame the engine's loader and queues are not unwound (blocks claimed, pins
+// held): a later frame on it returns the first error at once instead of waiting on them.
+TEST_P(Faults, AFailedEngineRendersNoMoreFrames) {
+  TestStore s = BuildGenerated("spheres:30000");
+  const render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 1);
+  EngineOptions o = Mode(GetParam(), Budget(*s.reader, 4));
+  o.faults.fail_read = 3;
+  Expected<std::unique_ptr<slave::RenderEngine>> engine = slave::RenderEngine::Create(*s.reader, o);
+  ASSERT_TRUE(engine.ok()) << engine.status().message();
+  const render::MaterialTable materials = render::MaterialTable::Build(s.reader->materials(), scene);
+  const render::Camera camera(scene.cameras[0]);
+  std::string first;
+  for (int frame = 0; frame < 2; ++frame) {
+    render::Film film(camera.width(), camera.height());
+    render::FilmSink sink(&film);
+    slave::GridTileSource tiles(camera.width(), camera.height(), 16);
+    const Status st = (*engine)->RenderFrame(scene, materials, camera, tiles, sink, nullptr);
+    ASSERT_FALSE(st.ok()) << "frame " << frame;
+    if (frame == 0) first = st.message();
+    EXPECT_EQ(st.message(), first) << "frame " << frame;
+  }
+  EXPECT_NE(first.find("read failed"), std::string::npos) << first;
+}
+
 INSTANTIATE_TEST_SUITE_P(Modes, Faults,
                          ::testing::Values(TraceMode::kStack, TraceMode::kSync, TraceMode::kIncore));
 
