@@ -819,7 +819,20 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
 
 Status RunDistributed(const Args& args, transport::Transport* net) {
   Expected<render::Scene> scene = LoadSceneFor(args);
-  if (!scene.ok()) return scene.status();
+  if (!scene.ok()) {
+    // Every rank reads the same scene file, so usually all fail here at once: the master ends
+    // the job on every rank and reports; a slave tells it and waits for that end (a slave
+    // alone without the file, on another host, is dropped and the others go on). Not
+    // MPI_Abort from each slave: several at once left mpirun hung or crashed.
+    if (net->rank() == 0) {
+      MasterNode(net).Shutdown(1);
+      return scene.status();
+    }
+    (void)net->Send(0, wire::EncodeError(static_cast<uint32_t>(net->rank()),
+                                         scene.status().message()));
+    slave::SlaveNode waiting(net, nullptr);
+    return waiting.WaitForShutdown().ok() ? OkStatus() : scene.status();
+  }
   if (net->rank() == 0) {
     Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
     Status s = log.ok() ? CheckOutputs(args, *scene) : log.status();

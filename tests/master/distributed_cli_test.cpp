@@ -215,6 +215,23 @@ TEST_F(DistributedCli, ConvergenceLogAndStopRulesUnderMpirun) {
   EXPECT_EQ(stops, 2);  // both frames
 }
 
+// A scene every rank refuses: the master reports it once and ends the job on every rank,
+// which exits 1 (each slave calling MPI_Abort at once left mpirun hung or crashed, and
+// printed the error once per rank).
+TEST_F(DistributedCli, ABadSceneEndsTheJobWithOneError) {
+  const std::string scene = dir_->File("bad.json");
+  std::ofstream(scene) << R"({ "store": "store", "camera": {}, "extra": 1 })";
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    const ProcessResult r = Render(scene, 3, dir_->File("bad.exr"));
+    EXPECT_EQ(r.exit_code, 1) << r.err;
+    size_t count = 0;
+    for (size_t at = r.err.find("extra: unknown key"); at != std::string::npos;
+         at = r.err.find("extra: unknown key", at + 1))
+      ++count;
+    EXPECT_EQ(count, 1u) << r.err;
+  }
+}
+
 TEST_F(DistributedCli, ADamagedBlockEndsTheJobNamingIt) {
   // Flip a byte in the middle of the block file.
   const std::string blocks = dir_->File("store/blocks.bin");
