@@ -1,6 +1,9 @@
 #include "master/render_command.h"
 
+#include <sys/stat.h>
+
 #include <atomic>
+#include <cctype>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -105,7 +108,8 @@ options:
   --log-interval S          seconds between convergence-log rows (default 0.5)
   --reference REF.exr       an image to measure RMSE and relMSE against (same size; with
                             several cameras REF-0.exr, REF-1.exr, ...)
-  --output FILE             override the scene's output path
+  --output FILE.exr         override the scene's output path (the PNG goes beside it;
+                            several cameras: FILE-0.exr, FILE-1.exr, ...)
   --no-png                  do not write the PNG quick-look
   --exposure EV             exposure of the PNG quick-look (default 0)
   --stats FILE              also write the run's statistics as JSON
@@ -231,7 +235,7 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
     } else if (arg == "--spp") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->spp, 1, 65535));  // as the scene file allows
     } else if (arg == "--pass-spp") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->pass_spp, 1, 65535));
+      RAYSTACK_RETURN_IF_ERROR(number(&a->pass_spp, 0, 65535));
     } else if (arg == "--pixel-order") {
       std::string v;
       RAYSTACK_RETURN_IF_ERROR(value(&v));
@@ -334,6 +338,22 @@ std::string OutputOf(const Args& args, const render::Scene& scene) {
 // Fails before any rendering when a frame's EXR could not be written.
 Status CheckOutputs(const Args& args, const render::Scene& scene) {
   const size_t frames = scene.cameras.size();
+  // The output names the EXR: its extension gives way to .exr and .png (and -N per frame when
+  // the scene has several cameras), so anything but .exr there, or a folder, is a mistake.
+  const std::string output = OutputOf(args, scene);
+  struct stat st {};
+  if (::stat(output.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+    return Status::Error(output + ": is a folder; the output is the EXR file's path (e.g. " +
+                         (output.empty() || output.back() == '/' ? output : output + "/") +
+                         "image.exr)");
+  const size_t dot = output.rfind('.'), slash = output.rfind('/');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) {
+    std::string ext = output.substr(dot);
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".exr")
+      return Status::Error(output + ": the output is an OpenEXR image; give a path ending in "
+                                    ".exr (the PNG quick look goes beside it)");
+  }
   // Room for every frame's image at its largest (13 uncompressed 32-bit channels in the EXR,
   // 4 bytes a pixel in the PNG), and for a second copy of the largest EXR while a checkpoint's
   // temporary sits beside the previous one.

@@ -1,6 +1,6 @@
 // Output trouble is found before rendering starts: a disk without room for the images (a real
 // 256 KB tmpfs, mounted by the test: root only, as in CI) is an error naming the output path
-// and the room, and nothing is rendered.
+// and the room, and nothing is rendered; so is an output that is a folder or not an EXR.
 
 #include <gtest/gtest.h>
 #include <sys/mount.h>
@@ -11,6 +11,9 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "tests/prep/run_process.h"
 #include "tests/support/store_dir_fixture.h"
@@ -40,6 +43,26 @@ TEST(OutputChecks, AFullDiskIsReportedBeforeRendering) {
   // Found before the store is even opened (it does not exist).
   EXPECT_NE(r.err.find(small + "/out.exr: the disk holding it has 0.3 MB free, the images need "
                        "up to 6.7 MB"), std::string::npos) << r.err;
+}
+
+// The output names the EXR (its extension gives way to .exr and .png): a folder or another
+// extension is refused before anything is read, and an .EXR in capitals is an EXR.
+TEST(OutputChecks, AFolderOrAnotherExtensionIsRefused) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  std::ofstream(dir->File("scene.json")) << R"({ "store": "no-such-store",
+    "camera": { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 40, "height": 30 } })";
+  ASSERT_EQ(mkdir(dir->File("images").c_str(), 0755), 0);
+  for (const auto& [output, expected] : std::vector<std::pair<std::string, std::string>>{
+           {dir->File("images"), "images: is a folder"},
+           {dir->File("images") + "/", "images/: is a folder"},
+           {dir->File("images/out.tar"), "out.tar: the output is an OpenEXR image"},
+           {dir->File("images/out.EXR"), "no-such-store"}}) {
+    const ProcessResult r = RunProcess(
+        {kRaystackBinary, "render", dir->File("scene.json"), "--output", output, "-q"}, dir->path());
+    EXPECT_EQ(r.exit_code, 1) << output;
+    EXPECT_NE(r.err.find(expected), std::string::npos) << output << ": " << r.err;
+  }
 }
 
 }  // namespace
