@@ -1,6 +1,7 @@
 #include "master/render_command.h"
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cctype>
@@ -8,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <mutex>
@@ -369,6 +371,20 @@ Status CheckOutputs(const Args& args, const render::Scene& scene) {
   return image::CheckRoom(FramePath(OutputOf(args, scene), 0, frames, ".exr"), needed);
 }
 
+// Every frame's --reference can be read, checked before the first frame renders rather than
+// when its frame comes (its size is checked then, as it is read).
+Status CheckReferences(const Args& args, const render::Scene& scene) {
+  if (args.reference.empty()) return OkStatus();
+  const size_t frames = scene.cameras.size();
+  for (size_t f = 0; f < frames; ++f) {
+    const std::string path = frames > 1 ? FramePath(args.reference, f, frames, ".exr") : args.reference;
+    if (::access(path.c_str(), R_OK) != 0)
+      return Status::Error(StrFormat("%s: cannot read: %s (--reference of camera %zu)",
+                                     path.c_str(), std::strerror(errno), f));
+  }
+  return OkStatus();
+}
+
 // Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
 // returns the EXR's path, or the error of an earlier frame's write.
 Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, size_t f,
@@ -516,6 +532,7 @@ Status Run(const Args& args) {
   const std::string output = OutputOf(args, *scene);
   const size_t frames = scene->cameras.size();
   RAYSTACK_RETURN_IF_ERROR(CheckOutputs(args, *scene));
+  RAYSTACK_RETURN_IF_ERROR(CheckReferences(args, *scene));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
   if (!log.ok()) return log.status();
 
@@ -856,6 +873,7 @@ Status RunDistributed(const Args& args, transport::Transport* net) {
   if (net->rank() == 0) {
     Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
     Status s = log.ok() ? CheckOutputs(args, *scene) : log.status();
+    if (s.ok()) s = CheckReferences(args, *scene);
     if (!s.ok()) {  // before the slaves start a frame
       MasterNode(net).Shutdown(1);
       return s;

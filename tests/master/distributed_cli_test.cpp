@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+
 #include <fstream>
 
 #include "common/base/temp_dir.h"
@@ -229,6 +231,20 @@ TEST_F(DistributedCli, ABadSceneEndsTheJobWithOneError) {
          at = r.err.find("extra: unknown key", at + 1))
       ++count;
     EXPECT_EQ(count, 1u) << r.err;
+  }
+}
+
+// With several cameras every frame's --reference is checked before the first frame renders:
+// a missing one for the last camera ends the job before any image is written.
+TEST_F(DistributedCli, AMissingReferenceOfALaterCameraIsFoundBeforeRendering) {
+  const std::string scene = Scene(R"({ "type": "whitted" })");
+  ASSERT_EQ(Render(scene, 0, dir_->File("ref.exr")).exit_code, 0);
+  ASSERT_EQ(std::remove(dir_->File("ref-1.exr").c_str()), 0);
+  for (const int np : {0, 3}) {
+    const ProcessResult r = Render(scene, np, dir_->File("out.exr"), "loc",
+                                   {"--reference", dir_->File("ref.exr")});
+    EXPECT_NE(r.err.find("ref-1.exr: cannot read"), std::string::npos) << np << ": " << r.err;
+    EXPECT_TRUE(Slurp(dir_->File("out-0.exr")).empty()) << np << ": frame 0 was rendered";
   }
 }
 
