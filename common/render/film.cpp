@@ -4,7 +4,12 @@
 #include <cmath>
 #include <limits>
 
+#include "common/render/scene.h"
+
 namespace raystack::render {
+
+// A pixel's sums hold at most one value per sample (Unmerge takes back only what was merged).
+static_assert(kMaxSpp <= FixedSum::kMaxTerms, "a pixel's fixed-point sums could wrap around");
 
 Film::Film(int width, int height)
     : width_(width),

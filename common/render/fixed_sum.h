@@ -14,10 +14,14 @@ __extension__ typedef __int128 Int128;
 
 class FixedSum {
  public:
-  // 2^-50 resolution (~9e-16) and a range of about +-1.5e23: radiance of 1e-6 to 1e12, and
-  // squares of it for variances, are all within range.
+  // 2^-50 resolution (~9e-16). Each value is clamped to +-2^60 (~1.2e18) as it is rounded,
+  // so that the sum of kMaxTerms of them stays inside 128 bits: a sum that wrapped around
+  // turned a pixel of extreme radiance (emission 1e21 at 4096 samples) negative. Radiance of
+  // 1e-6 to 1e12 is exact to the resolution; its squares (for variances) clamp from ~1e9 on.
   static constexpr int kFractionBits = 50;  // Value() scales by 0x1p-50 to match
   static_assert(kFractionBits == 50, "ToFixed and Value scale by the literal 2^50");
+  static constexpr double kLargest = 0x1p60;  // |value| rounded at most to this
+  static constexpr uint64_t kMaxTerms = uint64_t{1} << 16;  // values a sum may hold
 
   // Adds x (a finite value; callers drop non-finite ones and count them).
   void Add(double x) { value_ += ToFixed(x); }
@@ -42,7 +46,7 @@ class FixedSum {
     // (another library call: with ldexp, 3% of a ray thread's time in the profile) would.
     double scaled = x * 0x1p50;  // 2^kFractionBits
     if (scaled > -0x1p62 && scaled < 0x1p62) return static_cast<int64_t>(scaled);
-    constexpr double kLimit = 0x1p125;  // saturate far inside the int128 range
+    constexpr double kLimit = 0x1p110;  // kLargest * 2^50: kMaxTerms (2^16) of them < 2^127
     if (!(scaled < kLimit)) scaled = scaled != scaled ? 0.0 : kLimit;
     if (scaled < -kLimit) scaled = -kLimit;
     return static_cast<Int128>(scaled);

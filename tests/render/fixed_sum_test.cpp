@@ -15,7 +15,7 @@ namespace raystack::render {
 namespace {
 
 Int128 Reference(double x) {  // the general path alone
-  constexpr double kLimit = 0x1p125;
+  constexpr double kLimit = 0x1p110;
   double scaled = std::ldexp(x, FixedSum::kFractionBits);
   if (!(scaled < kLimit)) scaled = scaled != scaled ? 0.0 : kLimit;
   if (scaled < -kLimit) scaled = -kLimit;
@@ -36,6 +36,23 @@ TEST(FixedSum, FastPathGivesTheGeneralPathsBits) {
   for (double x : values) {
     ASSERT_TRUE(FixedSum::ToFixed(x) == Reference(x)) << x;
   }
+}
+
+// Values are clamped to +-kLargest, so kMaxTerms of the largest, either sign, still sum
+// exactly (no wrap-around) and can be taken back out.
+TEST(FixedSum, TheLargestSumsDoNotWrap) {
+  FixedSum high, low;
+  for (uint64_t i = 0; i < FixedSum::kMaxTerms; ++i) {
+    high.Add(1e300);
+    low.Add(-1e300);
+  }
+  EXPECT_EQ(high.Value(), FixedSum::kLargest * static_cast<double>(FixedSum::kMaxTerms));
+  EXPECT_EQ(low.Value(), -FixedSum::kLargest * static_cast<double>(FixedSum::kMaxTerms));
+  FixedSum bright;  // a pixel of emission 1e21 at 4096 samples: clamped, never negative
+  for (int i = 0; i < 4096; ++i) bright.Add(1e21);
+  EXPECT_EQ(bright.Value(), FixedSum::kLargest * 4096);
+  for (uint64_t i = 0; i < FixedSum::kMaxTerms; ++i) high.Subtract(1e300);
+  EXPECT_TRUE(high.raw() == 0);
 }
 
 TEST(FixedSum, SumsDoNotDependOnOrder) {
