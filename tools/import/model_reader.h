@@ -5,6 +5,7 @@
 // fixed-size batches through a TriangleSink. Bad input is a Status naming the file and the
 // line (text) or byte offset (binary); nothing is thrown, nothing crashes.
 
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -21,6 +22,16 @@ class ProgressReporter;
 namespace raystack::import {
 
 inline constexpr uint32_t kNoMaterial = 0xffffffffu;
+
+// Vertex coordinates beyond +-1e38 are refused where they are read: the octree's cube around
+// such a model (twice its half extent, with a margin) would overflow float (3.4e38), and a
+// store of it could not be opened.
+inline constexpr float kMaxCoordinate = 1e38f;
+inline const char* PositionOutOfRange(const float xyz[3]) {
+  for (int a = 0; a < 3; ++a)
+    if (!(std::fabs(xyz[a]) <= kMaxCoordinate)) return "vertex coordinate beyond +-1e38";
+  return nullptr;
+}
 
 // One material from an MTL file (only what a ray tracer needs).
 struct Material {

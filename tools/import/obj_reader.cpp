@@ -132,6 +132,7 @@ Status ObjReader::ReadFloats(std::string_view* rest, float* out, int required, i
 Status ObjReader::ReadPosition(std::string_view rest) {
   float xyz[3];
   RAYSTACK_RETURN_IF_ERROR(ReadFloats(&rest, xyz, 3, 0));  // w or vertex colours may follow
+  if (const char* why = PositionOutOfRange(xyz)) return input_.LineError(why);
   info_->bounds.Extend(Vec3f{xyz[0], xyz[1], xyz[2]});
   ++info_->vertices;
   return positions_.Append(xyz);

@@ -112,6 +112,7 @@ Status PlyReader::ReadVertices(const PlyElement& element) {
       if (slot >= 0) RAYSTACK_RETURN_IF_ERROR(values_->ReadFloat(property.type, &record[slot]));
       else RAYSTACK_RETURN_IF_ERROR(SkipProperty(property));
     }
+    if (const char* why = PositionOutOfRange(record)) return values_->Error(why);
     RAYSTACK_RETURN_IF_ERROR(values_->EndRecord());
     info_->bounds.Extend(Vec3f{record[0], record[1], record[2]});
     RAYSTACK_RETURN_IF_ERROR(vertices_->Append(record));
