@@ -80,6 +80,10 @@ class Builder {
 
   Status Run(const TriangleSource& source, BuildResult* result) {
     result->root_cell = root_ = RootCell(source.bounds());
+    for (int a = 0; a < 3; ++a)  // the readers refuse coordinates this large; copies may reach them
+      if (!std::isfinite(root_.lower[a]) || !std::isfinite(root_.upper[a]))
+        return Status::Error("the model's box is too large for float coordinates (the octree's "
+                             "cube around it overflows); keep coordinates within +-1e38");
     nodes_.push_back({0, 0, store::kOctreeEmpty, 0});
     if (source.triangles() <= bucket_capacity_) {
       RAYSTACK_RETURN_IF_ERROR(BuildInMemory(source, 0, root_, 0));
