@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <cstring>
+#include <new>
 
 #include "master/render_command.h"
 
@@ -18,8 +19,15 @@ Stores are made with raystack-prep and inspected with raystack-info.
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc >= 2 && std::strcmp(argv[1], "render") == 0)
-    return raystack::master::RenderCommand(argc - 1, argv + 1);
+  if (argc >= 2 && std::strcmp(argv[1], "render") == 0) {
+    try {
+      return raystack::master::RenderCommand(argc - 1, argv + 1);
+    } catch (const std::bad_alloc&) {  // memory is checked up front; this is the last resort
+      std::fputs("raystack render: out of memory (a smaller image, --cache-mb or fewer threads "
+                 "may fit)\n", stderr);
+      return 1;
+    }
+  }
   if (argc >= 2 && (std::strcmp(argv[1], "-h") == 0 || std::strcmp(argv[1], "--help") == 0)) {
     std::fputs(kUsage, stdout);
     return 0;

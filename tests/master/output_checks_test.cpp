@@ -11,10 +11,12 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include "common/base/memory_available.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/store_dir_fixture.h"
 
@@ -63,6 +65,26 @@ TEST(OutputChecks, AFolderOrAnotherExtensionIsRefused) {
     EXPECT_EQ(r.exit_code, 1) << output;
     EXPECT_NE(r.err.find(expected), std::string::npos) << output << ": " << r.err;
   }
+}
+
+// A frame whose film cannot fit in the memory available is refused before anything is read
+// (running out midway ended in an uncaught std::bad_alloc), naming the camera and the sizes.
+TEST(OutputChecks, AnImageLargerThanTheMemoryIsRefusedBeforeRendering) {
+  const std::optional<uint64_t> available = MemoryAvailable();
+  if (!available) GTEST_SKIP() << "no MemAvailable here";
+  // 16384 x 16384, the largest a scene allows, needs ~56 GB.
+  if (*available > uint64_t{16384} * 16384 * 200) GTEST_SKIP() << "this machine has room for it";
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  std::ofstream(dir->File("scene.json")) << R"({ "store": "no-such-store", "cameras": [
+    { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 40, "height": 30 },
+    { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 16384, "height": 16384 } ] })";
+  const ProcessResult r = RunProcess(
+      {kRaystackBinary, "render", dir->File("scene.json"), "--output", dir->File("out.exr"), "-q"},
+      dir->path());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("camera 1: a 16384x16384 image needs about"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("GB is available here"), std::string::npos) << r.err;
 }
 
 }  // namespace
