@@ -7,9 +7,10 @@
 
 namespace raystack::master {
 
-Checkpoints::Checkpoints(double every_s, std::string path, FrameWriter* writer,
-                         int64_t kill_after, int64_t fail_first)
-    : every_s_(every_s), path_(std::move(path)), writer_(writer), fail_first_(fail_first),
+Checkpoints::Checkpoints(double every_s, std::string path, std::string provenance,
+                         FrameWriter* writer, int64_t kill_after, int64_t fail_first)
+    : every_s_(every_s), path_(std::move(path)), provenance_(std::move(provenance)),
+      writer_(writer), fail_first_(fail_first),
       written_(std::make_shared<Written>(Written{kill_after})) {}
 
 void Checkpoints::Maybe(const render::Film& film) {
@@ -27,6 +28,7 @@ void Checkpoints::Maybe(const render::Film& film) {
   image.background = true;  // the frame goes on rendering
   image.layers = writer_->TakeSpare();  // the last image's memory, when there is one
   film.ResolveInto(&image.layers);
+  image.layers.provenance = provenance_;
   image.done = [written = written_](const Status& s) {
     if (!s.ok()) {  // tried again at the next interval
       LOG_WARNING("render", "checkpoint: %s", s.message().c_str());

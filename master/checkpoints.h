@@ -21,12 +21,13 @@ namespace raystack::master {
 
 class Checkpoints {
  public:
-  // Every `every_s` seconds (0: never) to `path`, through `writer`. Fault injection:
+  // Every `every_s` seconds (0: never) to `path`, through `writer`, with `provenance` (what
+  // rendered the frame: image::ImageLayers::provenance). Fault injection:
   // `kill_after` (> 0): the process kills itself with SIGKILL right after its `kill_after`-th
   // checkpoint is written, as a crash of the whole job would; the first `fail_first` writes
   // fail as on a full disk.
-  Checkpoints(double every_s, std::string path, FrameWriter* writer, int64_t kill_after = -1,
-              int64_t fail_first = 0);
+  Checkpoints(double every_s, std::string path, std::string provenance, FrameWriter* writer,
+              int64_t kill_after = -1, int64_t fail_first = 0);
 
   // Queues a checkpoint of `film` when one is due.
   void Maybe(const render::Film& film);
@@ -40,6 +41,7 @@ class Checkpoints {
   };
   double every_s_;
   std::string path_;
+  std::string provenance_;
   FrameWriter* writer_;
   int64_t fail_first_, attempts_ = 0;
   std::shared_ptr<Written> written_;

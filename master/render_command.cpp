@@ -413,6 +413,34 @@ Status CheckReferences(const Args& args, const render::Scene& scene) {
   return OkStatus();
 }
 
+// What frame `f`'s pixels depend on, as text: written into its EXR (checkpoints too) and
+// compared by --resume, so that a checkpoint of another camera, scene or setting is refused
+// rather than taken for this frame's (the image size and sample count alone let an edited
+// scene resume into the old image). Floats with 9 digits: the same value, the same text.
+std::string Provenance(const render::Scene& scene, size_t f) {
+  auto vec = [](const Vec3f& v) {
+    return StrFormat("%.9g %.9g %.9g", double{v.x}, double{v.y}, double{v.z});
+  };
+  auto material = [&](const render::Material& m) {
+    return StrFormat("type %d albedo %s ior %.9g emission %s", static_cast<int>(m.type),
+                     vec(m.albedo).c_str(), double{m.ior}, vec(m.emission).c_str());
+  };
+  const render::CameraDesc& c = scene.cameras[f];
+  std::string text = StrFormat("raystack render 1\nstore %s\ncamera %zu: position %s look_at %s "
+                               "up %s fov_y_deg %.9g size %dx%d\n", scene.store.c_str(), f,
+                               vec(c.position).c_str(), vec(c.look_at).c_str(), vec(c.up).c_str(),
+                               double{c.fov_y_deg}, c.width, c.height);
+  for (const render::PointLight& l : scene.lights)
+    text += "light: position " + vec(l.position) + " intensity " + vec(l.intensity) + "\n";
+  text += "material default: " + material(scene.default_material) + "\n";
+  for (const auto& [name, m] : scene.overrides) text += "material " + name + ": " + material(m) + "\n";
+  text += "background " + vec(scene.background) + "\n";
+  const render::IntegratorDesc& i = scene.integrator;
+  text += StrFormat("integrator type %d max_depth %d spp %d seed %llu\n", static_cast<int>(i.type),
+                    i.max_depth, i.spp, static_cast<unsigned long long>(i.seed));
+  return text;
+}
+
 // Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
 // returns the EXR's path, or the error of an earlier frame's write.
 Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, size_t f,
@@ -426,6 +454,7 @@ Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, s
   image.exposure = args.exposure;
   image.background = f + 1 < frames;  // the next frame renders while it is written
   image.layers = std::move(layers);
+  image.layers.provenance = Provenance(scene, f);
   if (film.nonfinite_dropped() > 0)
     LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
                 static_cast<unsigned long long>(film.nonfinite_dropped()));
@@ -515,7 +544,8 @@ Status ResumeInto(const Args& args, const render::Scene& scene, size_t f,
                   render::FramePlan* plan, render::Film* film) {
   if (!args.resume) return OkStatus();
   const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
-  Expected<ResumePlan> resume = PlanResume(exr, plan->width, plan->height, plan->spp());
+  Expected<ResumePlan> resume =
+      PlanResume(exr, plan->width, plan->height, plan->spp(), Provenance(scene, f));
   if (!resume.ok()) return resume.status();
   size_t tiles = 0;
   for (render::Sweep& sweep : plan->sweeps) {
@@ -609,8 +639,9 @@ Status Run(const Args& args) {
         status = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
         finished.store(true);
       });
-      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"), &writer,
-                              args.kill_after_checkpoints, args.fail_checkpoints);
+      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
+                              Provenance(*scene, f), &writer, args.kill_after_checkpoints,
+                              args.fail_checkpoints);
       uint64_t shown = 0;
       // Polled at least as often as the convergence log asks for rows.
       const auto poll = std::chrono::microseconds(
@@ -733,8 +764,9 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
       uint64_t shown = 0;
-      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"), &writer,
-                              args.kill_after_checkpoints, args.fail_checkpoints);
+      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
+                              Provenance(scene, f), &writer, args.kill_after_checkpoints,
+                              args.fail_checkpoints);
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
                           scene.integrator.spp);
       status = master.RunFrame(static_cast<uint32_t>(f), plan, &film, [&] {

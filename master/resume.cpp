@@ -18,7 +18,8 @@ bool ResumePlan::Needs(const render::Tile& t) const {
   return false;
 }
 
-Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, uint32_t spp) {
+Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, uint32_t spp,
+                                const std::string& provenance) {
   ResumePlan plan;
   plan.width = width;
   struct stat st;
@@ -29,6 +30,14 @@ Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, u
     return Status::Error(StrFormat("%s: the checkpoint is %dx%d, this frame %dx%d: not a "
                                    "checkpoint of this frame", exr.c_str(), read->width,
                                    read->height, width, height));
+  if (read->provenance != provenance)
+    return Status::Error(
+        exr + (read->provenance.empty()
+                   ? ": it does not say what rendered it (not a raystack checkpoint of this "
+                     "version): cannot resume from it"
+                   : ": rendered from another scene, camera or setting (the store, camera, "
+                     "lights, materials, background or integrator differ): remove it, or "
+                     "render without --resume"));
   if (read->samples.empty())
     return Status::Error(exr + ": no per-pixel sample counts (samples layer): not a raystack "
                          "checkpoint, cannot resume from it");

@@ -27,8 +27,10 @@ struct ResumePlan {
 };
 
 // Reads `exr` (a missing file: nothing to resume, every tile is rendered). An EXR of another
-// size, or without per-pixel sample counts, is an error naming it.
-Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, uint32_t spp);
+// size, without per-pixel sample counts, or rendered from another scene, camera or setting
+// (its provenance is not `provenance`) is an error naming it.
+Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, uint32_t spp,
+                                const std::string& provenance);
 
 // Puts the kept pixels into `film`.
 inline void ApplyResume(const ResumePlan& plan, render::Film* film) {

@@ -5,6 +5,7 @@
 #include <ImfCompression.h>
 #include <ImfFrameBuffer.h>
 #include <ImfHeader.h>
+#include <ImfStringAttribute.h>
 #include <ImfInputFile.h>
 #include <ImfOutputFile.h>
 
@@ -24,6 +25,7 @@ namespace {
 
 constexpr int64_t kMaxSide = int64_t{1} << 16;
 constexpr int64_t kMaxPixels = int64_t{1} << 28;
+constexpr const char* kProvenanceAttribute = "raystack.provenance";  // ImageLayers::provenance
 constexpr int kRowsPerBand = 64;  // fewer rows a band: not worth a thread
 constexpr int kMaxBands = 8;
 
@@ -188,6 +190,8 @@ Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads th
     AddLayer(image.albedo, kAlbedo, image.width, &header, &frame);
     AddLayer(image.samples, kSamples, image.width, &header, &frame);
     AddLayer(image.variance, kVariance, image.width, &header, &frame);
+    if (!image.provenance.empty())
+      header.insert(kProvenanceAttribute, Imf::StringAttribute(image.provenance));
     // Chunks compressed on every core (the file is byte for byte the same): the last frame is
     // written after the render, while the user waits. The dragon 1024x768 job without PNG,
     // medians of 5 interleaved runs on 2 cores: 1.18 -> 0.97 s.
@@ -240,6 +244,8 @@ Status ReadExrInto(const std::string& path, ImageLayers* into) {
       return Status::Error(path + ": truncated EXR: some scanlines are missing");
 
     ImageLayers& image = *into;
+    const auto* provenance = header.findTypedAttribute<Imf::StringAttribute>(kProvenanceAttribute);
+    image.provenance = provenance ? provenance->value() : std::string();
     image.width = static_cast<int>(width);
     image.height = static_cast<int>(height);
     const size_t pixels = image.pixel_count();

@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace raystack::image {
@@ -17,6 +18,9 @@ struct ImageLayers {
   std::vector<float> albedo;      // 3 per pixel
   std::vector<uint32_t> samples;  // per-pixel sample count
   std::vector<float> variance;    // per-pixel variance estimate of the pixel mean (luminance)
+  // What rendered it (scene, camera, settings), as text; the EXR's "raystack.provenance"
+  // attribute. --resume compares it with the run's. Empty: unknown (not written).
+  std::string provenance;
 
   void Resize(int w, int h);  // allocates all layers (z filled with +inf, rest 0)
 

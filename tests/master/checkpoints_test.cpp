@@ -82,7 +82,7 @@ TEST(Checkpoints, AreWrittenByTheWriterWhileTheLoopGoesOn) {
   ASSERT_TRUE(writer.Write(gate.Holding(Flat(dir->File("earlier.exr"), 1))).ok());
   gate.WaitEntered();  // the writer is busy (a slow disk)
   const std::string path = dir->File("frame.exr");
-  master::Checkpoints checkpoints(0.01, path, &writer);
+  master::Checkpoints checkpoints(0.01, path, "test", &writer);
   MaybeWhenDue(&checkpoints, film, 0.01);  // returns at once: queued, not written
   EXPECT_FALSE(std::filesystem::exists(path));
   gate.Release();
@@ -105,7 +105,7 @@ TEST(Checkpoints, ResolveIntoTheLastWrittenImagesLayers) {
   Gate gate;
   ASSERT_TRUE(writer.Write(gate.Holding(Flat(dir->File("slow.exr"), 2))).ok());
   gate.WaitEntered();  // nothing comes back while this one is held
-  master::Checkpoints checkpoints(0.01, dir->File("frame.exr"), &writer);
+  master::Checkpoints checkpoints(0.01, dir->File("frame.exr"), "test", &writer);
   MaybeWhenDue(&checkpoints, film, 0.01);
   EXPECT_TRUE(writer.TakeSpare().rgba.empty()) << "the checkpoint took the spare layers";
   gate.Release();
@@ -126,7 +126,7 @@ TEST(Checkpoints, WaitForNoRoomButAreTriedAtTheNextCall) {
   gate.WaitEntered();
   ASSERT_TRUE(writer.Write(Flat(dir->File("b.exr"), 2)).ok());  // queued: no room left
   const std::string path = dir->File("frame.exr");
-  master::Checkpoints checkpoints(0.01, path, &writer);
+  master::Checkpoints checkpoints(0.01, path, "test", &writer);
   MaybeWhenDue(&checkpoints, film, 0.01);  // would hang here if it waited for room
   gate.Release();
   ASSERT_TRUE(writer.Finish().ok());
@@ -145,7 +145,7 @@ TEST(Checkpoints, TheFramesFinalImageReplacesItsCheckpoints) {
   master::FrameWriter writer(false);
   const std::string path = dir->File("frame.exr");
   {
-    master::Checkpoints checkpoints(0.005, path, &writer);
+    master::Checkpoints checkpoints(0.005, path, "test", &writer);
     for (int i = 1; i <= 5; ++i) {
       Fill(&film, static_cast<float>(i));
       MaybeWhenDue(&checkpoints, film, 0.005);
@@ -164,7 +164,7 @@ TEST(Checkpoints, AFailedOneIsNotTheJobsError) {
   render::Film film(4, 2);
   Fill(&film, 1);
   master::FrameWriter writer(false);
-  master::Checkpoints checkpoints(0.01, dir->File("no-such-folder/frame.exr"), &writer);
+  master::Checkpoints checkpoints(0.01, dir->File("no-such-folder/frame.exr"), "test", &writer);
   MaybeWhenDue(&checkpoints, film, 0.01);
   EXPECT_TRUE(writer.Finish().ok());
   EXPECT_TRUE(writer.Write(Flat(dir->File("final.exr"), 1)).ok());

@@ -165,6 +165,34 @@ TEST_F(Resume, ACheckpointOfAnotherFrameIsRefusedNamingIt) {
       << r.err;
 }
 
+// A checkpoint records what rendered it (store, camera, lights, materials, integrator): after
+// the scene was edited (here its light moved), or from another program, --resume refuses it
+// rather than keep the old pixels as this scene's; the scene as it was resumes from it.
+TEST_F(Resume, ACheckpointOfAnEditedSceneOrAnotherProgramIsRefused) {
+  const std::string out = dir_->File("edited.exr");
+  ASSERT_EQ(Render(out, 0).exit_code, 0);
+  const std::string scene = Slurp(dir_->File("scene.json"));
+  std::string moved = scene;
+  moved.replace(moved.find("[3, 8, 4]"), 9, "[3, 9, 4]");
+  std::ofstream(dir_->File("scene.json")) << moved;
+  ProcessResult r = Render(out, 0, {"--resume"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("edited.exr: rendered from another scene"), std::string::npos) << r.err;
+  std::ofstream(dir_->File("scene.json")) << scene;
+  r = Render(out, 0, {"--resume"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("6144 of 6144 pixels finished"), std::string::npos) << r.out;
+
+  Expected<image::ImageLayers> image = image::ReadExr(out);
+  ASSERT_TRUE(image.ok()) << image.status().message();
+  EXPECT_NE(image->provenance.find("light: position 3 8 4"), std::string::npos) << image->provenance;
+  image->provenance.clear();
+  ASSERT_TRUE(image::WriteExr(out, *image).ok());
+  r = Render(out, 0, {"--resume"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("edited.exr: it does not say what rendered it"), std::string::npos) << r.err;
+}
+
 TEST_F(Resume, WithoutACheckpointEverythingIsRendered) {
   const ProcessResult r = Render(dir_->File("fresh.exr"), 0, {"--resume"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
