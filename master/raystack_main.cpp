@@ -19,6 +19,8 @@ Stores are made with raystack-prep and inspected with raystack-info.
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Progress lines reach a log file (Slurm's, a redirect) as they are printed, not at exit.
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
   if (argc >= 2 && std::strcmp(argv[1], "render") == 0) {
     try {
       return raystack::master::RenderCommand(argc - 1, argv + 1);

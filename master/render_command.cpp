@@ -192,7 +192,8 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
     auto number = [&](auto* out, double lo, double hi) -> Status {
       std::string v;
       RAYSTACK_RETURN_IF_ERROR(value(&v));
-      if (!ParseNumber(v, out) || static_cast<double>(*out) < lo || static_cast<double>(*out) > hi)
+      // Written so that NaN ("nan" parses) is out of every range.
+      if (!ParseNumber(v, out) || !(static_cast<double>(*out) >= lo && static_cast<double>(*out) <= hi))
         return Status::Error(StrFormat("%s: '%s' is not a number from %g to %g", arg.c_str(),
                                        v.c_str(), lo, hi));
       return OkStatus();

@@ -169,6 +169,8 @@ TEST_F(ProgressiveCli, BadOptionsAndReferencesAreClearErrors) {
   }
   EXPECT_EQ(Render(1, {"--pixel-order", "spiral"}).exit_code, 2);
   EXPECT_EQ(Render(1, {"--time-limit", "-1"}).exit_code, 2);
+  EXPECT_EQ(Render(1, {"--target-error", "nan"}).exit_code, 2);
+  EXPECT_EQ(Render(1, {"--feed-fraction", "nan"}).exit_code, 2);
   EXPECT_EQ(Render(1, {"--spp", "0"}).exit_code, 2);
   EXPECT_EQ(Render(1, {"--pass-spp", "0", "-q"}).exit_code, 0);  // the default, written out
   EXPECT_EQ(Render(1, {"--convergence-log", dir_->File("no/such/dir/log.csv"), "-q"}).exit_code, 1);
