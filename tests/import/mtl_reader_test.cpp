@@ -52,6 +52,27 @@ TEST(MtlReader, UseBeforeDefinitionKeepsTheIndex) {
   EXPECT_EQ(materials[1].kd, Material{}.kd);
 }
 
+// Values a renderer cannot use are brought into range (with a warning naming the line), not
+// stored as they are: a negative albedo or emission would make negative pixels.
+TEST(MtlReader, ValuesOutOfRangeAreBroughtIntoRange) {
+  ScratchFiles files;
+  MaterialTable table;
+  ASSERT_TRUE(ReadMtlText(files,
+                          "newmtl a\nKd -0.5 0.2 0.3 0.9\nKe -1e38\nKs -2\nNi 0\nd 2\n"
+                          "newmtl b\nNi 1000\nTr -1\n",
+                          &table)
+                  .ok());
+  std::vector<Material> materials = table.Take();
+  ASSERT_EQ(materials.size(), 2u);
+  EXPECT_EQ(materials[0].kd, (Vec3f{0, 0.2f, 0.3f}));
+  EXPECT_EQ(materials[0].ke, (Vec3f{0, 0, 0}));
+  EXPECT_EQ(materials[0].ks, (Vec3f{0, 0, 0}));
+  EXPECT_EQ(materials[0].ni, 1.0f);
+  EXPECT_EQ(materials[0].d, 1.0f);
+  EXPECT_EQ(materials[1].ni, 4.0f);
+  EXPECT_EQ(materials[1].d, 1.0f);
+}
+
 TEST(MtlReader, BadNumberNamesFileAndLine) {
   ScratchFiles files;
   MaterialTable table;

@@ -1,5 +1,6 @@
 #include "tools/import/mtl_reader.h"
 
+#include <algorithm>
 #include <set>
 
 #include "common/base/log.h"
@@ -86,6 +87,15 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
   Material scratch;  // receives statements outside any (or in a repeated) newmtl block
   Material* current = &scratch;
   std::set<std::string, std::less<>> warned;
+  // Values a renderer cannot use (negative colours, an opacity outside [0, 1], an index of
+  // refraction outside [1, 4]) are brought into range with a warning naming the place: models
+  // in the wild have them, and refusing the whole model would help nobody.
+  auto out_of_range = [&](std::string_view key, const char* what) {
+    if (!warned.insert(std::string(key) + what).second) return;  // once a file: models repeat them
+    LOG_WARNING("import", "%s:%llu: %.*s: %s (the first such line)", input.path().c_str(),
+                static_cast<unsigned long long>(input.line_number()), static_cast<int>(key.size()),
+                key.data(), what);
+  };
   std::string_view line;
   while (input.NextLine(&line)) {
     std::string_view rest = StripComment(line);
@@ -108,20 +118,26 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
         LOG_WARNING("import", "%s:%llu: only rgb colours are supported; '%.*s' ignored",
                     input.path().c_str(), static_cast<unsigned long long>(input.line_number()),
                     static_cast<int>(key.size()), key.data());
-    } else if (key == "Kd") {
-      RAYSTACK_RETURN_IF_ERROR(values.Color(&current->kd));
-    } else if (key == "Ks") {
-      RAYSTACK_RETURN_IF_ERROR(values.Color(&current->ks));
-    } else if (key == "Ke") {
-      RAYSTACK_RETURN_IF_ERROR(values.Color(&current->ke));
+    } else if (key == "Kd" || key == "Ks" || key == "Ke") {
+      Vec3f* colour = key == "Kd" ? &current->kd : key == "Ks" ? &current->ks : &current->ke;
+      RAYSTACK_RETURN_IF_ERROR(values.Color(colour));
+      if (!Trim(values.rest()).empty()) out_of_range(key, "more than 3 numbers; the rest ignored");
+      for (float* c : {&colour->x, &colour->y, &colour->z})
+        if (*c < 0) *c = 0, out_of_range(key, "a negative colour value, taken as 0");
     } else if (key == "Ni") {
       RAYSTACK_RETURN_IF_ERROR(values.Float(&current->ni));
-    } else if (key == "d") {
-      RAYSTACK_RETURN_IF_ERROR(values.Float(&current->d));
-    } else if (key == "Tr") {  // transparency, the complement of d
-      float tr = 0;
-      RAYSTACK_RETURN_IF_ERROR(values.Float(&tr));
-      current->d = 1.0f - tr;
+      if (!(current->ni >= 1.0f && current->ni <= 4.0f)) {  // the scene file's range for "ior"
+        current->ni = std::clamp(current->ni, 1.0f, 4.0f);
+        out_of_range(key, "an index of refraction outside [1, 4], clamped");
+      }
+    } else if (key == "d" || key == "Tr") {  // opacity, or transparency (its complement)
+      float v = 0;
+      RAYSTACK_RETURN_IF_ERROR(values.Float(&v));
+      if (!(v >= 0.0f && v <= 1.0f)) {
+        v = std::clamp(v, 0.0f, 1.0f);
+        out_of_range(key, "outside [0, 1], clamped");
+      }
+      current->d = key == "d" ? v : 1.0f - v;
     } else if (key == "illum") {
       RAYSTACK_RETURN_IF_ERROR(values.Int(&current->illum));
     }
