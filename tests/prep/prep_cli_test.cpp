@@ -127,6 +127,12 @@ TEST_F(PrepCliTest, MissingInputFails) {
   ExpectFailsNaming(Prep({missing, "-o", dir_->File("s")}), {missing});
 }
 
+TEST_F(PrepCliTest, AModelWithoutTrianglesNamesItsFile) {
+  const std::string obj = dir_->File("points.obj");
+  std::ofstream(obj) << "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+  ExpectFailsNaming(Prep({obj, "-o", dir_->File("s"), "-q"}), {obj + ": no triangles"});
+}
+
 TEST_F(PrepCliTest, MalformedObjNamesFileAndLine) {
   const std::string obj = dir_->File("broken.obj");
   std::ofstream(obj) << "# three vertices, then a face that uses a fourth\n"

@@ -89,9 +89,14 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   if (source.triangles() >= 0xffffffffull)
     return Status::Error(StrFormat("%llu triangles after replication: format v1 ids are 32-bit",
                                    static_cast<unsigned long long>(source.triangles())));
-  if (source.triangles() == 0)
-    return Status::Error(StrFormat("the model has no triangles (after dropping %llu of zero area)",
+  if (source.triangles() == 0) {
+    std::string names;
+    for (const std::string& input : args.inputs) names += (names.empty() ? "" : ", ") + input;
+    return Status::Error(StrFormat("%s: no triangles (after dropping %llu of zero area; faces as "
+                                   "'f' lines in OBJ, a face element with a vertex index list "
+                                   "in PLY)", names.empty() ? "the model" : names.c_str(),
                                    static_cast<unsigned long long>(report.zero_area_dropped)));
+  }
 
   // 2. Octree and blocks.
   Expected<std::unique_ptr<store::StoreWriter>> writer = store::StoreWriter::Create(args.output);
