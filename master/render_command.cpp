@@ -365,6 +365,8 @@ Status CheckOutputs(const Args& args, const render::Scene& scene) {
   uint64_t needed = 0, largest = 0;
   for (size_t f = 0; f < frames; ++f) {
     RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(OutputOf(args, scene), f, frames, ".exr")));
+    for (const char* ext : {".exr", ".png"})  // a killed run's, as large as the images
+      image::RemoveStaleTemporaries(FramePath(OutputOf(args, scene), f, frames, ext));
     const uint64_t pixels = static_cast<uint64_t>(scene.cameras[f].width) *
                             static_cast<uint64_t>(scene.cameras[f].height);
     largest = std::max(largest, pixels * 13 * 4);

@@ -1,6 +1,7 @@
 #include "common/image/output_file.h"
 
 #include <fcntl.h>
+#include <signal.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
 #include <unistd.h>
@@ -8,6 +9,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <utility>
@@ -61,6 +63,32 @@ Expected<AtomicOutput> AtomicOutput::Create(const std::string& path) {
                            std::strerror(errno));
   }
   return Status::Error(path + ": cannot write: no free temporary name beside it");
+}
+
+int RemoveStaleTemporaries(const std::string& path) {
+  const fs::path target(path);
+  std::string prefix = ".";  // (appended piecewise: GCC 12 warns falsely on "." + string)
+  prefix += target.filename().string();
+  prefix += ".tmp-";
+  std::error_code ec;
+  int removed = 0;
+  for (const fs::directory_entry& entry : fs::directory_iterator(Folder(path), ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    // ".NAME.tmp-PID-N": the writer's process id, then a counter.
+    const std::string rest = name.substr(prefix.size());
+    const size_t dash = rest.find('-');
+    if (dash == 0 || dash == std::string::npos) continue;
+    char* end = nullptr;
+    const long pid = std::strtol(rest.c_str(), &end, 10);
+    if (end != rest.c_str() + dash || pid <= 0) continue;
+    if (kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
+    if (unlink(entry.path().c_str()) == 0) {
+      ++removed;
+      LOG_INFO("render", "removed %s, left by an interrupted run", entry.path().c_str());
+    }
+  }
+  return removed;
 }
 
 AtomicOutput::AtomicOutput(AtomicOutput&& other) noexcept

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -90,6 +91,27 @@ TEST(AtomicOutput, CommitReplacesTheTargetAndDropRemovesTheTemporary) {
   EXPECT_FALSE(output->Commit().ok());  // once only
   EXPECT_EQ(ReadBytes(path), "new");
   EXPECT_EQ(EntryCount(dir.path()), 1u);
+}
+
+// A killed run leaves its temporary (as large as the image); the next run removes those of
+// processes no longer running, and nothing else.
+TEST(AtomicOutput, TemporariesOfProcessesGoneAreRemoved) {
+  TempDir dir = TempDir::Create().value();
+  const pid_t child = fork();
+  if (child == 0) _exit(0);
+  ASSERT_GT(child, 0);
+  ASSERT_EQ(waitpid(child, nullptr, 0), child);  // gone now
+  const std::string gone = std::to_string(child), alive = std::to_string(getpid());
+  for (const std::string& name : {".image.exr.tmp-" + gone + "-0", ".image.exr.tmp-" + gone + "-7",
+                                  ".image.exr.tmp-" + alive + "-0", std::string(".image.exr.tmp-x-0"),
+                                  ".other.exr.tmp-" + gone + "-0", std::string("image.exr")})
+    std::ofstream(dir.File(name)) << "bytes";
+  EXPECT_EQ(RemoveStaleTemporaries(dir.File("image.exr")), 2);
+  EXPECT_FALSE(fs::exists(dir.File(".image.exr.tmp-" + gone + "-0")));
+  EXPECT_TRUE(fs::exists(dir.File(".image.exr.tmp-" + alive + "-0")));
+  EXPECT_TRUE(fs::exists(dir.File(".image.exr.tmp-x-0")));
+  EXPECT_TRUE(fs::exists(dir.File(".other.exr.tmp-" + gone + "-0")));
+  EXPECT_TRUE(fs::exists(dir.File("image.exr")));
 }
 
 TEST(AtomicOutput, BareFileNameMeansTheCurrentFolder) {
