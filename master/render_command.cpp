@@ -429,8 +429,9 @@ std::string Provenance(const render::Scene& scene, size_t f) {
                      vec(m.albedo).c_str(), double{m.ior}, vec(m.emission).c_str());
   };
   const render::CameraDesc& c = scene.cameras[f];
-  std::string text = StrFormat("raystack render 1\nstore %s\ncamera %zu: position %s look_at %s "
-                               "up %s fov_y_deg %.9g size %dx%d\n", scene.store.c_str(), f,
+  // (Not the frame's index: a camera repeated gives the same image, byte for byte.)
+  std::string text = StrFormat("raystack render 1\nstore %s\ncamera: position %s look_at %s "
+                               "up %s fov_y_deg %.9g size %dx%d\n", scene.store.c_str(),
                                vec(c.position).c_str(), vec(c.look_at).c_str(), vec(c.up).c_str(),
                                double{c.fov_y_deg}, c.width, c.height);
   for (const render::PointLight& l : scene.lights)
