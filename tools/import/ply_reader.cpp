@@ -7,6 +7,7 @@
 #include "common/base/log.h"
 #include "tools/import/ply_header.h"
 #include "tools/import/ply_values.h"
+#include "tools/import/text_scan.h"
 #include "tools/import/triangle_batcher.h"
 #include "tools/import/vertex_table.h"
 
@@ -36,6 +37,7 @@ class PlyReader {
 
  private:
   Status MakeVertexLayout(const PlyElement& element, VertexLayout* layout) const;
+  void WarnAboutTrailingData(PlyFormat format);
   Status ReadVertices(const PlyElement& element);
   Status ReadFaces(const PlyElement& element);
   Status ReadFaceCorners(const PlyProperty& list);
@@ -69,7 +71,26 @@ Status PlyReader::Read() {
     }
   }
   if (!vertices_) return input_.LineError("PLY file has no vertex element");
+  WarnAboutTrailingData(header->format);
   return batcher_.Finish(input_.path());
+}
+
+// Data past the elements the header declares is ignored, with a warning: a header whose counts
+// are too small would otherwise drop part of the model without a word.
+void PlyReader::WarnAboutTrailingData(PlyFormat format) {
+  if (format == PlyFormat::kAscii) {
+    std::string_view line;
+    while (input_.NextLine(&line)) {
+      if (Trim(line).empty()) continue;
+      LOG_WARNING("import", "%s:%llu: data after the elements the header declares; ignored",
+                  input_.path().c_str(), static_cast<unsigned long long>(input_.line_number()));
+      return;
+    }
+  } else if (!input_.Peek(1).empty()) {
+    LOG_WARNING("import", "%s: byte %llu: %llu bytes after the elements the header declares; "
+                "ignored", input_.path().c_str(), static_cast<unsigned long long>(input_.offset()),
+                static_cast<unsigned long long>(input_.file_size() - input_.offset()));
+  }
 }
 
 Status PlyReader::MakeVertexLayout(const PlyElement& element, VertexLayout* layout) const {
