@@ -133,6 +133,27 @@ TEST_F(PrepCliTest, AModelWithoutTrianglesNamesItsFile) {
   ExpectFailsNaming(Prep({obj, "-o", dir_->File("s"), "-q"}), {obj + ": no triangles"});
 }
 
+// What a converter brings into range or leaves out is said, naming the place: data past the
+// PLY elements its header declares, an MTL colour below 0.
+TEST_F(PrepCliTest, IgnoredOrClampedInputIsReportedWithItsPlace) {
+  const std::string ply = dir_->File("short.ply");
+  std::ofstream(ply) << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                        "property float y\nproperty float z\nelement face 1\n"
+                        "property list uchar int vertex_indices\nend_header\n"
+                        "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 2 1\n";
+  ProcessResult r = Prep({ply, "-o", dir_->File("a")});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find(ply + ":14: data after the elements the header declares; ignored"),
+            std::string::npos) << r.err;
+  const std::string obj = dir_->File("tri.obj");
+  std::ofstream(obj) << "mtllib tri.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  std::ofstream(dir_->File("tri.mtl")) << "newmtl red\nKd 1 -0.5 0\n";
+  r = Prep({obj, "-o", dir_->File("b")});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("tri.mtl:2: Kd: a negative colour value, taken as 0"), std::string::npos)
+      << r.err;
+}
+
 TEST_F(PrepCliTest, MalformedObjNamesFileAndLine) {
   const std::string obj = dir_->File("broken.obj");
   std::ofstream(obj) << "# three vertices, then a face that uses a fourth\n"
