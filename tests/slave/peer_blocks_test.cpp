@@ -74,6 +74,31 @@ void WaitFor(const std::function<bool()>& done) {
   while (!done()) std::this_thread::sleep_for(std::chrono::milliseconds(1));
 }
 
+// Rank 1 fetching one block of rank 2's on a thread of its own (joined by the test).
+struct OneFetch {
+  OneFetch(slave::PeerBlocks* peers, uint32_t block)
+      : thread([this, peers, block] {
+          const uint32_t ids[1] = {block};
+          status = peers->ReadRun(ids, &got);
+        }) {}
+  ~OneFetch() {  // a failed assertion leaves before the test joins (the fetch times out)
+    if (thread.joinable()) thread.join();
+  }
+  Status status;
+  std::vector<uint8_t> got;
+  std::thread thread;  // last: started once the others exist
+};
+
+// The next block request rank 2 receives, decoded.
+Expected<wire::BlockRequest> ReceiveRequest(transport::Transport* net2) {
+  Expected<std::optional<transport::Envelope>> got = net2->Receive(std::chrono::seconds(20));
+  if (!got.ok()) return got.status();
+  if (!got->has_value()) return Status::Error("no request came");
+  const Expected<wire::Message> m = wire::Decode((*got)->bytes, 1);
+  if (!m.ok()) return m.status();
+  return m->block_request();
+}
+
 TEST(PeerBlocks, QueuedFetchesGoAsOneRequestAndEachGetsItsOwnBlocks) {
   TestStore s = BuildGenerated("sphere:20000", 4);
   const store::StoreReader& store = *s.reader;
@@ -171,20 +196,13 @@ TEST(PeerBlocks, AnOwnersLateOrFailedAnswerSendsItsAskersToDisk) {
   const uint32_t theirs = FirstOwnedBy(store, 2);
   for (const bool failed : {false, true}) {
     TwoSlaves job(store);
-    Status fetched;
-    std::vector<uint8_t> got;
-    std::thread fetcher([&] {
-      const uint32_t ids[1] = {theirs};
-      fetched = job.peers1.ReadRun(ids, &got);
-    });
-    Expected<std::optional<transport::Envelope>> request = job.net2->Receive(std::chrono::seconds(20));
-    ASSERT_TRUE(request.ok() && request->has_value());
-    const Expected<wire::Message> m = wire::Decode((*request)->bytes, 1);
-    ASSERT_TRUE(m.ok());
-    const uint32_t asked = m->block_request().request;
+    OneFetch fetch(&job.peers1, theirs);
+    const Expected<wire::BlockRequest> request = ReceiveRequest(job.net2.get());
+    ASSERT_TRUE(request.ok()) << request.status().message();
+    const uint32_t asked = request->request;
     if (!failed) {
       job.peers1.OwnerLost(2);
-      fetcher.join();
+      fetch.thread.join();
     }
     const std::vector<uint8_t> empty;
     const std::vector<uint8_t> stored = FromDisk(store, theirs, 1);
@@ -192,9 +210,9 @@ TEST(PeerBlocks, AnOwnersLateOrFailedAnswerSendsItsAskersToDisk) {
                                                         failed ? empty : stored)).ok());
     const Status handled = job.Pump(1);
     EXPECT_TRUE(handled.ok()) << (failed ? "failed: " : "late: ") << handled.message();
-    if (failed) fetcher.join();
-    ASSERT_TRUE(fetched.ok()) << fetched.message();
-    EXPECT_EQ(got, stored);
+    if (failed) fetch.thread.join();
+    ASSERT_TRUE(fetch.status.ok()) << fetch.status.message();
+    EXPECT_EQ(fetch.got, stored);
     EXPECT_EQ(job.peers1.bytes_from_peers(), 0u);
   }
 }
@@ -327,24 +345,17 @@ TEST(PeerBlocks, AMalformedRequestOrAnswerNamesItsSender) {
   EXPECT_NE(st.message().find("rank 2"), std::string::npos) << st.message();
 
   // A real request answered with too few bytes: the fetch fails naming the owner.
-  Status fetched;
-  std::vector<uint8_t> got;
-  std::thread fetcher([&] {
-    const uint32_t ids[1] = {theirs};
-    fetched = job.peers1.ReadRun(ids, &got);
-  });
-  Expected<std::optional<transport::Envelope>> request = job.net2->Receive(std::chrono::seconds(20));
-  ASSERT_TRUE(request.ok() && request->has_value());
-  m = wire::Decode((*request)->bytes, 1);
-  ASSERT_TRUE(m.ok());
-  const wire::BlockRequest asked = m->block_request();
+  OneFetch fetch(&job.peers1, theirs);
+  const Expected<wire::BlockRequest> request = ReceiveRequest(job.net2.get());
+  ASSERT_TRUE(request.ok()) << request.status().message();
+  const wire::BlockRequest asked = request.value();
   const std::vector<uint8_t> short_answer(store.blocks()[theirs].stored_bytes - 1, 0);
   ASSERT_TRUE(job.net2->Send(1, wire::EncodeBlockData(2, wire::BlockDataHeader{asked.request, 1, 0, 0},
                                                       short_answer)).ok());
   ASSERT_TRUE(job.Pump(1).ok());  // the answer is taken; its fetcher reports it
-  fetcher.join();
-  ASSERT_FALSE(fetched.ok());
-  EXPECT_NE(fetched.message().find("from rank 2"), std::string::npos) << fetched.message();
+  fetch.thread.join();
+  ASSERT_FALSE(fetch.status.ok());
+  EXPECT_NE(fetch.status.message().find("from rank 2"), std::string::npos) << fetch.status.message();
 }
 
 }  // namespace
