@@ -1,24 +1,17 @@
 #include "master/render_command.h"
 
-#include <sys/stat.h>
-#include <unistd.h>
-
 #include <atomic>
-#include <cctype>
 #include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
 #include <limits>
 #include <mutex>
-#include <optional>
 #include <string>
 #include <thread>
 
 #include "common/base/log.h"
-#include "common/base/memory_available.h"
 #include "common/base/progress.h"
 #include "common/image/exr_io.h"
 #include "common/image/png_writer.h"
@@ -32,7 +25,9 @@
 #include "master/convergence_monitor.h"
 #include "master/frame_writer.h"
 #include "master/master_node.h"
+#include "master/preflight.h"
 #include "master/preview/live_preview.h"
+#include "master/provenance.h"
 #include "master/resume.h"
 #include "slave/direct_reads.h"
 #include "slave/peer_blocks.h"
@@ -314,20 +309,6 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
   return OkStatus();
 }
 
-// out.exr -> out-1.exr for the second camera, and the PNG beside it.
-std::string FramePath(const std::string& path, size_t frame, size_t frames, const char* ext) {
-  std::string stem = path;
-  const size_t dot = stem.rfind('.');
-  const size_t slash = stem.rfind('/');
-  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) stem.resize(dot);
-  if (frames > 1) {
-    stem.push_back('-');
-    stem.append(std::to_string(frame));
-  }
-  stem.append(ext);
-  return stem;
-}
-
 Status WriteStats(const std::string& path, const std::string& json) {
   if (path.empty()) return OkStatus();
   std::ofstream out(path);
@@ -338,111 +319,6 @@ Status WriteStats(const std::string& path, const std::string& json) {
 
 std::string OutputOf(const Args& args, const render::Scene& scene) {
   return args.output.empty() ? scene.output : args.output;
-}
-
-// Fails before any rendering when a frame's EXR could not be written.
-Status CheckOutputs(const Args& args, const render::Scene& scene) {
-  const size_t frames = scene.cameras.size();
-  // The output names the EXR: its extension gives way to .exr and .png (and -N per frame when
-  // the scene has several cameras), so anything but .exr there, or a folder, is a mistake.
-  const std::string output = OutputOf(args, scene);
-  struct stat st {};
-  if (::stat(output.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
-    return Status::Error(output + ": is a folder; the output is the EXR file's path (e.g. " +
-                         (output.empty() || output.back() == '/' ? output : output + "/") +
-                         "image.exr)");
-  const size_t dot = output.rfind('.'), slash = output.rfind('/');
-  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) {
-    std::string ext = output.substr(dot);
-    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (ext != ".exr")
-      return Status::Error(output + ": the output is an OpenEXR image; give a path ending in "
-                                    ".exr (the PNG quick look goes beside it)");
-  }
-  // Room for every frame's image at its largest (13 uncompressed 32-bit channels in the EXR,
-  // 4 bytes a pixel in the PNG), and for a second copy of the largest EXR while a checkpoint's
-  // temporary sits beside the previous one.
-  uint64_t needed = 0, largest = 0;
-  for (size_t f = 0; f < frames; ++f) {
-    RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(OutputOf(args, scene), f, frames, ".exr")));
-    for (const char* ext : {".exr", ".png"})  // a killed run's, as large as the images
-      image::RemoveStaleTemporaries(FramePath(OutputOf(args, scene), f, frames, ext));
-    const uint64_t pixels = static_cast<uint64_t>(scene.cameras[f].width) *
-                            static_cast<uint64_t>(scene.cameras[f].height);
-    largest = std::max(largest, pixels * 13 * 4);
-    needed += pixels * 13 * 4 + (args.png ? pixels * 4 : 0);
-  }
-  if (args.checkpoint_s > 0) needed += largest;
-  return image::CheckRoom(FramePath(OutputOf(args, scene), 0, frames, ".exr"), needed);
-}
-
-// The film and the images made from it fit in this machine's memory (or its cgroup's), checked
-// before rendering: a 16384 x 16384 frame needs ~55 GB, and running out midway ended the job
-// with an uncaught std::bad_alloc. `cache_bytes`: the block cache's budget where this process
-// renders too (0 for a master alone).
-Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes) {
-  // Measured peaks: 163 bytes a pixel at 2048 x 2048, 208 at 4096 x 4096 (the film's sums 100,
-  // the resolved layers 52, the frame being written while the next renders 52).
-  constexpr uint64_t kBytesPerPixel = 210;
-  uint64_t largest = 0;
-  size_t which = 0;
-  for (size_t f = 0; f < scene.cameras.size(); ++f) {
-    const uint64_t pixels = static_cast<uint64_t>(scene.cameras[f].width) *
-                            static_cast<uint64_t>(scene.cameras[f].height);
-    if (pixels > largest) largest = pixels, which = f;
-  }
-  const uint64_t needed = largest * kBytesPerPixel + cache_bytes;
-  const std::optional<uint64_t> available = MemoryAvailable();
-  if (!available || needed <= *available) return OkStatus();
-  const render::CameraDesc& c = scene.cameras[which];
-  return Status::Error(StrFormat("camera %zu: a %dx%d image needs about %.1f GB of memory for "
-                                 "its film and images%s; %.1f GB is available here",
-                                 which, c.width, c.height, static_cast<double>(needed) / 1e9,
-                                 cache_bytes > 0 ? " and the block cache" : "",
-                                 static_cast<double>(*available) / 1e9));
-}
-
-// Every frame's --reference can be read, checked before the first frame renders rather than
-// when its frame comes (its size is checked then, as it is read).
-Status CheckReferences(const Args& args, const render::Scene& scene) {
-  if (args.reference.empty()) return OkStatus();
-  const size_t frames = scene.cameras.size();
-  for (size_t f = 0; f < frames; ++f) {
-    const std::string path = frames > 1 ? FramePath(args.reference, f, frames, ".exr") : args.reference;
-    if (::access(path.c_str(), R_OK) != 0)
-      return Status::Error(StrFormat("%s: cannot read: %s (--reference of camera %zu)",
-                                     path.c_str(), std::strerror(errno), f));
-  }
-  return OkStatus();
-}
-
-// What frame `f`'s pixels depend on, as text: written into its EXR (checkpoints too) and
-// compared by --resume, so that a checkpoint of another camera, scene or setting is refused
-// rather than taken for this frame's (the image size and sample count alone let an edited
-// scene resume into the old image). Floats with 9 digits: the same value, the same text.
-std::string Provenance(const render::Scene& scene, size_t f) {
-  auto vec = [](const Vec3f& v) {
-    return StrFormat("%.9g %.9g %.9g", double{v.x}, double{v.y}, double{v.z});
-  };
-  auto material = [&](const render::Material& m) {
-    return StrFormat("type %d albedo %s ior %.9g emission %s", static_cast<int>(m.type),
-                     vec(m.albedo).c_str(), double{m.ior}, vec(m.emission).c_str());
-  };
-  const render::CameraDesc& c = scene.cameras[f];
-  // (Not the frame's index: a camera repeated gives the same image, byte for byte.)
-  std::string text = StrFormat("raystack render 1\nstore %s\ncamera: position %s look_at %s "
-                               "up %s fov_y_deg %.9g size %dx%d\n", scene.store.c_str(),
-                               vec(c.position).c_str(), vec(c.look_at).c_str(), vec(c.up).c_str(),
-                               double{c.fov_y_deg}, c.width, c.height);
-  for (const render::PointLight& l : scene.lights)
-    text += "light: position " + vec(l.position) + " intensity " + vec(l.intensity) + "\n";
-  text += "material default: " + material(scene.default_material) + "\n";
-  for (const auto& [name, m] : scene.overrides) text += "material " + name + ": " + material(m) + "\n";
-  text += "background " + vec(scene.background) + "\n";
-  const render::IntegratorDesc& i = scene.integrator;
-  text += StrFormat("integrator type %d max_depth %d spp %d seed %llu\n", static_cast<int>(i.type),
-                    i.max_depth, i.spp, static_cast<unsigned long long>(i.seed));
-  return text;
 }
 
 // Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
@@ -594,8 +470,9 @@ Status Run(const Args& args) {
   const std::string output = OutputOf(args, *scene);
   const size_t frames = scene->cameras.size();
   RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, args.engine.cache_bytes));
-  RAYSTACK_RETURN_IF_ERROR(CheckOutputs(args, *scene));
-  RAYSTACK_RETURN_IF_ERROR(CheckReferences(args, *scene));
+  RAYSTACK_RETURN_IF_ERROR(
+      CheckOutputs(*scene, OutputOf(args, *scene), args.png, args.checkpoint_s > 0));
+  RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
   if (!log.ok()) return log.status();
 
@@ -938,8 +815,8 @@ Status RunDistributed(const Args& args, transport::Transport* net) {
   if (net->rank() == 0) {
     Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
     Status s = log.ok() ? CheckMemory(*scene, 0) : log.status();
-    if (s.ok()) s = CheckOutputs(args, *scene);
-    if (s.ok()) s = CheckReferences(args, *scene);
+    if (s.ok()) s = CheckOutputs(*scene, OutputOf(args, *scene), args.png, args.checkpoint_s > 0);
+    if (s.ok()) s = CheckReferences(*scene, args.reference);
     if (!s.ok()) {  // before the slaves start a frame
       MasterNode(net).Shutdown(1);
       return s;

@@ -1,0 +1,101 @@
+#include "master/preflight.h"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cstring>
+#include <optional>
+
+#include "common/base/log.h"
+#include "common/base/memory_available.h"
+#include "common/image/output_file.h"
+
+namespace raystack::master {
+
+std::string FramePath(const std::string& path, size_t frame, size_t frames, const char* ext) {
+  std::string stem = path;
+  const size_t dot = stem.rfind('.');
+  const size_t slash = stem.rfind('/');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) stem.resize(dot);
+  if (frames > 1) {
+    stem.push_back('-');
+    stem.append(std::to_string(frame));
+  }
+  stem.append(ext);
+  return stem;
+}
+
+
+Status CheckOutputs(const render::Scene& scene, const std::string& output, bool png,
+                    bool checkpoints) {
+  const size_t frames = scene.cameras.size();
+  // The output names the EXR: its extension gives way to .exr and .png (and -N per frame when
+  // the scene has several cameras), so anything but .exr there, or a folder, is a mistake.
+  struct stat st {};
+  if (::stat(output.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+    return Status::Error(output + ": is a folder; the output is the EXR file's path (e.g. " +
+                         (output.empty() || output.back() == '/' ? output : output + "/") +
+                         "image.exr)");
+  const size_t dot = output.rfind('.'), slash = output.rfind('/');
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) {
+    std::string ext = output.substr(dot);
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".exr")
+      return Status::Error(output + ": the output is an OpenEXR image; give a path ending in "
+                                    ".exr (the PNG quick look goes beside it)");
+  }
+  // Room for every frame's image at its largest (13 uncompressed 32-bit channels in the EXR,
+  // 4 bytes a pixel in the PNG), and for a second copy of the largest EXR while a checkpoint's
+  // temporary sits beside the previous one.
+  uint64_t needed = 0, largest = 0;
+  for (size_t f = 0; f < frames; ++f) {
+    RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(output, f, frames, ".exr")));
+    for (const char* ext : {".exr", ".png"})  // a killed run's, as large as the images
+      image::RemoveStaleTemporaries(FramePath(output, f, frames, ext));
+    const uint64_t pixels = static_cast<uint64_t>(scene.cameras[f].width) *
+                            static_cast<uint64_t>(scene.cameras[f].height);
+    largest = std::max(largest, pixels * 13 * 4);
+    needed += pixels * 13 * 4 + (png ? pixels * 4 : 0);
+  }
+  if (checkpoints) needed += largest;
+  return image::CheckRoom(FramePath(output, 0, frames, ".exr"), needed);
+}
+
+Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes) {
+  // Measured peaks: 163 bytes a pixel at 2048 x 2048, 208 at 4096 x 4096 (the film's sums 100,
+  // the resolved layers 52, the frame being written while the next renders 52).
+  constexpr uint64_t kBytesPerPixel = 210;
+  uint64_t largest = 0;
+  size_t which = 0;
+  for (size_t f = 0; f < scene.cameras.size(); ++f) {
+    const uint64_t pixels = static_cast<uint64_t>(scene.cameras[f].width) *
+                            static_cast<uint64_t>(scene.cameras[f].height);
+    if (pixels > largest) largest = pixels, which = f;
+  }
+  const uint64_t needed = largest * kBytesPerPixel + cache_bytes;
+  const std::optional<uint64_t> available = MemoryAvailable();
+  if (!available || needed <= *available) return OkStatus();
+  const render::CameraDesc& c = scene.cameras[which];
+  return Status::Error(StrFormat("camera %zu: a %dx%d image needs about %.1f GB of memory for "
+                                 "its film and images%s; %.1f GB is available here",
+                                 which, c.width, c.height, static_cast<double>(needed) / 1e9,
+                                 cache_bytes > 0 ? " and the block cache" : "",
+                                 static_cast<double>(*available) / 1e9));
+}
+
+Status CheckReferences(const render::Scene& scene, const std::string& reference) {
+  if (reference.empty()) return OkStatus();
+  const size_t frames = scene.cameras.size();
+  for (size_t f = 0; f < frames; ++f) {
+    const std::string path = frames > 1 ? FramePath(reference, f, frames, ".exr") : reference;
+    if (::access(path.c_str(), R_OK) != 0)
+      return Status::Error(StrFormat("%s: cannot read: %s (--reference of camera %zu)",
+                                     path.c_str(), std::strerror(errno), f));
+  }
+  return OkStatus();
+}
+
+}  // namespace raystack::master

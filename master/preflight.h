@@ -1,0 +1,35 @@
+#pragma once
+// What a render checks before it starts, so that trouble it would meet at the end of a long
+// render (an output it cannot write, a disk without room, a film larger than the memory, a
+// reference image missing for a later camera) is reported at its start, naming the file.
+
+#include <cstddef>
+#include <cstdint>
+#include <string>
+
+#include "common/base/status.h"
+#include "common/render/scene.h"
+
+namespace raystack::master {
+
+// Frame `frame`'s file of `frames` from the output path: out.exr -> out-1.exr for the second
+// camera (out.exr itself when there is one), `ext` in place of the extension (.exr, .png).
+std::string FramePath(const std::string& path, size_t frame, size_t frames, const char* ext);
+
+// The output names the EXR (an .exr path, not a folder); every frame's image can be written
+// there and the disk has room for all of them (and for a checkpoint's second copy when
+// `checkpoints`), PNGs too when `png`. Removes the temporaries a killed run left there.
+Status CheckOutputs(const render::Scene& scene, const std::string& output, bool png,
+                    bool checkpoints);
+
+// The film and the images made from it fit in this machine's memory (or its cgroup's): a
+// 16384 x 16384 frame needs ~55 GB, and running out midway ended the job with an uncaught
+// std::bad_alloc. `cache_bytes`: the block cache's budget where this process renders too (0
+// for a master alone).
+Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes);
+
+// Every camera's reference image (`reference`, REF-f.exr with several cameras) can be read:
+// checked before the first frame rather than when its frame comes (its size is checked then).
+Status CheckReferences(const render::Scene& scene, const std::string& reference);
+
+}  // namespace raystack::master

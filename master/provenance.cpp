@@ -1,0 +1,33 @@
+#include "master/provenance.h"
+
+#include "common/base/log.h"
+
+namespace raystack::master {
+
+std::string Provenance(const render::Scene& scene, size_t camera) {
+  const size_t f = camera;
+  auto vec = [](const Vec3f& v) {
+    return StrFormat("%.9g %.9g %.9g", double{v.x}, double{v.y}, double{v.z});
+  };
+  auto material = [&](const render::Material& m) {
+    return StrFormat("type %d albedo %s ior %.9g emission %s", static_cast<int>(m.type),
+                     vec(m.albedo).c_str(), double{m.ior}, vec(m.emission).c_str());
+  };
+  const render::CameraDesc& c = scene.cameras[f];
+  // (Not the frame's index: a camera repeated gives the same image, byte for byte.)
+  std::string text = StrFormat("raystack render 1\nstore %s\ncamera: position %s look_at %s "
+                               "up %s fov_y_deg %.9g size %dx%d\n", scene.store.c_str(),
+                               vec(c.position).c_str(), vec(c.look_at).c_str(), vec(c.up).c_str(),
+                               double{c.fov_y_deg}, c.width, c.height);
+  for (const render::PointLight& l : scene.lights)
+    text += "light: position " + vec(l.position) + " intensity " + vec(l.intensity) + "\n";
+  text += "material default: " + material(scene.default_material) + "\n";
+  for (const auto& [name, m] : scene.overrides) text += "material " + name + ": " + material(m) + "\n";
+  text += "background " + vec(scene.background) + "\n";
+  const render::IntegratorDesc& i = scene.integrator;
+  text += StrFormat("integrator type %d max_depth %d spp %d seed %llu\n", static_cast<int>(i.type),
+                    i.max_depth, i.spp, static_cast<unsigned long long>(i.seed));
+  return text;
+}
+
+}  // namespace raystack::master

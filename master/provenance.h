@@ -1,0 +1,18 @@
+#pragma once
+// What an image was rendered from, as text: the store, the camera, the lights, the materials,
+// the background and the integrator. Written into every EXR (checkpoints too) as its
+// "raystack.provenance" attribute (image::ImageLayers::provenance) and compared by --resume,
+// so that a checkpoint of another camera, scene or setting is refused rather than taken for
+// this frame's: the image size and sample count alone let an edited scene resume into the old
+// image. Floats with 9 digits: the same value, the same text.
+
+#include <cstddef>
+#include <string>
+
+#include "common/render/scene.h"
+
+namespace raystack::master {
+
+std::string Provenance(const render::Scene& scene, size_t camera);
+
+}  // namespace raystack::master
