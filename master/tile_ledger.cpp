@@ -6,8 +6,21 @@
 namespace raystack::master {
 
 void TileLedger::Assign(const render::Tile& tile, int rank) {
-  in_flight_.push_back({tile, rank, 0, render::TileSamples(tile, spp_), {}});
+  const uint64_t samples = (tile.sample_end == 0 ? spp_ : tile.sample_end) - tile.sample_begin;
+  const uint64_t bits = static_cast<uint64_t>(tile.pixels()) * samples;
+  in_flight_.push_back({tile, rank, 0, render::TileSamples(tile, spp_), {},
+                        std::vector<uint64_t>((bits + 63) / 64, 0)});
   ++unfinished_;
+}
+
+size_t TileLedger::SeenBit(const Entry& e, const render::SampleResult& s) const {
+  const render::Tile& t = e.tile;
+  const uint32_t end = t.sample_end == 0 ? spp_ : t.sample_end;
+  const auto x = static_cast<size_t>(s.pixel % static_cast<uint32_t>(width_));
+  const auto y = static_cast<size_t>(s.pixel / static_cast<uint32_t>(width_));
+  const size_t in_tile = (y - static_cast<size_t>(t.y0)) * static_cast<size_t>(t.x1 - t.x0) +
+                         (x - static_cast<size_t>(t.x0));
+  return in_tile * (end - t.sample_begin) + (s.sample - t.sample_begin);
 }
 
 bool TileLedger::Holds(const render::Tile& t, const render::SampleResult& s) const {
@@ -27,6 +40,13 @@ Status TileLedger::Record(int rank, std::span<const render::SampleResult> sample
       return Status::Error(StrFormat("rank %d sent sample %u of pixel %u, which no tile it is "
                                      "rendering holds", rank, s.sample, s.pixel));
     Entry& e = in_flight_[i];
+    const size_t bit = SeenBit(e, s);
+    uint64_t& word = e.seen[bit / 64];
+    const uint64_t mask = uint64_t{1} << (bit % 64);
+    if (word & mask)
+      return Status::Error(StrFormat("rank %d sent sample %u of pixel %u twice", rank, s.sample,
+                                     s.pixel));
+    word |= mask;
     if (++e.received == e.expected) {  // finished: nothing to take back any more
       in_flight_[i] = std::move(in_flight_.back());
       in_flight_.pop_back();

@@ -26,8 +26,9 @@ class TileLedger {
 
   // Slave `rank` has been given `tile`.
   void Assign(const render::Tile& tile, int rank);
-  // Samples from `rank`: each must belong to a tile it was given and has not finished. Kept
-  // while their tile is unfinished.
+  // Samples from `rank`: each must belong to a tile it was given and has not finished, and
+  // come once (a sample merged twice would count twice in the film and finish its tile with
+  // another missing). Kept while their tile is unfinished.
   Status Record(int rank, std::span<const render::SampleResult> samples);
   // `rank` is gone: the tiles it was given and did not finish (returned), and its samples of
   // them (appended to `merged`, to be taken back out of the film).
@@ -42,7 +43,13 @@ class TileLedger {
     int rank;
     uint64_t received = 0, expected = 0;
     std::vector<render::SampleResult> kept;
+    // A bit per (pixel of the rectangle, sample of the range): which have come. At most a few
+    // KB for a tile of the frame plan (kMaxTileSamples), more for the sparse first rounds' wider
+    // rectangles.
+    std::vector<uint64_t> seen;
   };
+  // The bit of sample `s` (which `e.tile` holds) in `e.seen`.
+  size_t SeenBit(const Entry& e, const render::SampleResult& s) const;
   bool Holds(const render::Tile& t, const render::SampleResult& s) const;
   std::vector<Entry> in_flight_;  // a few per slave: searched linearly
   const int width_;

@@ -1,0 +1,89 @@
+// The master's ledger of tiles in flight: samples must belong to a tile their slave was given
+// and come once; a lost slave's unfinished tiles come back with the samples to take back out.
+
+#include "master/tile_ledger.h"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+namespace raystack::master {
+namespace {
+
+constexpr int kWidth = 16;
+
+render::SampleResult At(int x, int y, uint32_t sample) {
+  render::SampleResult s{};
+  s.pixel = static_cast<uint32_t>(y * kWidth + x);
+  s.sample = sample;
+  return s;
+}
+
+// Every sample of the 4 x 4 tile at (4, 8), samples [1, 3) of each pixel.
+std::vector<render::SampleResult> AllOf(const render::Tile& t) {
+  std::vector<render::SampleResult> all;
+  for (int y = t.y0; y < t.y1; ++y)
+    for (int x = t.x0; x < t.x1; ++x)
+      for (uint32_t s = t.sample_begin; s < t.sample_end; ++s) all.push_back(At(x, y, s));
+  return all;
+}
+
+TEST(TileLedger, ATileFinishesWithEachOfItsSamplesOnce) {
+  const render::Tile tile{4, 8, 8, 12, 1, 3};
+  TileLedger ledger(kWidth, 4);
+  ledger.Assign(tile, 1);
+  const std::vector<render::SampleResult> all = AllOf(tile);
+  ASSERT_TRUE(ledger.Record(1, std::span(all).first(all.size() - 1)).ok());
+  EXPECT_EQ(ledger.unfinished(), 1u);
+  ASSERT_TRUE(ledger.Record(1, std::span(all).last(1)).ok());
+  EXPECT_EQ(ledger.unfinished(), 0u);
+}
+
+// A sample sent twice (with another never sent, the count would still come out right) is an
+// error naming the sender, and the tile does not finish.
+TEST(TileLedger, ASampleSentTwiceIsAnError) {
+  const render::Tile tile{4, 8, 8, 12, 1, 3};
+  TileLedger ledger(kWidth, 4);
+  ledger.Assign(tile, 2);
+  std::vector<render::SampleResult> all = AllOf(tile);
+  all.back() = all.front();
+  const Status s = ledger.Record(2, all);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("rank 2 sent sample 1 of pixel 132 twice"), std::string::npos)
+      << s.message();
+  EXPECT_EQ(ledger.unfinished(), 1u);
+}
+
+TEST(TileLedger, SamplesOfAnotherSlavesTileOrOutsideItAreErrors) {
+  const render::Tile tile{4, 8, 8, 12, 1, 3};
+  TileLedger ledger(kWidth, 4);
+  ledger.Assign(tile, 1);
+  const render::SampleResult outside[] = {At(3, 8, 1)}, sample0[] = {At(4, 8, 0)},
+                             mine[] = {At(4, 8, 1)};
+  EXPECT_FALSE(ledger.Record(1, outside).ok());
+  EXPECT_FALSE(ledger.Record(1, sample0).ok());
+  EXPECT_FALSE(ledger.Record(2, mine).ok());
+  EXPECT_TRUE(ledger.Record(1, mine).ok());
+}
+
+// A lost slave's unfinished tile comes back whole, with the samples it had sent; given to
+// another slave, every sample may come again.
+TEST(TileLedger, AReleasedTileIsGivenBackWithItsSamples) {
+  const render::Tile tile{4, 8, 8, 12, 1, 3};
+  TileLedger ledger(kWidth, 4);
+  ledger.Assign(tile, 1);
+  const std::vector<render::SampleResult> all = AllOf(tile);
+  ASSERT_TRUE(ledger.Record(1, std::span(all).first(5)).ok());
+  std::vector<render::SampleResult> merged;
+  const std::vector<render::Tile> back = ledger.Release(1, &merged);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0], tile);
+  EXPECT_EQ(merged.size(), 5u);
+  EXPECT_EQ(ledger.unfinished(), 0u);
+  ledger.Assign(tile, 3);
+  ASSERT_TRUE(ledger.Record(3, all).ok());
+  EXPECT_EQ(ledger.unfinished(), 0u);
+}
+
+}  // namespace
+}  // namespace raystack::master
