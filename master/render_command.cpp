@@ -470,8 +470,7 @@ Status Run(const Args& args) {
   const std::string output = OutputOf(args, *scene);
   const size_t frames = scene->cameras.size();
   RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, args.engine.cache_bytes));
-  RAYSTACK_RETURN_IF_ERROR(
-      CheckOutputs(*scene, OutputOf(args, *scene), args.png, args.checkpoint_s > 0));
+  RAYSTACK_RETURN_IF_ERROR(CheckOutputs(*scene, output, args.png, args.checkpoint_s > 0));
   RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
   if (!log.ok()) return log.status();
