@@ -118,8 +118,13 @@ TEST_F(PrepCliTest, TargetAboveCapFails) {
                     {"--target-block-kb", "--max-block-kb"});
 }
 
+// A usage error (exit 2, as for any bad option), found before anything runs.
 TEST_F(PrepCliTest, UnknownGeneratorFails) {
-  ExpectFailsNaming(Prep({"--generate", "teapot:100", "-o", dir_->File("s")}), {"teapot"});
+  for (const std::string spec : {"teapot:100", "sphere:0", "sphere:x"}) {
+    const ProcessResult r = Prep({"--generate", spec, "-o", dir_->File("s")});
+    ExpectFailsNaming(r, {spec});
+    EXPECT_EQ(r.exit_code, 2) << spec;
+  }
 }
 
 TEST_F(PrepCliTest, MissingInputFails) {

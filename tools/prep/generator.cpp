@@ -81,19 +81,28 @@ int SideFor(uint64_t triangles) {  // 12 k^2 triangles per cube-sphere
 
 }  // namespace
 
-Status GenerateModel(const std::string& spec, import::TriangleSink& sink, import::ModelInfo* info) {
+Expected<GeneratorSpec> ParseGeneratorSpec(const std::string& spec) {
+  GeneratorSpec g;
   const size_t colon = spec.find(':');
-  const std::string kind = spec.substr(0, colon);
-  uint64_t n = 0;
-  if (colon == std::string::npos) {
-    n = 200000;
-  } else {
+  g.kind = spec.substr(0, colon);
+  if (g.kind != "sphere" && g.kind != "spheres" && g.kind != "soup" && g.kind != "cluster")
+    return Status::Error("--generate " + spec +
+                         ": unknown kind (use sphere:N, spheres:N, soup:N or cluster:N)");
+  if (colon != std::string::npos) {
     const char* begin = spec.data() + colon + 1;
     const char* end = spec.data() + spec.size();
-    auto [ptr, ec] = std::from_chars(begin, end, n);
-    if (ec != std::errc() || ptr != end || n == 0 || n > 4'000'000'000ull)
+    auto [ptr, ec] = std::from_chars(begin, end, g.n);
+    if (ec != std::errc() || ptr != end || g.n == 0 || g.n > 4'000'000'000ull)
       return Status::Error("--generate " + spec + ": N must be a whole number from 1 to 4e9");
   }
+  return g;
+}
+
+Status GenerateModel(const std::string& spec, import::TriangleSink& sink, import::ModelInfo* info) {
+  const Expected<GeneratorSpec> parsed = ParseGeneratorSpec(spec);
+  if (!parsed.ok()) return parsed.status();
+  const std::string& kind = parsed->kind;
+  const uint64_t n = parsed->n;
   *info = import::ModelInfo{};
   Emitter out(sink, info);
   if (kind == "sphere") {
@@ -115,7 +124,7 @@ Status GenerateModel(const std::string& spec, import::TriangleSink& sink, import
         const float r = 0.5f + 0.1f * static_cast<float>((i + 2 * j) % 4);
         RAYSTACK_RETURN_IF_ERROR(CubeSphere(out, k, {-3.6f + 2.4f * i, r, -3.6f + 2.4f * j}, r));
       }
-  } else if (kind == "soup" || kind == "cluster") {
+  } else {  // soup or cluster (ParseGeneratorSpec knows no other kind)
     std::mt19937_64 rng(12345);
     std::uniform_real_distribution<float> u(0.0f, 1.0f);
     const float scale = kind == "soup" ? 1.0f : 1e-6f;
@@ -126,9 +135,6 @@ Status GenerateModel(const std::string& spec, import::TriangleSink& sink, import
       const Vec3f c = a + Vec3f{0, size * u(rng), size * u(rng)};
       RAYSTACK_RETURN_IF_ERROR(out.Add(a, b, c));
     }
-  } else {
-    return Status::Error("--generate " + spec +
-                         ": unknown kind (use sphere:N, spheres:N, soup:N or cluster:N)");
   }
   return out.Flush();
 }

@@ -11,6 +11,7 @@
 #include "common/base/log.h"
 #include "common/store/format.h"
 #include "tools/prep/convert.h"
+#include "tools/prep/generator.h"
 
 namespace raystack::prep {
 namespace {
@@ -76,6 +77,8 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(value(&a->convert.output));
     } else if (arg == "--generate") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->convert.generate));
+      if (Expected<GeneratorSpec> g = ParseGeneratorSpec(a->convert.generate); !g.ok())
+        return g.status();  // a usage error, before anything runs
     } else if (arg == "--temp-dir") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->convert.temp_dir));
     } else if (arg == "--stats-json") {
