@@ -26,7 +26,7 @@ the model's size (the converter spills to temporary files).
 options:
   -o, --output DIR        the store directory to write (required)
   --generate KIND:N       a procedural model instead of files: sphere:N, spheres:N, soup:N,
-                          cluster:N (about N triangles)
+                          cluster:N (about N triangles; 200000 without :N)
   --replicate NX,NY,NZ    repeat the model on a grid (builds huge test models without
                           writing a replicated file first)
   --target-block-kb N     mean raw block size to aim for (default 32)
