@@ -37,6 +37,9 @@
 namespace raystack::master {
 namespace {
 
+// --cache-mb counts MiB (2^20 bytes), and the messages about the cache say MiB too.
+constexpr double kMiB = 1024.0 * 1024.0;
+
 constexpr const char* kUsage = R"(usage: raystack render SCENE.json [options]
 
 Renders a block store (made by raystack-prep) as the scene file describes (format:
@@ -52,7 +55,7 @@ options:
                             first, no budget; bvh: load every block, then trace through one
                             BVH over all triangles (the fastest when the model fits in RAM;
                             needs about twice incore's memory; same image)
-  --cache-mb N              block cache budget in MB, never exceeded (default 512)
+  --cache-mb N              block cache budget in MiB, never exceeded (default 512)
   --threads N               ray threads (default: all cores)
   --feed-fraction P         start the next tile once this fraction of the current one is
                             done (default 0.1)
@@ -382,8 +385,8 @@ bool CoarseRounds(const Args& args, const store::StoreReader* store, std::string
   }
   const uint64_t decoded = store->summary().raw_bytes;
   const bool fits = decoded <= args.engine.cache_bytes;
-  *why = StrFormat("decoded blocks %.1f MB %s the %.1f MB cache", static_cast<double>(decoded) / 1e6,
-                   fits ? "fit in" : "exceed", static_cast<double>(args.engine.cache_bytes) / 1e6);
+  *why = StrFormat("decoded blocks %.1f MB %s the %.1f MiB cache", static_cast<double>(decoded) / 1e6,
+                   fits ? "fit in" : "exceed", static_cast<double>(args.engine.cache_bytes) / kMiB);
   return fits;
 }
 
@@ -734,9 +737,9 @@ bool UseRemoteBlocks(const Args& args, const store::StoreReader& store, int slav
   for (const store::BlockEntry& e : store.blocks()) stored += e.stored_bytes;
   const uint64_t share = stored / static_cast<uint64_t>(slaves);
   const bool fits = share <= args.engine.cache_bytes / 2;
-  *why = StrFormat("store %.1f MB on disk, %.1f MB per slave's share, %.1f MB cache per slave",
+  *why = StrFormat("store %.1f MB on disk, %.1f MB per slave's share, %.1f MiB cache per slave",
                    static_cast<double>(stored) / 1e6, static_cast<double>(share) / 1e6,
-                   static_cast<double>(args.engine.cache_bytes) / 1e6);
+                   static_cast<double>(args.engine.cache_bytes) / kMiB);
   if (args.blocks == "rem") return true;
   if (args.blocks == "loc") return false;
   return fits;
@@ -759,10 +762,10 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
     peers = std::make_unique<slave::PeerBlocks>(net, **store, options.faults);
     // The share this slave keeps for its peers counts against its budget.
     if (peers->owned_bytes() >= options.cache_bytes)
-      store = Status::Error(StrFormat("--blocks rem: this slave's share of the store (%.1f MB) "
-                                      "does not fit its --cache-mb (%.1f MB); use --blocks loc "
-                                      "or more slaves", static_cast<double>(peers->owned_bytes()) / 1e6,
-                                      static_cast<double>(options.cache_bytes) / 1e6));
+      store = Status::Error(StrFormat("--blocks rem: this slave's share of the store (%.1f MiB) "
+                                      "does not fit its --cache-mb (%.1f MiB); use --blocks loc "
+                                      "or more slaves", static_cast<double>(peers->owned_bytes()) / kMiB,
+                                      static_cast<double>(options.cache_bytes) / kMiB));
     else
       options.cache_bytes -= peers->owned_bytes();
   }

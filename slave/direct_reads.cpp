@@ -31,9 +31,9 @@ Status ChooseReads(DirectIo mode, uint64_t cache_bytes, store::StoreReader* stor
   }
   const std::optional<uint64_t> available = MemoryAvailable();
   const std::string sizes =
-      available ? StrFormat("blocks.bin %.1f MB, %.1f MB of memory available, cache %.1f MB",
+      available ? StrFormat("blocks.bin %.1f MB, %.1f MB of memory available, cache %.1f MiB",
                             static_cast<double>(stored) / 1e6, static_cast<double>(*available) / 1e6,
-                            static_cast<double>(cache_bytes) / 1e6)
+                            static_cast<double>(cache_bytes) / (1024.0 * 1024.0))
                 : StrFormat("blocks.bin %.1f MB, available memory unknown",
                             static_cast<double>(stored) / 1e6);
   if (!AutoDirect(stored, cache_bytes, available)) {
