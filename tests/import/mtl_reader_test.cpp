@@ -52,9 +52,9 @@ TEST(MtlReader, UseBeforeDefinitionKeepsTheIndex) {
   EXPECT_EQ(materials[1].kd, Material{}.kd);
 }
 
-// Values a renderer cannot use are brought into range (with a warning naming the line), not
-// stored as they are: a negative albedo or emission would make negative pixels.
-TEST(MtlReader, ValuesOutOfRangeAreBroughtIntoRange) {
+// Values are stored as the file has them (the renderer brings them into range, and an Ni
+// below 1 means 1.5 for glass there), with warnings naming the line where they make no sense.
+TEST(MtlReader, ValuesOutOfRangeAreStoredAsWritten) {
   ScratchFiles files;
   MaterialTable table;
   ASSERT_TRUE(ReadMtlText(files,
@@ -64,13 +64,13 @@ TEST(MtlReader, ValuesOutOfRangeAreBroughtIntoRange) {
                   .ok());
   std::vector<Material> materials = table.Take();
   ASSERT_EQ(materials.size(), 2u);
-  EXPECT_EQ(materials[0].kd, (Vec3f{0, 0.2f, 0.3f}));
-  EXPECT_EQ(materials[0].ke, (Vec3f{0, 0, 0}));
-  EXPECT_EQ(materials[0].ks, (Vec3f{0, 0, 0}));
-  EXPECT_EQ(materials[0].ni, 1.0f);
-  EXPECT_EQ(materials[0].d, 1.0f);
-  EXPECT_EQ(materials[1].ni, 4.0f);
-  EXPECT_EQ(materials[1].d, 1.0f);
+  EXPECT_EQ(materials[0].kd, (Vec3f{-0.5f, 0.2f, 0.3f}));
+  EXPECT_EQ(materials[0].ke, (Vec3f{-1e38f, -1e38f, -1e38f}));
+  EXPECT_EQ(materials[0].ks, (Vec3f{-2, -2, -2}));
+  EXPECT_EQ(materials[0].ni, 0.0f);
+  EXPECT_EQ(materials[0].d, 2.0f);
+  EXPECT_EQ(materials[1].ni, 1000.0f);
+  EXPECT_EQ(materials[1].d, 2.0f);
 }
 
 TEST(MtlReader, BadNumberNamesFileAndLine) {

@@ -138,8 +138,8 @@ TEST_F(PrepCliTest, AModelWithoutTrianglesNamesItsFile) {
   ExpectFailsNaming(Prep({obj, "-o", dir_->File("s"), "-q"}), {obj + ": no triangles"});
 }
 
-// What a converter brings into range or leaves out is said, naming the place: data past the
-// PLY elements its header declares, an MTL colour below 0.
+// What a converter leaves out or finds senseless is said, naming the place: data past the PLY
+// elements its header declares, an MTL colour below 0.
 TEST_F(PrepCliTest, IgnoredOrClampedInputIsReportedWithItsPlace) {
   const std::string ply = dir_->File("short.ply");
   std::ofstream(ply) << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
@@ -155,7 +155,7 @@ TEST_F(PrepCliTest, IgnoredOrClampedInputIsReportedWithItsPlace) {
   std::ofstream(dir_->File("tri.mtl")) << "newmtl red\nKd 1 -0.5 0\n";
   r = Prep({obj, "-o", dir_->File("b")});
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.err.find("tri.mtl:2: Kd: a negative colour value, taken as 0"), std::string::npos)
+  EXPECT_NE(r.err.find("tri.mtl:2: Kd: a colour value below 0 (rendered as 0)"), std::string::npos)
       << r.err;
 }
 

@@ -1,6 +1,5 @@
 #include "tools/import/mtl_reader.h"
 
-#include <algorithm>
 #include <set>
 
 #include "common/base/log.h"
@@ -87,9 +86,10 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
   Material scratch;  // receives statements outside any (or in a repeated) newmtl block
   Material* current = &scratch;
   std::set<std::string, std::less<>> warned;
-  // Values a renderer cannot use (negative colours, an opacity outside [0, 1], an index of
-  // refraction outside [1, 4]) are brought into range with a warning naming the place: models
-  // in the wild have them, and refusing the whole model would help nobody.
+  // Values as the file has them: the renderer brings them into range (render::MaterialFromMtl:
+  // negative colours as 0, Ni outside [1, 4] for glass). What makes no sense (a negative
+  // colour, an opacity outside [0, 1], a fourth colour number) is reported, naming the place;
+  // models in the wild have them, and refusing the whole model would help nobody.
   auto out_of_range = [&](std::string_view key, const char* what) {
     if (!warned.insert(std::string(key) + what).second) return;  // once a file: models repeat them
     LOG_WARNING("import", "%s:%llu: %.*s: %s (the first such line)", input.path().c_str(),
@@ -122,21 +122,14 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
       Vec3f* colour = key == "Kd" ? &current->kd : key == "Ks" ? &current->ks : &current->ke;
       RAYSTACK_RETURN_IF_ERROR(values.Color(colour));
       if (!Trim(values.rest()).empty()) out_of_range(key, "more than 3 numbers; the rest ignored");
-      for (float* c : {&colour->x, &colour->y, &colour->z})
-        if (*c < 0) *c = 0, out_of_range(key, "a negative colour value, taken as 0");
-    } else if (key == "Ni") {
+      if (colour->x < 0 || colour->y < 0 || colour->z < 0)
+        out_of_range(key, "a colour value below 0 (rendered as 0)");
+    } else if (key == "Ni") {  // (below 1, as many exporters write for opaque materials: 1.5 for glass)
       RAYSTACK_RETURN_IF_ERROR(values.Float(&current->ni));
-      if (!(current->ni >= 1.0f && current->ni <= 4.0f)) {  // the scene file's range for "ior"
-        current->ni = std::clamp(current->ni, 1.0f, 4.0f);
-        out_of_range(key, "an index of refraction outside [1, 4], clamped");
-      }
     } else if (key == "d" || key == "Tr") {  // opacity, or transparency (its complement)
       float v = 0;
       RAYSTACK_RETURN_IF_ERROR(values.Float(&v));
-      if (!(v >= 0.0f && v <= 1.0f)) {
-        v = std::clamp(v, 0.0f, 1.0f);
-        out_of_range(key, "outside [0, 1], clamped");
-      }
+      if (!(v >= 0.0f && v <= 1.0f)) out_of_range(key, "outside [0, 1]");
       current->d = key == "d" ? v : 1.0f - v;
     } else if (key == "illum") {
       RAYSTACK_RETURN_IF_ERROR(values.Int(&current->illum));
