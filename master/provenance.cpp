@@ -1,8 +1,32 @@
 #include "master/provenance.h"
 
+#include <filesystem>
+#include <fstream>
+
 #include "common/base/log.h"
+#include "common/store/format.h"
 
 namespace raystack::master {
+namespace {
+
+// The store as a path that does not depend on how it was written ("store", "./store", an
+// absolute path), and its contents: the checksum of index.bin's body, which holds every
+// block's checksum. So a store rebuilt in place is another store, and the same store named
+// differently is not.
+std::string StoreIdentity(const std::string& store) {
+  std::error_code ec;
+  const std::filesystem::path canonical = std::filesystem::weakly_canonical(store, ec);
+  std::string text = ec ? store : canonical.string();
+  store::FileHeader header{};
+  std::ifstream index(store + "/" + store::kIndexFile, std::ios::binary);
+  if (index.read(reinterpret_cast<char*>(&header), sizeof header))
+    text += StrFormat(" index %016llx", static_cast<unsigned long long>(header.body_checksum));
+  else
+    text += " (index unreadable)";
+  return text;
+}
+
+}  // namespace
 
 std::string Provenance(const render::Scene& scene, size_t camera) {
   const size_t f = camera;
@@ -16,7 +40,7 @@ std::string Provenance(const render::Scene& scene, size_t camera) {
   const render::CameraDesc& c = scene.cameras[f];
   // (Not the frame's index: a camera repeated gives the same image, byte for byte.)
   std::string text = StrFormat("raystack render 1\nstore %s\ncamera: position %s look_at %s "
-                               "up %s fov_y_deg %.9g size %dx%d\n", scene.store.c_str(),
+                               "up %s fov_y_deg %.9g size %dx%d\n", StoreIdentity(scene.store).c_str(),
                                vec(c.position).c_str(), vec(c.look_at).c_str(), vec(c.up).c_str(),
                                double{c.fov_y_deg}, c.width, c.height);
   for (const render::PointLight& l : scene.lights)

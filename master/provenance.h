@@ -1,5 +1,6 @@
 #pragma once
-// What an image was rendered from, as text: the store, the camera, the lights, the materials,
+// What an image was rendered from, as text: the store (its path, made canonical, and the
+// checksum of its index), the camera, the lights, the materials,
 // the background and the integrator. Written into every EXR (checkpoints too) as its
 // "raystack.provenance" attribute (image::ImageLayers::provenance) and compared by --resume,
 // so that a checkpoint of another camera, scene or setting is refused rather than taken for

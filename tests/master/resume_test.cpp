@@ -178,7 +178,10 @@ TEST_F(Resume, ACheckpointOfAnEditedSceneOrAnotherProgramIsRefused) {
   ProcessResult r = Render(out, 0, {"--resume"});
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("edited.exr: rendered from another scene"), std::string::npos) << r.err;
-  std::ofstream(dir_->File("scene.json")) << scene;
+  // The same store written another way is the same store.
+  std::string spelled = scene;
+  spelled.replace(spelled.find("\"store\": \"store\""), 16, "\"store\": \"./store\"");
+  std::ofstream(dir_->File("scene.json")) << spelled;
   r = Render(out, 0, {"--resume"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("6144 of 6144 pixels finished"), std::string::npos) << r.out;
@@ -191,6 +194,16 @@ TEST_F(Resume, ACheckpointOfAnEditedSceneOrAnotherProgramIsRefused) {
   r = Render(out, 0, {"--resume"});
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("edited.exr: it does not say what rendered it"), std::string::npos) << r.err;
+
+  // A store rebuilt in place (another model at the same path) is another store.
+  ASSERT_EQ(Render(out, 0).exit_code, 0);
+  const prep::testing::ProcessResult rebuilt = RunProcess(
+      {prep::testing::kPrepBinary, "--generate", "sphere:5000", "-o", dir_->File("store"), "-q"},
+      dir_->path());
+  ASSERT_EQ(rebuilt.exit_code, 0) << rebuilt.err;
+  r = Render(out, 0, {"--resume"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("edited.exr: rendered from another scene"), std::string::npos) << r.err;
 }
 
 TEST_F(Resume, WithoutACheckpointEverythingIsRendered) {
