@@ -82,7 +82,7 @@ Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes) {
   return Status::Error(StrFormat("camera %zu: a %dx%d image needs about %.1f GB of memory for "
                                  "its film and images%s; %.1f GB is available here",
                                  which, c.width, c.height, static_cast<double>(needed) / 1e9,
-                                 cache_bytes > 0 ? " and the block cache" : "",
+                                 cache_bytes > 0 ? " and the blocks" : "",
                                  static_cast<double>(*available) / 1e9));
 }
 

@@ -24,8 +24,8 @@ Status CheckOutputs(const render::Scene& scene, const std::string& output, bool 
 
 // The film and the images made from it fit in this machine's memory (or its cgroup's): a
 // 16384 x 16384 frame needs ~55 GB, and running out midway ended the job with an uncaught
-// std::bad_alloc. `cache_bytes`: the block cache's budget where this process renders too (0
-// for a master alone).
+// std::bad_alloc. `cache_bytes`: the decoded blocks this process will hold where it renders
+// too (0 for a master alone, or before the store is opened).
 Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes);
 
 // Every camera's reference image (`reference`, REF-f.exr with several cameras) can be read:

@@ -472,7 +472,7 @@ Status Run(const Args& args) {
   if (!scene.ok()) return scene.status();
   const std::string output = OutputOf(args, *scene);
   const size_t frames = scene->cameras.size();
-  RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, args.engine.cache_bytes));
+  RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, 0));  // the film alone, before the store is read
   RAYSTACK_RETURN_IF_ERROR(CheckOutputs(*scene, output, args.png, args.checkpoint_s > 0));
   RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
@@ -480,6 +480,12 @@ Status Run(const Args& args) {
 
   Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
   if (!store.ok()) return store.status();
+  // With the blocks this process will hold: all of them in core, else at most its cache.
+  const uint64_t decoded = (*store)->summary().raw_bytes;
+  const bool all_blocks =
+      args.engine.mode == slave::TraceMode::kIncore || args.engine.mode == slave::TraceMode::kBvh;
+  RAYSTACK_RETURN_IF_ERROR(
+      CheckMemory(*scene, all_blocks ? decoded : std::min(decoded, args.engine.cache_bytes)));
   std::string reads;
   RAYSTACK_RETURN_IF_ERROR(
       slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads));
