@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <string_view>
 #include <utility>
 
 #include "common/base/log.h"
@@ -20,6 +21,24 @@ namespace raystack::image {
 namespace {
 
 namespace fs = std::filesystem;
+
+// This machine's name, in temporaries' names: a process id means something on its own host only
+// (the folder may be shared by several machines).
+const std::string& HostName() {
+  static const std::string name = [] {
+    char buffer[256] = {};
+    if (gethostname(buffer, sizeof buffer - 1) != 0 || buffer[0] == '\0') return std::string("host");
+    std::string n(buffer);
+    for (char& c : n)
+      if (c == '/' || c == '\0') c = '_';
+    return n;
+  }();
+  return name;
+}
+
+bool AllDigits(std::string_view s) {
+  return !s.empty() && s.find_first_not_of("0123456789") == std::string_view::npos;
+}
 
 std::string Folder(const std::string& path) {
   const std::string parent = fs::path(path).parent_path().string();
@@ -51,7 +70,7 @@ Expected<AtomicOutput> AtomicOutput::Create(const std::string& path) {
   for (int attempt = 0; attempt < 100; ++attempt) {
     std::string name = ".";  // (appended piecewise: GCC 12 warns falsely on "." + string)
     name += target.filename().string();
-    name += ".tmp-" + std::to_string(getpid()) + "-" + std::to_string(counter++);
+    name += ".tmp-" + HostName() + "-" + std::to_string(getpid()) + "-" + std::to_string(counter++);
     const std::string temp = (target.parent_path() / name).string();
     const int fd = open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     if (fd >= 0) {
@@ -72,16 +91,19 @@ int RemoveStaleTemporaries(const std::string& path) {
   prefix += ".tmp-";
   std::error_code ec;
   int removed = 0;
+  prefix += HostName();  // only this machine's: its process ids are the ones it can check
+  prefix += "-";
   for (const fs::directory_entry& entry : fs::directory_iterator(Folder(path), ec)) {
     const std::string name = entry.path().filename().string();
     if (name.rfind(prefix, 0) != 0) continue;
-    // ".NAME.tmp-PID-N": the writer's process id, then a counter.
-    const std::string rest = name.substr(prefix.size());
+    // ".NAME.tmp-HOST-PID-N": the writer's process id, then a counter; nothing else.
+    const std::string_view rest = std::string_view(name).substr(prefix.size());
     const size_t dash = rest.find('-');
-    if (dash == 0 || dash == std::string::npos) continue;
-    char* end = nullptr;
-    const long pid = std::strtol(rest.c_str(), &end, 10);
-    if (end != rest.c_str() + dash || pid <= 0) continue;
+    if (dash == std::string_view::npos || !AllDigits(rest.substr(0, dash)) ||
+        !AllDigits(rest.substr(dash + 1)) || dash > 9)
+      continue;
+    const long pid = std::strtol(std::string(rest.substr(0, dash)).c_str(), nullptr, 10);
+    if (pid <= 0) continue;
     if (kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
     if (unlink(entry.path().c_str()) == 0) {
       ++removed;

@@ -22,8 +22,9 @@ Status CheckWritable(const std::string& path);
 // is and the room needed, not after hours of rendering.
 Status CheckRoom(const std::string& path, uint64_t bytes);
 
-// Removes the temporaries of `path` (AtomicOutput's) that a process no longer running on this
-// machine left, killed while it wrote: each as large as the image. Returns how many.
+// Removes the temporaries of `path` (AtomicOutput's, ".NAME.tmp-HOST-PID-N") that a process no
+// longer running on this machine left, killed while it wrote: each as large as the image.
+// Other machines' are left alone (a shared folder). Returns how many.
 int RemoveStaleTemporaries(const std::string& path);
 
 // A temporary file beside `path`; Commit() makes it `path`. Destroyed without a successful

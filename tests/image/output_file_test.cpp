@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <vector>
 
 #include "common/base/temp_dir.h"
 
@@ -94,24 +95,34 @@ TEST(AtomicOutput, CommitReplacesTheTargetAndDropRemovesTheTemporary) {
 }
 
 // A killed run leaves its temporary (as large as the image); the next run removes those of
-// processes no longer running, and nothing else.
+// processes no longer running on this machine, and nothing else: not a live process's, not
+// another machine's (a shared folder), not a name of another shape.
 TEST(AtomicOutput, TemporariesOfProcessesGoneAreRemoved) {
   TempDir dir = TempDir::Create().value();
+  const std::string target = dir.File("image.exr");
+  std::string own;  // this machine's temporary name, less its process id and counter
+  {
+    Expected<AtomicOutput> output = AtomicOutput::Create(target);
+    ASSERT_TRUE(output.ok());
+    const std::string name = fs::path(output->temp_path()).filename().string();
+    own = name.substr(0, name.rfind('-', name.rfind('-') - 1) + 1);
+  }
+  ASSERT_EQ(own.rfind(".image.exr.tmp-", 0), 0u) << own;
   const pid_t child = fork();
   if (child == 0) _exit(0);
   ASSERT_GT(child, 0);
   ASSERT_EQ(waitpid(child, nullptr, 0), child);  // gone now
   const std::string gone = std::to_string(child), alive = std::to_string(getpid());
-  for (const std::string& name : {".image.exr.tmp-" + gone + "-0", ".image.exr.tmp-" + gone + "-7",
-                                  ".image.exr.tmp-" + alive + "-0", std::string(".image.exr.tmp-x-0"),
-                                  ".other.exr.tmp-" + gone + "-0", std::string("image.exr")})
-    std::ofstream(dir.File(name)) << "bytes";
-  EXPECT_EQ(RemoveStaleTemporaries(dir.File("image.exr")), 2);
-  EXPECT_FALSE(fs::exists(dir.File(".image.exr.tmp-" + gone + "-0")));
-  EXPECT_TRUE(fs::exists(dir.File(".image.exr.tmp-" + alive + "-0")));
-  EXPECT_TRUE(fs::exists(dir.File(".image.exr.tmp-x-0")));
-  EXPECT_TRUE(fs::exists(dir.File(".other.exr.tmp-" + gone + "-0")));
-  EXPECT_TRUE(fs::exists(dir.File("image.exr")));
+  const std::vector<std::string> removed = {own + gone + "-0", own + gone + "-7"};
+  const std::vector<std::string> kept = {own + alive + "-0", own + "x-0", own + gone + "-",
+                                         own + gone + "-1-extra",
+                                         ".image.exr.tmp-elsewhere-" + gone + "-0",
+                                         ".other.exr.tmp-" + gone + "-0", "image.exr"};
+  for (const std::vector<std::string>* names : {&removed, &kept})
+    for (const std::string& name : *names) std::ofstream(dir.File(name)) << "bytes";
+  EXPECT_EQ(RemoveStaleTemporaries(target), 2);
+  for (const std::string& name : removed) EXPECT_FALSE(fs::exists(dir.File(name))) << name;
+  for (const std::string& name : kept) EXPECT_TRUE(fs::exists(dir.File(name))) << name;
 }
 
 TEST(AtomicOutput, BareFileNameMeansTheCurrentFolder) {
