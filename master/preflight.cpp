@@ -53,6 +53,7 @@ Status CheckOutputs(const render::Scene& scene, const std::string& output, bool 
   uint64_t needed = 0, largest = 0;
   for (size_t f = 0; f < frames; ++f) {
     RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(output, f, frames, ".exr")));
+    if (png) RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(output, f, frames, ".png")));
     for (const char* ext : {".exr", ".png"})  // a killed run's, as large as the images
       image::RemoveStaleTemporaries(FramePath(output, f, frames, ext));
     const uint64_t pixels = static_cast<uint64_t>(scene.cameras[f].width) *

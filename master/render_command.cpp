@@ -261,6 +261,7 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(value(&a->reference));
     } else if (arg == "--output") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->output));
+      if (a->output.empty()) return Status::Error("--output needs a path (an .exr file)");
     } else if (arg == "--no-png") {
       a->png = false;
     } else if (arg == "--exposure") {
@@ -436,7 +437,9 @@ Status ResumeInto(const Args& args, const render::Scene& scene, size_t f,
     tiles += sweep.tiles.size();
   }
   ApplyResume(*resume, film);
-  if (!args.quiet)
+  if (!args.quiet && resume->finished.empty())
+    std::printf("resume frame %zu: no checkpoint at %s, every tile to render\n", f, exr.c_str());
+  else if (!args.quiet)
     std::printf("resume frame %zu: %zu of %llu pixels finished in %s, %zu tiles to render\n", f,
                 resume->kept_pixels.size(),
                 static_cast<unsigned long long>(plan->width) * static_cast<unsigned long long>(plan->height),

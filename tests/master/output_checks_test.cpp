@@ -55,16 +55,21 @@ TEST(OutputChecks, AFolderOrAnotherExtensionIsRefused) {
   std::ofstream(dir->File("scene.json")) << R"({ "store": "no-such-store",
     "camera": { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 40, "height": 30 } })";
   ASSERT_EQ(mkdir(dir->File("images").c_str(), 0755), 0);
+  ASSERT_EQ(mkdir(dir->File("png.png").c_str(), 0755), 0);
   for (const auto& [output, expected] : std::vector<std::pair<std::string, std::string>>{
            {dir->File("images"), "images: is a folder"},
            {dir->File("images") + "/", "images/: is a folder"},
            {dir->File("images/out.tar"), "out.tar: the output is an OpenEXR image"},
+           {dir->File("png"), "png.png: cannot write: it is a folder"},  // where the PNG goes
            {dir->File("images/out.EXR"), "no-such-store"}}) {
     const ProcessResult r = RunProcess(
         {kRaystackBinary, "render", dir->File("scene.json"), "--output", output, "-q"}, dir->path());
     EXPECT_EQ(r.exit_code, 1) << output;
     EXPECT_NE(r.err.find(expected), std::string::npos) << output << ": " << r.err;
   }
+  const ProcessResult empty =
+      RunProcess({kRaystackBinary, "render", dir->File("scene.json"), "--output", ""}, dir->path());
+  EXPECT_EQ(empty.exit_code, 2) << empty.err;  // not taken as "no --output"
 }
 
 // A frame whose film cannot fit in the memory available is refused before anything is read
