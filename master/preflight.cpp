@@ -28,7 +28,6 @@ std::string FramePath(const std::string& path, size_t frame, size_t frames, cons
   return stem;
 }
 
-
 Status CheckOutputs(const render::Scene& scene, const std::string& output, bool png,
                     bool checkpoints) {
   const size_t frames = scene.cameras.size();

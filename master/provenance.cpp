@@ -29,7 +29,6 @@ std::string StoreIdentity(const std::string& store) {
 }  // namespace
 
 std::string Provenance(const render::Scene& scene, size_t camera) {
-  const size_t f = camera;
   auto vec = [](const Vec3f& v) {
     return StrFormat("%.9g %.9g %.9g", double{v.x}, double{v.y}, double{v.z});
   };
@@ -37,7 +36,7 @@ std::string Provenance(const render::Scene& scene, size_t camera) {
     return StrFormat("type %d albedo %s ior %.9g emission %s", static_cast<int>(m.type),
                      vec(m.albedo).c_str(), double{m.ior}, vec(m.emission).c_str());
   };
-  const render::CameraDesc& c = scene.cameras[f];
+  const render::CameraDesc& c = scene.cameras[camera];
   // (Not the frame's index: a camera repeated gives the same image, byte for byte.)
   std::string text = StrFormat("raystack render 1\nstore %s\ncamera: position %s look_at %s "
                                "up %s fov_y_deg %.9g size %dx%d\n", StoreIdentity(scene.store).c_str(),

@@ -86,13 +86,15 @@ Expected<AtomicOutput> AtomicOutput::Create(const std::string& path) {
 
 int RemoveStaleTemporaries(const std::string& path) {
   const fs::path target(path);
-  std::string prefix = ".";  // (appended piecewise: GCC 12 warns falsely on "." + string)
+  // Only this machine's: its process ids are the ones it can check. (Appended piecewise: GCC 12
+  // warns falsely on "." + string.)
+  std::string prefix = ".";
   prefix += target.filename().string();
   prefix += ".tmp-";
+  prefix += HostName();
+  prefix += "-";
   std::error_code ec;
   int removed = 0;
-  prefix += HostName();  // only this machine's: its process ids are the ones it can check
-  prefix += "-";
   for (const fs::directory_entry& entry : fs::directory_iterator(Folder(path), ec)) {
     const std::string name = entry.path().filename().string();
     if (name.rfind(prefix, 0) != 0) continue;
