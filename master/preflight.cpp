@@ -15,16 +15,32 @@
 
 namespace raystack::master {
 
+namespace {
+
+bool SameIgnoringCase(const std::string& a, const char* b) {
+  return a.size() == std::strlen(b) &&
+         std::equal(a.begin(), a.end(), b, [](char x, char y) {
+           return std::tolower(static_cast<unsigned char>(x)) ==
+                  std::tolower(static_cast<unsigned char>(y));
+         });
+}
+
+}  // namespace
+
 std::string FramePath(const std::string& path, size_t frame, size_t frames, const char* ext) {
-  std::string stem = path;
+  std::string stem = path, suffix = ext;
   const size_t dot = stem.rfind('.');
   const size_t slash = stem.rfind('/');
-  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) stem.resize(dot);
+  if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) {
+    // The user's own spelling of that extension stays (out.EXR is written as out.EXR).
+    if (SameIgnoringCase(stem.substr(dot), ext)) suffix = stem.substr(dot);
+    stem.resize(dot);
+  }
   if (frames > 1) {
     stem.push_back('-');
     stem.append(std::to_string(frame));
   }
-  stem.append(ext);
+  stem.append(suffix);
   return stem;
 }
 
@@ -33,16 +49,17 @@ Status CheckOutputs(const render::Scene& scene, const std::string& output, bool 
   const size_t frames = scene.cameras.size();
   // The output names the EXR: its extension gives way to .exr and .png (and -N per frame when
   // the scene has several cameras), so anything but .exr there, or a folder, is a mistake.
+  // With several cameras the path itself is never written (out-0.exr, out-1.exr, ... are), so
+  // a folder of that name is in no one's way.
   struct stat st {};
-  if (::stat(output.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+  if ((!output.empty() && output.back() == '/') ||
+      (frames == 1 && ::stat(output.c_str(), &st) == 0 && S_ISDIR(st.st_mode)))
     return Status::Error(output + ": is a folder; the output is the EXR file's path (e.g. " +
                          (output.empty() || output.back() == '/' ? output : output + "/") +
                          "image.exr)");
   const size_t dot = output.rfind('.'), slash = output.rfind('/');
   if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) {
-    std::string ext = output.substr(dot);
-    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (ext != ".exr")
+    if (!SameIgnoringCase(output.substr(dot), ".exr"))
       return Status::Error(output + ": the output is an OpenEXR image; give a path ending in "
                                     ".exr (the PNG quick look goes beside it)");
   }

@@ -125,7 +125,8 @@ options:
                             unfinished tiles go to the others, and the image stays exact.
                             Start the job with `mpirun --enable-recovery` so that a dead
                             slave does not end every rank
-  -q, --quiet               no progress output
+  -q, --quiet               no progress or information lines (warnings and errors
+                            are still printed)
   -h, --help                this text
 
 fault injection (for tests and drills):
@@ -863,6 +864,7 @@ int RenderCommand(int argc, char** argv) {
     std::fprintf(stderr, "raystack render: %s\n", s.message().c_str());
     return 2;
   }
+  if (args.quiet) SetLogLevel(LogLevel::kWarning);  // -q: warnings and errors only
   if (mpi::LaunchedByMpirun()) {
     Expected<std::unique_ptr<mpi::MpiTransport>> net = mpi::MpiTransport::Init(&argc, &argv);
     if (!net.ok()) {

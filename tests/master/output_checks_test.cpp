@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 #include <sys/mount.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <sys/stat.h>
@@ -17,6 +18,8 @@
 #include <vector>
 
 #include "common/base/memory_available.h"
+#include "common/image/output_file.h"
+#include "master/preflight.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/store_dir_fixture.h"
 
@@ -67,9 +70,66 @@ TEST(OutputChecks, AFolderOrAnotherExtensionIsRefused) {
     EXPECT_EQ(r.exit_code, 1) << output;
     EXPECT_NE(r.err.find(expected), std::string::npos) << output << ": " << r.err;
   }
+  // With several cameras only out-0.exr, out-1.exr, ... are written: a folder named like the
+  // output is in no one's way, but a path ending in '/' is still a folder.
+  std::ofstream(dir->File("two.json")) << R"({ "store": "no-such-store", "cameras": [
+    { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 40, "height": 30 },
+    { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 40, "height": 30 } ] })";
+  ASSERT_EQ(mkdir(dir->File("L.exr").c_str(), 0755), 0);
+  for (const auto& [output, expected] : std::vector<std::pair<std::string, std::string>>{
+           {dir->File("L.exr"), "no-such-store"},
+           {dir->File("images") + "/", "images/: is a folder"}}) {
+    const ProcessResult r = RunProcess(
+        {kRaystackBinary, "render", dir->File("two.json"), "--output", output, "-q"}, dir->path());
+    EXPECT_EQ(r.exit_code, 1) << output;
+    EXPECT_NE(r.err.find(expected), std::string::npos) << output << ": " << r.err;
+  }
   const ProcessResult empty =
       RunProcess({kRaystackBinary, "render", dir->File("scene.json"), "--output", ""}, dir->path());
   EXPECT_EQ(empty.exit_code, 2) << empty.err;  // not taken as "no --output"
+}
+
+// Each frame's file from the output path: the extension as the user spelled it for the EXR,
+// -N before it with several cameras, and the PNG beside it.
+TEST(OutputChecks, FramePathsKeepTheUsersName) {
+  using master::FramePath;
+  EXPECT_EQ(FramePath("out.exr", 0, 1, ".exr"), "out.exr");
+  EXPECT_EQ(FramePath("UP.EXR", 0, 1, ".exr"), "UP.EXR");
+  EXPECT_EQ(FramePath("UP.EXR", 0, 1, ".png"), "UP.png");
+  EXPECT_EQ(FramePath("a.b/out.Exr", 1, 2, ".exr"), "a.b/out-1.Exr");
+  EXPECT_EQ(FramePath("a.b/out", 1, 2, ".png"), "a.b/out-1.png");
+  EXPECT_EQ(FramePath("ref.exr", 0, 3, ".exr"), "ref-0.exr");
+}
+
+// -q leaves warnings and errors only: the line about a killed run's temporary removed goes
+// with the progress lines (the temporary is removed all the same).
+TEST(OutputChecks, QuietKeepsOnlyWarningsAndErrors) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  std::ofstream(dir->File("scene.json")) << R"({ "store": "no-such-store",
+    "camera": { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 40, "height": 30 } })";
+  const std::string out = dir->File("out.exr");
+  std::string stale;  // a temporary of this machine's shape, of a process gone
+  {
+    Expected<image::AtomicOutput> output = image::AtomicOutput::Create(out);
+    ASSERT_TRUE(output.ok());
+    stale = output->temp_path();
+  }
+  const pid_t child = fork();
+  if (child == 0) _exit(0);
+  ASSERT_GT(child, 0);
+  ASSERT_EQ(waitpid(child, nullptr, 0), child);
+  stale = stale.substr(0, stale.rfind('-', stale.rfind('-') - 1) + 1) + std::to_string(child) + "-0";
+  for (const bool quiet : {true, false}) {
+    std::ofstream(stale) << "bytes";
+    std::vector<std::string> argv = {kRaystackBinary, "render", dir->File("scene.json"), "--output", out};
+    if (quiet) argv.push_back("-q");
+    const ProcessResult r = RunProcess(argv, dir->path());
+    EXPECT_EQ(r.exit_code, 1);
+    EXPECT_NE(r.err.find("no-such-store"), std::string::npos) << r.err;  // errors stay
+    EXPECT_EQ(r.err.find("left by an interrupted run") == std::string::npos, quiet) << r.err;
+    EXPECT_FALSE(std::ifstream(stale).good()) << stale;
+  }
 }
 
 // A frame whose film cannot fit in the memory available is refused before anything is read
