@@ -1,7 +1,6 @@
 #include "master/render_command.h"
 
 #include <atomic>
-#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -28,6 +27,7 @@
 #include "master/preflight.h"
 #include "master/preview/live_preview.h"
 #include "master/provenance.h"
+#include "master/render_args.h"
 #include "master/resume.h"
 #include "slave/direct_reads.h"
 #include "slave/peer_blocks.h"
@@ -40,280 +40,6 @@ namespace {
 // --cache-mb counts MiB (2^20 bytes), and the messages about the cache say MiB too.
 constexpr double kMiB = 1024.0 * 1024.0;
 
-constexpr const char* kUsage = R"(usage: raystack render SCENE.json [options]
-
-Renders a block store (made by raystack-prep) as the scene file describes (format:
-common/render/SCENE_FORMAT.md) and writes an OpenEXR image with layers R G B A, Z, N, albedo,
-samples and variance, plus a tone-mapped PNG beside it. Blocks are loaded on demand into a
-cache of --cache-mb; rays that need a missing block wait in that block's queue while a
-loader thread reads it (the ray stack), so the store may be far larger than the cache.
-
-options:
-  --mode stack|sync|incore|bvh
-                            stack: the ray stack (default); sync: a miss blocks the thread
-                            while its block is read (the baseline); incore: load every block
-                            first, no budget; bvh: load every block, then trace through one
-                            BVH over all triangles (the fastest when the model fits in RAM;
-                            needs about twice incore's memory; same image)
-  --cache-mb N              block cache budget in MiB, never exceeded (default 512)
-  --threads N               ray threads (default: all cores)
-  --feed-fraction P         start the next tile once this fraction of the current one is
-                            done (default 0.1)
-  --tile-size N             tile side in pixels (default 32)
-  --tile-ahead P            under mpirun, a slave thread asks for its next two tiles once
-                            this fraction of its current one is done (default 0: at once)
-  --batch N                 samples per pixel batch a slave sends (default 1024)
-  --checkpoint-s S          write the EXR every S seconds while rendering (default 0: only
-                            at the end), on a thread of its own at low priority while the
-                            render goes on, atomically (a temporary file, then a rename); a
-                            failed checkpoint is logged and tried again, never fatal
-  --resume                  continue from the output EXR a killed run left (its last
-                            checkpoint): tiles it holds finished are kept, the others are
-                            rendered again; the image equals an uninterrupted run's
-  --io-threads N            block reads kept in flight by the loader (default 32)
-  --blocks loc|rem|auto     under mpirun, where a slave gets a missing block: loc, the store
-                            itself (local disk or shared filesystem); rem, the memory of the
-                            block's owner among the slaves (each block is read from disk once,
-                            by its owner, whose share counts against its --cache-mb); auto
-                            (default): rem when a slave's share fits half its budget, else loc
-  --direct-io auto|on|off   read blocks past the kernel's page cache (O_DIRECT): on, off,
-                            or auto (default): on when the store's blocks.bin does not fit
-                            the memory available (or a cgroup limit) next to --cache-mb,
-                            where the page cache would only copy and reclaim each block
-  --io-latency-us N         add N microseconds to every block read (emulates a network
-                            filesystem; for measurements)
-  --spp N                   samples per pixel (overrides the scene's integrator.spp)
-  --pass-spp N              samples per pixel per progressive pass (default 0: passes of
-                            1, 1, 2, 4, ... samples, every pixel having 2^k before any has
-                            more); the image is the same whatever the passes
-  --pixel-order priority|scanline
-                            priority (default): tiles along a Hilbert curve, the first pass
-                            in rounds of the priority matrix (1/256 of the pixels spread
-                            over the frame, then 3/256, ...), pixels by priority; scanline:
-                            tiles and pixels left to right, top to bottom (for comparison)
-  --coarse-rounds auto|on|off
-                            in priority order, render the first pass in the priority
-                            matrix's rounds (a coarse full frame early) or in one sweep;
-                            auto (default): rounds when the store's decoded blocks fit in
-                            --cache-mb, one sweep otherwise (out of core every round would
-                            load the frame's blocks again)
-  --time-limit S            stop handing out work after S seconds (per frame); the image
-                            keeps every sample merged, with its per-pixel counts (the EXR's
-                            samples layer)
-  --target-error E          stop after the first pass whose estimated error (RMSE of
-                            luminance from the per-pixel variance, see --convergence-log)
-                            is <= E, once every pixel has 2 samples
-  --convergence-log FILE    write a CSV row every --log-interval seconds and at every pass
-                            end: time, rays, samples, pixels covered, the fewest samples
-                            of a pixel, the error estimates, and RMSE and relMSE against
-                            --reference (format: README, "Error against run time")
-  --log-interval S          seconds between convergence-log rows (default 0.5)
-  --reference REF.exr       an image to measure RMSE and relMSE against (same size; with
-                            several cameras REF-0.exr, REF-1.exr, ...)
-  --output FILE.exr         override the scene's output path (the PNG goes beside it;
-                            several cameras: FILE-0.exr, FILE-1.exr, ...)
-  --no-png                  do not write the PNG quick-look
-  --exposure EV             exposure of the PNG quick-look (default 0)
-  --stats FILE              also write the run's statistics as JSON
-  --preview PORT|any        serve a live preview of the render at http://ADDR:PORT/ (any: a
-                            free port; the address is printed at start); default off
-  --preview-bind ADDR       the preview's address (default 127.0.0.1, this machine only; any
-                            other, e.g. 0.0.0.0, requires the random token printed at start)
-  --preview-hold S          keep the preview up S seconds after the render (Ctrl-C ends it)
-  --lost-after S            under mpirun, the master drops a slave it has not heard from for
-                            S seconds (default 5; slaves send a heartbeat every 0.5 s); its
-                            unfinished tiles go to the others, and the image stays exact.
-                            Start the job with `mpirun --enable-recovery` so that a dead
-                            slave does not end every rank
-  -q, --quiet               no progress or information lines (warnings and errors
-                            are still printed)
-  -h, --help                this text
-
-fault injection (for tests and drills):
-  --fault-rank R            apply the faults below on rank R only (default: every slave)
-  --fault-kill-after-tiles N  the slave kills itself (SIGKILL, as kill -9) when given its
-                            N-th tile
-  --fault-stall-after-tiles N  the slave's whole process stops (SIGSTOP) when given its N-th
-                            tile, and goes on after --fault-stall-s S (default 5): a stalled
-                            node, alive but silent
-  --fault-fail-read K       the slave's K-th block read (0-based) fails, as a disk error
-  --fault-kill-after-checkpoints N  the one process, or the master, kills itself (SIGKILL)
-                            right after its N-th checkpoint: the whole job dies (--resume)
-  --fault-fail-checkpoints N  the first N checkpoint writes fail, as on a full disk
-)";
-
-struct Args {
-  std::string scene;
-  slave::EngineOptions engine;
-  int tile_size = 32;
-  std::string output;
-  bool png = true;
-  float exposure = 0;
-  std::string stats;
-  bool quiet = false;
-  double checkpoint_s = 0;
-  std::string blocks = "auto";
-  std::string coarse_rounds = "auto";  // --coarse-rounds
-  slave::DirectIo direct_io = slave::DirectIo::kAuto;
-  uint32_t spp = 0;       // 0: the scene's
-  uint32_t pass_spp = 0;  // 0: doubling passes
-  StopRules stop;
-  std::string convergence_log;
-  double log_interval_s = 0.5;
-  std::string reference;
-  double lost_after_s = 5;
-  bool resume = false;
-  int fault_rank = 0;  // 0: every slave
-  int64_t kill_after_tiles = -1;
-  int64_t stall_after_tiles = -1;
-  double stall_s = 5;
-  int64_t fail_read = -1;
-  int64_t kill_after_checkpoints = -1;
-  int64_t fail_checkpoints = 0;
-  preview::LivePreviewOptions preview;
-};
-
-template <typename T>
-bool ParseNumber(const std::string& s, T* out) {
-  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *out);
-  return ec == std::errc() && p == s.data() + s.size();
-}
-
-Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
-  a->engine.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    auto value = [&](std::string* out) -> Status {
-      if (i + 1 >= argc) return Status::Error(arg + " needs a value");
-      *out = argv[++i];
-      return OkStatus();
-    };
-    auto number = [&](auto* out, double lo, double hi) -> Status {
-      std::string v;
-      RAYSTACK_RETURN_IF_ERROR(value(&v));
-      // Written so that NaN ("nan" parses) is out of every range.
-      if (!ParseNumber(v, out) || !(static_cast<double>(*out) >= lo && static_cast<double>(*out) <= hi))
-        return Status::Error(StrFormat("%s: '%s' is not a number from %g to %g", arg.c_str(),
-                                       v.c_str(), lo, hi));
-      return OkStatus();
-    };
-    if (arg == "-h" || arg == "--help") {
-      *help = true;
-      return OkStatus();
-    } else if (arg == "--mode") {
-      std::string v;
-      RAYSTACK_RETURN_IF_ERROR(value(&v));
-      Expected<slave::TraceMode> mode = slave::ParseTraceMode(v);
-      if (!mode.ok()) return mode.status();
-      a->engine.mode = *mode;
-    } else if (arg == "--cache-mb") {
-      double mb;
-      RAYSTACK_RETURN_IF_ERROR(number(&mb, 0.001, 1 << 24));
-      a->engine.cache_bytes = static_cast<uint64_t>(mb * 1024 * 1024);
-    } else if (arg == "--threads") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.threads, 1, slave::BlockLoader::kMaxRayThreads));
-    } else if (arg == "--feed-fraction") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.feed_fraction, 0, 1));
-    } else if (arg == "--tile-size") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->tile_size, 1, 4096));
-    } else if (arg == "--blocks") {
-      RAYSTACK_RETURN_IF_ERROR(value(&a->blocks));
-      if (a->blocks != "loc" && a->blocks != "rem" && a->blocks != "auto")
-        return Status::Error("--blocks must be loc, rem or auto, got '" + a->blocks + "'");
-    } else if (arg == "--tile-ahead") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.tile_ahead, 0, 1));
-    } else if (arg == "--batch") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.result_batch, 1, 65536));
-    } else if (arg == "--checkpoint-s") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->checkpoint_s, 0, 1e9));
-    } else if (arg == "--io-threads") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.loader.io_threads, 1, 256));
-    } else if (arg == "--direct-io") {
-      std::string v;
-      RAYSTACK_RETURN_IF_ERROR(value(&v));
-      Expected<slave::DirectIo> mode = slave::ParseDirectIo(v);
-      if (!mode.ok()) return mode.status();
-      a->direct_io = *mode;
-    } else if (arg == "--io-latency-us") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->engine.faults.io_latency_us, 0, 10'000'000));
-    } else if (arg == "--spp") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->spp, 1, 65535));  // as the scene file allows
-    } else if (arg == "--pass-spp") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->pass_spp, 0, 65535));
-    } else if (arg == "--pixel-order") {
-      std::string v;
-      RAYSTACK_RETURN_IF_ERROR(value(&v));
-      Expected<render::PixelOrder> order = render::ParsePixelOrder(v);
-      if (!order.ok()) return order.status();
-      a->engine.pixel_order = *order;
-    } else if (arg == "--coarse-rounds") {
-      RAYSTACK_RETURN_IF_ERROR(value(&a->coarse_rounds));
-      if (a->coarse_rounds != "auto" && a->coarse_rounds != "on" && a->coarse_rounds != "off")
-        return Status::Error("--coarse-rounds must be auto, on or off, not '" + a->coarse_rounds + "'");
-    } else if (arg == "--time-limit") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->stop.time_limit_s, 1e-3, 1e9));
-    } else if (arg == "--target-error") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->stop.target_error, 1e-12, 1e30));
-    } else if (arg == "--convergence-log") {
-      RAYSTACK_RETURN_IF_ERROR(value(&a->convergence_log));
-    } else if (arg == "--log-interval") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->log_interval_s, 0.01, 1e6));
-    } else if (arg == "--reference") {
-      RAYSTACK_RETURN_IF_ERROR(value(&a->reference));
-    } else if (arg == "--output") {
-      RAYSTACK_RETURN_IF_ERROR(value(&a->output));
-      if (a->output.empty()) return Status::Error("--output needs a path (an .exr file)");
-    } else if (arg == "--no-png") {
-      a->png = false;
-    } else if (arg == "--exposure") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->exposure, -64, 64));
-    } else if (arg == "--preview") {
-      std::string v;
-      RAYSTACK_RETURN_IF_ERROR(value(&v));
-      uint16_t port = 0;
-      if (v != "any" && (!ParseNumber(v, &port)))
-        return Status::Error("--preview: '" + v + "' is not a port number (0 to 65535) or 'any'");
-      a->preview.enabled = v == "any" || port != 0;
-      a->preview.server.port = port;
-    } else if (arg == "--preview-bind") {
-      RAYSTACK_RETURN_IF_ERROR(value(&a->preview.server.bind));
-    } else if (arg == "--preview-hold") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->preview.hold_seconds, 0, 1e9));
-    } else if (arg == "--stats") {
-      RAYSTACK_RETURN_IF_ERROR(value(&a->stats));
-    } else if (arg == "--resume") {
-      a->resume = true;
-    } else if (arg == "--lost-after") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->lost_after_s, 0.5, 1e6));
-    } else if (arg == "--fault-rank") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->fault_rank, 1, 1 << 20));
-    } else if (arg == "--fault-kill-after-tiles") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->kill_after_tiles, 1, 1e12));
-    } else if (arg == "--fault-stall-after-tiles") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->stall_after_tiles, 1, 1e12));
-    } else if (arg == "--fault-stall-s") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->stall_s, 0.0, 3600.0));
-    } else if (arg == "--fault-kill-after-checkpoints") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->kill_after_checkpoints, 1, 1e12));
-    } else if (arg == "--fault-fail-checkpoints") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->fail_checkpoints, 0, 1e12));
-    } else if (arg == "--fault-fail-read") {
-      RAYSTACK_RETURN_IF_ERROR(number(&a->fail_read, 0, 1e12));
-    } else if (arg == "-q" || arg == "--quiet") {
-      a->quiet = true;
-    } else if (!arg.empty() && arg[0] == '-') {
-      return Status::Error("unknown option " + arg + " (see --help)");
-    } else if (a->scene.empty()) {
-      a->scene = arg;
-    } else {
-      return Status::Error("one scene file only; extra argument '" + arg + "'");
-    }
-  }
-  if (!*help && a->scene.empty()) return Status::Error("a scene file is required (see --help)");
-  a->preview.server.exposure = a->exposure;
-  return OkStatus();
-}
-
 Status WriteStats(const std::string& path, const std::string& json) {
   if (path.empty()) return OkStatus();
   std::ofstream out(path);
@@ -322,13 +48,13 @@ Status WriteStats(const std::string& path, const std::string& json) {
   return OkStatus();
 }
 
-std::string OutputOf(const Args& args, const render::Scene& scene) {
+std::string OutputOf(const RenderArgs& args, const render::Scene& scene) {
   return args.output.empty() ? scene.output : args.output;
 }
 
 // Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
 // returns the EXR's path, or the error of an earlier frame's write.
-Expected<std::string> WriteFrame(const Args& args, const render::Scene& scene, size_t f,
+Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,
                                  FrameWriter* writer) {
   const size_t frames = scene.cameras.size();
@@ -359,13 +85,13 @@ render::Film& FilmFor(const render::Camera& camera, std::unique_ptr<render::Film
 }
 
 // The scene file, with the command line's overrides.
-Expected<render::Scene> LoadSceneFor(const Args& args) {
+Expected<render::Scene> LoadSceneFor(const RenderArgs& args) {
   Expected<render::Scene> scene = render::LoadScene(args.scene);
   if (scene.ok() && args.spp > 0) scene->integrator.spp = static_cast<int>(args.spp);
   return scene;
 }
 
-render::FramePlan PlanOf(const Args& args, const render::Scene& scene, const render::Camera& camera,
+render::FramePlan PlanOf(const RenderArgs& args, const render::Scene& scene, const render::Camera& camera,
                          bool coarse_rounds) {
   return render::MakeFramePlan(camera.width(), camera.height(), args.tile_size,
                                static_cast<uint32_t>(scene.integrator.spp), args.pass_spp,
@@ -376,7 +102,7 @@ render::FramePlan PlanOf(const Args& args, const render::Scene& scene, const ren
 // when the blocks stay in the cache and reloads them on every sweep when they do not (the
 // dragon x36 with a 72 MB cache: 4.5 loads per block used instead of 1.1). `store` may be null
 // (a master that cannot open it): then the rounds stay on, as for an in-core scene.
-bool CoarseRounds(const Args& args, const store::StoreReader* store, std::string* why) {
+bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, std::string* why) {
   if (args.coarse_rounds != "auto") {
     *why = "--coarse-rounds " + args.coarse_rounds;
     return args.coarse_rounds == "on";
@@ -392,7 +118,7 @@ bool CoarseRounds(const Args& args, const store::StoreReader* store, std::string
   return fits;
 }
 
-void LogFirstPass(const Args& args, bool rounds, const std::string& why) {
+void LogFirstPass(const RenderArgs& args, bool rounds, const std::string& why) {
   if (args.quiet || args.engine.pixel_order != render::PixelOrder::kPriority) return;
   std::printf("first pass: %s (%s)\n", rounds ? "5 coarse rounds" : "one sweep", why.c_str());
 }
@@ -400,7 +126,7 @@ void LogFirstPass(const Args& args, bool rounds, const std::string& why) {
 // What a frame is measured against, if anything: --reference (REF-f.exr with several cameras).
 // Frame f's reference into `*ref` (null without --reference), read into the memory of the frame
 // before's: new memory for a 960x540 reference was ~50 ms of page faults at every frame's start.
-Status LoadReference(const Args& args, size_t f, size_t frames, const render::Camera& camera,
+Status LoadReference(const RenderArgs& args, size_t f, size_t frames, const render::Camera& camera,
                      std::unique_ptr<image::ImageLayers>* ref) {
   if (args.reference.empty()) {
     ref->reset();
@@ -414,18 +140,18 @@ Status LoadReference(const Args& args, size_t f, size_t frames, const render::Ca
   return s;
 }
 
-Expected<std::unique_ptr<ConvergenceLog>> OpenLog(const Args& args) {
+Expected<std::unique_ptr<ConvergenceLog>> OpenLog(const RenderArgs& args) {
   if (args.convergence_log.empty()) return std::unique_ptr<ConvergenceLog>();
   return ConvergenceLog::Open(args.convergence_log);
 }
 
-void ReportStop(const Args& args, const ConvergenceMonitor& monitor) {
+void ReportStop(const RenderArgs& args, const ConvergenceMonitor& monitor) {
   if (monitor.stopped() && !args.quiet) std::printf("stopped: %s\n", monitor.stop_reason().c_str());
 }
 
 // --resume: the pixels frame `f`'s checkpoint holds finished go into `film`, and the plan keeps
 // only the tiles that still have a pixel to render.
-Status ResumeInto(const Args& args, const render::Scene& scene, size_t f,
+Status ResumeInto(const RenderArgs& args, const render::Scene& scene, size_t f,
                   render::FramePlan* plan, render::Film* film) {
   if (!args.resume) return OkStatus();
   const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
@@ -471,7 +197,7 @@ class WatchedTileSource final : public slave::TileSource {
   std::vector<render::Tile> given_;
 };
 
-Status Run(const Args& args) {
+Status Run(const RenderArgs& args) {
   Expected<render::Scene> scene = LoadSceneFor(args);
   if (!scene.ok()) return scene.status();
   const std::string output = OutputOf(args, *scene);
@@ -615,7 +341,7 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
   return s + "\n  ]\n}";
 }
 
-Status RunMaster(const Args& args, const render::Scene& scene, transport::Transport* net,
+Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::Transport* net,
                  ConvergenceLog* log, bool coarse_rounds) {
   const std::string output = OutputOf(args, scene);
   const size_t frames = scene.cameras.size();
@@ -741,7 +467,7 @@ Status RunMaster(const Args& args, const render::Scene& scene, transport::Transp
 // --blocks auto: rem when each slave's share of the store (stored bytes) fits in half of its
 // cache budget, leaving the other half for decoded blocks; otherwise loc. Every rank decides
 // the same from the same inputs.
-bool UseRemoteBlocks(const Args& args, const store::StoreReader& store, int slaves,
+bool UseRemoteBlocks(const RenderArgs& args, const store::StoreReader& store, int slaves,
                      std::string* why) {
   uint64_t stored = 0;
   for (const store::BlockEntry& e : store.blocks()) stored += e.stored_bytes;
@@ -755,7 +481,7 @@ bool UseRemoteBlocks(const Args& args, const store::StoreReader& store, int slav
   return fits;
 }
 
-Status RunSlave(const Args& args, const render::Scene& scene, transport::Transport* net) {
+Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::Transport* net) {
   Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene.store);
   if (store.ok()) {  // before any block is read (PeerBlocks reads this slave's share)
     // Each slave decides for its own machine; the master prints each one's reads per frame.
@@ -808,7 +534,7 @@ Status RunSlave(const Args& args, const render::Scene& scene, transport::Transpo
   return OkStatus();
 }
 
-Status RunDistributed(const Args& args, transport::Transport* net) {
+Status RunDistributed(const RenderArgs& args, transport::Transport* net) {
   Expected<render::Scene> scene = LoadSceneFor(args);
   if (!scene.ok()) {
     // Every rank reads the same scene file, so usually all fail here at once: the master ends
@@ -853,11 +579,11 @@ Status RunDistributed(const Args& args, transport::Transport* net) {
 }  // namespace
 
 int RenderCommand(int argc, char** argv) {
-  Args args;
+  RenderArgs args;
   bool help = false;
-  Status s = ParseArgs(argc, argv, &args, &help);
+  Status s = ParseRenderArgs(argc, argv, &args, &help);
   if (help) {
-    std::fputs(kUsage, stdout);
+    std::fputs(kRenderUsage, stdout);
     return 0;
   }
   if (!s.ok()) {

@@ -1,0 +1,52 @@
+#pragma once
+// The options of `raystack render SCENE.json [options]`: what they hold, their usage text, and
+// parsing them (each value checked against its range, every error naming the option).
+
+#include <cstdint>
+#include <string>
+
+#include "common/base/status.h"
+#include "master/convergence_monitor.h"
+#include "master/preview/live_preview.h"
+#include "slave/direct_reads.h"
+#include "slave/render_engine.h"
+
+namespace raystack::master {
+
+extern const char* const kRenderUsage;
+
+struct RenderArgs {
+  std::string scene;
+  slave::EngineOptions engine;
+  int tile_size = 32;
+  std::string output;
+  bool png = true;
+  float exposure = 0;
+  std::string stats;
+  bool quiet = false;
+  double checkpoint_s = 0;
+  std::string blocks = "auto";
+  std::string coarse_rounds = "auto";  // --coarse-rounds
+  slave::DirectIo direct_io = slave::DirectIo::kAuto;
+  uint32_t spp = 0;       // 0: the scene's
+  uint32_t pass_spp = 0;  // 0: doubling passes
+  StopRules stop;
+  std::string convergence_log;
+  double log_interval_s = 0.5;
+  std::string reference;
+  double lost_after_s = 5;
+  bool resume = false;
+  int fault_rank = 0;  // 0: every slave
+  int64_t kill_after_tiles = -1;
+  int64_t stall_after_tiles = -1;
+  double stall_s = 5;
+  int64_t fail_read = -1;
+  int64_t kill_after_checkpoints = -1;
+  int64_t fail_checkpoints = 0;
+  preview::LivePreviewOptions preview;
+};
+
+// Fills `a` from the command line; `*help` is set by -h/--help (then nothing else is checked).
+Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help);
+
+}  // namespace raystack::master
