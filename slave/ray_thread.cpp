@@ -207,7 +207,9 @@ namespace {
 void RecordHit(const store::BlockView& view, const Hit& hit, RayRecord* ray) {
   Vec3f p0, p1, p2;
   view.TriangleVertices(hit.local_triangle, &p0, &p1, &p2);
-  const Vec3f ng = Cross(p1 - p0, p2 - p0);
+  // Edges scaled first: the cross product of edges longer than ~1e19 or shorter than ~1e-19
+  // would overflow or underflow float (and Normalize squares what it gets).
+  const Vec3f ng = Cross(ScaledToUnitRange(p1 - p0), ScaledToUnitRange(p2 - p0));
   const bool back = Dot(ng, ray->direction) > 0;
   const Vec3f ng_facing = back ? -ng : ng;
   Vec3f ns = ng_facing;
@@ -220,7 +222,7 @@ void RecordHit(const store::BlockView& view, const Hit& hit, RayRecord* ray) {
   }
   ray->tmax = hit.t;
   ray->hit_id = hit.triangle_id;
-  ray->normal = EncodeNormal(Normalize(ns));
+  ray->normal = EncodeNormal(Normalize(ScaledToUnitRange(ns)));
   ray->flags = back ? kHitBackFace : 0;
   const uint32_t m = view.Material(hit.local_triangle);
   ray->material = m == store::kNoMaterial ? store::kNoMaterial16 : static_cast<uint16_t>(m);

@@ -13,6 +13,7 @@
 #include <utility>
 
 #include "common/base/log.h"
+#include "common/geometry/float_range.h"
 
 namespace raystack::render {
 namespace {
@@ -202,8 +203,9 @@ class SceneParser {
     LOG_WARNING(kComponent, "%s: %s: %s", source_.c_str(), path.c_str(), what.c_str());
   }
   Status TypeError(const std::string& path, const char* expected, const Json& v) const {
-    return Error(path,
-                 std::string("must be ") + expected + ", got " + v.type_name() + " " + Show(v));
+    // "got null", not "got null null": a null shows as its type alone.
+    const std::string got = v.is_null() ? "null" : std::string(v.type_name()) + " " + Show(v);
+    return Error(path, std::string("must be ") + expected + ", got " + got);
   }
 
   // Unknown keys are errors: a misspelt key ("fov_y") must not silently leave a default.
@@ -270,6 +272,16 @@ class SceneParser {
     return OkStatus();
   }
 
+  // A point of the scene: within the range float ray tracing is sound in (float_range.h).
+  Status ReadPosition(const Json& v, const std::string& path, Vec3f* out) const {
+    RAYSTACK_RETURN_IF_ERROR(ReadVec3(v, path, out));
+    for (int k = 0; k < 3; ++k)
+      if (std::fabs((*out)[k]) > kMaxCoordinate)
+        return Error(path, "must be within +-1e18 (float ray tracing overflows beyond; scale the "
+                           "scene down), got " + Show(v));
+    return OkStatus();
+  }
+
   Status CheckNonNegative(Vec3f v, const std::string& path) const {
     if (v.x < 0 || v.y < 0 || v.z < 0) return Error(path, "must not be negative, got " + Show(v));
     return OkStatus();
@@ -284,6 +296,8 @@ class SceneParser {
     if (!v.is_string()) return TypeError(path, "a string (a path)", v);
     const std::string& text = v.get_ref<const std::string&>();
     if (text.empty()) return Error(path, "must not be empty");
+    // The system cuts a path at its first NUL: "out\u0000.exr" would be written as "out".
+    if (text.find('\0') != std::string::npos) return Error(path, "must not contain a NUL (\\u0000)");
     *out = Resolve(text);
     return OkStatus();
   }
@@ -292,16 +306,17 @@ class SceneParser {
     RAYSTACK_RETURN_IF_ERROR(
         CheckKeys(v, path, {"position", "look_at", "up", "fov_y_deg", "width", "height"}));
     if (v.contains("position"))
-      RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["position"], Child(path, "position"), &camera->position));
+      RAYSTACK_RETURN_IF_ERROR(ReadPosition(v["position"], Child(path, "position"), &camera->position));
     if (v.contains("look_at"))
-      RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["look_at"], Child(path, "look_at"), &camera->look_at));
+      RAYSTACK_RETURN_IF_ERROR(ReadPosition(v["look_at"], Child(path, "look_at"), &camera->look_at));
     if (v.contains("up"))
       RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["up"], Child(path, "up"), &camera->up));
     if (v.contains("fov_y_deg")) {
       const std::string fov_path = Child(path, "fov_y_deg");
       RAYSTACK_RETURN_IF_ERROR(ReadFloat(v["fov_y_deg"], fov_path, &camera->fov_y_deg));
       if (!(camera->fov_y_deg > 0 && camera->fov_y_deg < 180))
-        return Error(fov_path, "must be in (0, 180), got " + Show(v["fov_y_deg"]));
+        return Error(fov_path, "must be in (0, 180), got " + Show(v["fov_y_deg"]) +
+                                   (camera->fov_y_deg == 180 ? " (180 as a float)" : ""));
     }
     if (v.contains("width"))
       RAYSTACK_RETURN_IF_ERROR(
@@ -341,7 +356,7 @@ class SceneParser {
     }
     for (const char* key : {"position", "intensity"})
       if (!v.contains(key)) return Error(Child(path, key), "required key missing");
-    RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["position"], Child(path, "position"), &light->position));
+    RAYSTACK_RETURN_IF_ERROR(ReadPosition(v["position"], Child(path, "position"), &light->position));
     RAYSTACK_RETURN_IF_ERROR(ReadVec3(v["intensity"], Child(path, "intensity"), &light->intensity));
     return CheckNonNegative(light->intensity, Child(path, "intensity"));
   }

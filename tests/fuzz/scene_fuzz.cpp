@@ -7,6 +7,7 @@
 #include <string_view>
 
 #include "common/base/check.h"
+#include "common/geometry/float_range.h"
 #include "common/render/scene.h"
 #include "tests/fuzz/fuzz_quiet.h"
 
@@ -14,6 +15,12 @@ namespace {
 
 bool Finite(raystack::Vec3f v) {
   return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+// A point within the range float ray tracing is sound in (common/geometry/float_range.h).
+bool InRange(raystack::Vec3f v) {
+  return std::fabs(v.x) <= raystack::kMaxCoordinate && std::fabs(v.y) <= raystack::kMaxCoordinate &&
+         std::fabs(v.z) <= raystack::kMaxCoordinate;
 }
 
 }  // namespace
@@ -30,9 +37,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   for (const CameraDesc& c : scene->cameras) {
     CHECK(c.width >= 1 && c.width <= kMaxImageSide && c.height >= 1 && c.height <= kMaxImageSide);
     CHECK(c.fov_y_deg > 0 && c.fov_y_deg < 180);
-    CHECK(Finite(c.position) && Finite(c.look_at) && Finite(c.up));
+    CHECK(InRange(c.position) && InRange(c.look_at) && Finite(c.up));
   }
-  for (const PointLight& l : scene->lights) CHECK(Finite(l.position) && Finite(l.intensity));
+  for (const PointLight& l : scene->lights) CHECK(InRange(l.position) && Finite(l.intensity));
   CHECK(scene->integrator.spp >= 1 && scene->integrator.spp <= kMaxSpp);
   CHECK(scene->integrator.max_depth >= 0 && scene->integrator.max_depth <= kMaxDepth);
   CHECK(Finite(scene->background));

@@ -230,7 +230,7 @@ TEST(ObjReader, MalformedInputNamesFileAndLine) {
       {"v 0 0 0\nv nan 0 0\n", {"model.obj:2:", "nan"}},
       {"v 0 0 0\nv 1 inf 0\n", {"model.obj:2:", "inf"}},
       {"v 0 0 0\nv 1 1e39 0\n", {"model.obj:2:", "float range"}},
-      {"v 0 0 0\nv 1 -2e38 0\n", {"model.obj:2:", "beyond +-1e38"}},  // a float, too large for the octree
+      {"v 0 0 0\nv 1 -2e18 0\n", {"model.obj:2:", "beyond +-1e18"}},  // products overflow float
       {"v 0 0 0\r\nv 1 2", {"model.obj:2:", "expected 3 numbers, found 2"}},
       {"vn 1 2\n", {"model.obj:1:", "expected 3"}},
       {"vt\n", {"model.obj:1:"}},

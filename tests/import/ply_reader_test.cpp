@@ -164,7 +164,7 @@ TEST(PlyReader, AsciiErrorsNameFileAndLine) {
       {Triangle("ascii", {3, 0, 1, 2}, std::numeric_limits<double>::infinity()),
        {"m.ply:12:", "inf"}},
       {Triangle("ascii", {3, 0, 1, 2}, 1e39), {"m.ply:12:", "float range"}},
-      {Triangle("ascii", {3, 0, 1, 2}, 2e38), {"m.ply:12:", "beyond +-1e38"}},
+      {Triangle("ascii", {3, 0, 1, 2}, 2e18), {"m.ply:12:", "beyond +-1e18"}},
       {Triangle("ascii", {3, 0, 1, 2}, 0, uint64_t{1'000'000'000'000}),
        {"m.ply:14:", "unexpected end of file in element 'face'"}},
       {good.substr(0, good.find("1 0 0") + 3), {"m.ply:12:", "fewer values"}},  // mid-vertex
@@ -214,7 +214,7 @@ TEST(PlyReader, BinaryErrorsNameFileAndByteOffset) {
         {Triangle(format, {0}), faces, "face with 0 vertices"},
         {Triangle(format, {3, 0, 1, 2}, std::numeric_limits<double>::quiet_NaN()), 12 + 4,
          "not a finite float"},
-        {Triangle(format, {3, 0, 1, 2}, 2e38), 12 + 8, "beyond +-1e38"},  // at its last value
+        {Triangle(format, {3, 0, 1, 2}, 2e18), 12 + 8, "beyond +-1e18"},  // at its last value
         {Triangle(format, {3, 0, 1, 2}, 0, uint64_t{1'000'000'000'000}), faces + 13,
          "unexpected end of file"},
         {good.substr(0, BodyStart(good) + 20), 20, "unexpected end of file"},  // mid-vertex

@@ -159,6 +159,26 @@ TEST_F(PrepCliTest, IgnoredOrClampedInputIsReportedWithItsPlace) {
       << r.err;
 }
 
+// Float ray tracing multiplies coordinates: a model whose copies reach past +-1e18, or one
+// smaller than 1e-15 across, would render wrong (overflow, underflow), so prep refuses it and
+// says which way to scale. Models just inside both limits are accepted.
+TEST_F(PrepCliTest, AModelOutsideTheRangeFloatTracingWorksInIsRefused) {
+  auto triangle = [&](const std::string& name, const char* size) {
+    const std::string obj = dir_->File(name);
+    std::ofstream(obj) << "v 0 0 0\nv " << size << " 0 0\nv 0 " << size << " 0\nf 1 2 3\n";
+    return obj;
+  };
+  ExpectFailsNaming(Prep({triangle("big.obj", "6e17"), "--replicate", "3,1,1", "-o",
+                          dir_->File("a"), "-q"}),
+                    {"the model's copies (--replicate) reach", "beyond +-1e18", "scale it down"});
+  ExpectFailsNaming(Prep({triangle("tiny.obj", "1e-16"), "-o", dir_->File("b"), "-q"}),
+                    {"the model is 1e-16 across", "scale it up"});
+  for (const char* size : {"9e17", "2e-15"}) {
+    const ProcessResult r = Prep({triangle("ok.obj", size), "-o", dir_->File("c"), "-q"});
+    EXPECT_EQ(r.exit_code, 0) << size << ": " << r.err;
+  }
+}
+
 TEST_F(PrepCliTest, MalformedObjNamesFileAndLine) {
   const std::string obj = dir_->File("broken.obj");
   std::ofstream(obj) << "# three vertices, then a face that uses a fourth\n"

@@ -169,7 +169,12 @@ TEST(Scene, WrongTypes) {
   ExpectError(Minimal(R"(, "lights": {})"), {"scene.json: lights: must be an array"});
   ExpectError(Minimal(R"(, "lights": [5])"), {"scene.json: lights[0]: must be an object"});
   ExpectError(Minimal(R"(, "materials": [])"), {"scene.json: materials: must be an object"});
-  ExpectError(Minimal(R"(, "output": null)"), {"scene.json: output: must be a string"});
+  ExpectError(Minimal(R"(, "output": null)"), {"scene.json: output: must be a string (a path), got null"});
+  {
+    Expected<Scene> scene = Parse(R"({"store": "s", "camera": null})");
+    ASSERT_FALSE(scene.ok());
+    EXPECT_EQ(scene.status().message().find("null null"), std::string::npos) << scene.status().message();
+  }
   ExpectError(Minimal(R"(, "integrator": {"seed": -1})"), {"integrator.seed: must be an integer"});
   ExpectError(Minimal(R"(, "integrator": {"seed": 1.5})"), {"integrator.seed: must be an integer"});
   ExpectError(Minimal(R"(, "integrator": {"type": 1})"), {"integrator.type: must be a string"});
@@ -193,12 +198,30 @@ TEST(Scene, NonFiniteAndOutOfFloatRangeNumbers) {
   ExpectError(Minimal("", R"({"width": 1e300})"), {"camera.width: must be in [1, 16384]"});
 }
 
+// Float ray tracing multiplies coordinates (common/geometry/float_range.h): positions beyond
+// +-1e18 would render wrong, so they are refused, saying which way to scale.
+TEST(Scene, PositionsBeyondTheRangeFloatTracingWorksInAreRefused) {
+  ExpectError(Minimal("", R"({"position": [0, 0, 2e18]})"),
+              {"scene.json: camera.position: must be within +-1e18", "scale the scene down"});
+  ExpectError(Minimal("", R"({"look_at": [-1e19, 0, 0]})"), {"camera.look_at: must be within"});
+  ExpectError(Minimal(R"(, "lights": [{"position": [0, 3e18, 0], "intensity": [1, 1, 1]}])"),
+              {"lights[0].position: must be within +-1e18"});
+  EXPECT_TRUE(Parse(Minimal("", R"({"position": [0, 0, 1e18]})")).ok());
+}
+
+// The system cuts a path at its first NUL: "out\u0000.exr" would have been written as "out".
+TEST(Scene, PathsWithANulAreRefused) {
+  ExpectError(Minimal(R"(, "output": "out\u0000.exr")"), {"scene.json: output: must not contain a NUL"});
+  ExpectError(R"({"store": "s\u0000x", "camera": {}})", {"scene.json: store: must not contain a NUL"});
+}
+
 TEST(Scene, Ranges) {
   ExpectError(Minimal("", R"({"width": 0})"), {"camera.width: must be in [1, 16384], got 0"});
   ExpectError(Minimal("", R"({"height": 16385})"), {"camera.height: must be in [1, 16384]"});
   ExpectError(Minimal("", R"({"width": -5})"), {"camera.width: must be in [1, 16384], got -5"});
   ExpectError(Minimal("", R"({"fov_y_deg": 0})"), {"camera.fov_y_deg: must be in (0, 180)"});
   ExpectError(Minimal("", R"({"fov_y_deg": 180})"), {"camera.fov_y_deg: must be in (0, 180)"});
+  ExpectError(Minimal("", R"({"fov_y_deg": 179.999999})"), {"got 179.999999 (180 as a float)"});
   ExpectError(Minimal(R"(, "integrator": {"spp": 0})"), {"integrator.spp: must be in [1, 65535]"});
   ExpectError(Minimal(R"(, "integrator": {"spp": 65536})"), {"integrator.spp: must be in"});
   ExpectError(Minimal(R"(, "integrator": {"max_depth": -1})"),

@@ -252,11 +252,12 @@ TEST(ExtremeRadiometry, ClearGlassInAUniformBackgroundConservesEnergy) {
 // A sphere (radius 10, 64 x 32 latitude-longitude) floating 3 units above a 200 x 200 floor,
 // every coordinate moved by `offset` (in double, printed exactly, rounded once to float by the
 // reader).
-std::string FloatingSphere(double offset) {
+std::string FloatingSphere(double offset, double scale = 1) {
   std::string obj;
   char line[160];
   auto vertex = [&](double x, double y, double z) {
-    std::snprintf(line, sizeof(line), "v %.17g %.17g %.17g\n", offset + x, offset + y, offset + z);
+    std::snprintf(line, sizeof(line), "v %.17g %.17g %.17g\n", offset + x * scale,
+                  offset + y * scale, offset + z * scale);
     obj += line;
   };
   const int rings = 32, segments = 64;
@@ -283,17 +284,18 @@ std::string FloatingSphere(double offset) {
   return obj;
 }
 
-render::Scene FloatingSphereScene(float offset) {
+render::Scene FloatingSphereScene(float offset, float scale = 1) {
   render::Scene scene;
   render::CameraDesc cam;
   const Vec3f o{offset, offset, offset};
-  cam.position = o + Vec3f{30, 25, 40};
-  cam.look_at = o + Vec3f{0, 8, 0};
+  cam.position = o + Vec3f{30, 25, 40} * scale;
+  cam.look_at = o + Vec3f{0, 8, 0} * scale;
   cam.fov_y_deg = 45;
   cam.width = 96;
   cam.height = 72;
   scene.cameras.push_back(cam);
-  scene.lights.push_back({o + Vec3f{-20, 60, 30}, {4000, 4000, 4000}});
+  const float intensity = 4000 * scale * scale;  // the same irradiance at the scaled distances
+  scene.lights.push_back({o + Vec3f{-20, 60, 30} * scale, {intensity, intensity, intensity}});
   scene.default_material.albedo = {0.6f, 0.6f, 0.6f};
   return scene;
 }
@@ -331,6 +333,44 @@ TEST(TranslationInvariance, ASceneMovedBy1e5RendersTheSameImage) {
               differing, a.image.z.size(), 100 * fraction, worst, mean_a, mean_b);
   EXPECT_LE(fraction, 0.01);
   EXPECT_NEAR(mean_b / mean_a, 1.0, 0.005);
+}
+
+// The same scene scaled by powers of two near both ends of the range float ray tracing works
+// in (common/geometry/float_range.h: coordinates to 1e18, models from 1e-15 across): every
+// product in the triangle test scales exactly, so the distances scale and the normals and
+// radiance stay. Before the edges were scaled for the normal, every normal of a scene with
+// edges beyond ~4e9 or below ~1e-11 came out as +-Z (its squared length overflowed or
+// underflowed float), and shading with it.
+TEST(ScaleInvariance, TheSceneScaledTo1e15Or1em14RendersTheSameImage) {
+  TestStore unit = BuildObj(FloatingSphere(0));
+  const RenderOutcome a = Render(*unit.reader, FloatingSphereScene(0), Stack());
+  ASSERT_TRUE(a.status.ok()) << a.status.message();
+  for (const float scale : {std::ldexp(1.0f, 52), std::ldexp(1.0f, -46)}) {
+    SCOPED_TRACE(scale);
+    TestStore scaled = BuildObj(FloatingSphere(0, scale));
+    const RenderOutcome b = Render(*scaled.reader, FloatingSphereScene(0, scale), Stack());
+    ASSERT_TRUE(b.status.ok()) << b.status.message();
+    EXPECT_EQ(NonFinitePixels(b.image), 0);
+    size_t z_off = 0, normal_off = 0, radiance_off = 0, hits = 0;
+    for (size_t i = 0; i < a.image.z.size(); ++i) {
+      const float za = a.image.z[i], zb = b.image.z[i];
+      if (!std::isfinite(za) || !std::isfinite(zb)) {
+        z_off += std::isfinite(za) != std::isfinite(zb);
+        continue;
+      }
+      ++hits;
+      z_off += std::fabs(zb / scale - za) > 1e-5f * za;
+      for (int c = 0; c < 3; ++c) {
+        normal_off += std::fabs(a.image.normal[3 * i + c] - b.image.normal[3 * i + c]) > 1e-5f;
+        const float ra = a.image.rgba[4 * i + c], rb = b.image.rgba[4 * i + c];
+        radiance_off += std::fabs(ra - rb) > 1e-4f * std::max(ra, 1e-3f);
+      }
+    }
+    EXPECT_GT(hits, a.image.z.size() / 2);
+    EXPECT_EQ(z_off, 0u);
+    EXPECT_EQ(normal_off, 0u);
+    EXPECT_EQ(radiance_off, 0u);
+  }
 }
 
 }  // namespace

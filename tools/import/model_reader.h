@@ -13,6 +13,7 @@
 
 #include "common/base/status.h"
 #include "common/geometry/bounds.h"
+#include "common/geometry/float_range.h"
 #include "common/geometry/vec.h"
 
 namespace raystack {
@@ -23,13 +24,15 @@ namespace raystack::import {
 
 inline constexpr uint32_t kNoMaterial = 0xffffffffu;
 
-// Vertex coordinates beyond +-1e38 are refused where they are read: the octree's cube around
-// such a model (twice its half extent, with a margin) would overflow float (3.4e38), and a
-// store of it could not be opened.
-inline constexpr float kMaxCoordinate = 1e38f;
+// Vertex coordinates beyond +-1e18 are refused where they are read (common/geometry/
+// float_range.h: such a model would render wrong); models too small across once read.
+inline constexpr float kMaxCoordinate = raystack::kMaxCoordinate;
+inline constexpr float kMinExtent = raystack::kMinModelExtent;
 inline const char* PositionOutOfRange(const float xyz[3]) {
   for (int a = 0; a < 3; ++a)
-    if (!(std::fabs(xyz[a]) <= kMaxCoordinate)) return "vertex coordinate beyond +-1e38";
+    if (!(std::fabs(xyz[a]) <= kMaxCoordinate))
+      return "vertex coordinate beyond +-1e18 (float ray tracing overflows there: scale the "
+             "model down)";
   return nullptr;
 }
 

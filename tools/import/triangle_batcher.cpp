@@ -8,7 +8,8 @@ namespace {
 // Exactly zero in float: repeated or collinear corners. Such triangles can never be hit and
 // would only cost the BVH build; tiny but non-zero ones are kept.
 bool HasZeroArea(const SourceTriangle& t) {
-  Vec3f c = Cross(t.p[1] - t.p[0], t.p[2] - t.p[0]);
+  // Edges scaled first, so a tiny triangle (1e-30 across) is not taken for a flat one.
+  const Vec3f c = Cross(ScaledToUnitRange(t.p[1] - t.p[0]), ScaledToUnitRange(t.p[2] - t.p[0]));
   return c.x == 0.0f && c.y == 0.0f && c.z == 0.0f;
 }
 

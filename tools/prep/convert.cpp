@@ -37,6 +37,26 @@ double Since(std::chrono::steady_clock::time_point start) {
 
 }  // namespace
 
+// The range float ray tracing works in (import::kMaxCoordinate): the readers check each
+// vertex; --replicate's copies may reach past it, and a model can be too small as a whole.
+Status CheckScale(const Bounds3f& bounds, bool replicated) {
+  const Vec3f extent = bounds.Extent();
+  const float largest = std::max(extent.x, std::max(extent.y, extent.z));
+  for (int a = 0; a < 3; ++a)
+    if (!(std::fabs(bounds.lower[a]) <= import::kMaxCoordinate &&
+          std::fabs(bounds.upper[a]) <= import::kMaxCoordinate))
+      return Status::Error(StrFormat("the model%s reaches %g: beyond +-1e18, where float ray "
+                                     "tracing overflows (scale it down)",
+                                     replicated ? "'s copies (--replicate)" : "",
+                                     static_cast<double>(std::max(std::fabs(bounds.lower[a]),
+                                                                  std::fabs(bounds.upper[a])))));
+  if (!(largest >= import::kMinExtent))
+    return Status::Error(StrFormat("the model is %g across: under %g, float ray tracing underflows "
+                                   "(scale it up)", static_cast<double>(largest),
+                                   static_cast<double>(import::kMinExtent)));
+  return OkStatus();
+}
+
 Expected<ConvertReport> Convert(const ConvertOptions& args) {
   const auto start = std::chrono::steady_clock::now();
   if (args.output.empty()) return Status::Error("no output store given");
@@ -97,6 +117,8 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
                                    "in PLY)", names.empty() ? "the model" : names.c_str(),
                                    static_cast<unsigned long long>(report.zero_area_dropped)));
   }
+
+  RAYSTACK_RETURN_IF_ERROR(CheckScale(source.bounds(), source.copies() > 1));
 
   // 2. Octree and blocks.
   Expected<std::unique_ptr<store::StoreWriter>> writer = store::StoreWriter::Create(args.output);
