@@ -247,6 +247,47 @@ TEST(ExtremeRadiometry, ClearGlassInAUniformBackgroundConservesEnergy) {
   }
 }
 
+// Glass seen through glass: the camera inside a glass cube inside another. Whitted traces both
+// lobes at each interface, and rays stay inside the outer cube by reflection, so the rays
+// would double with every bounce (depth 64 in a glass box did not end, growing past 2 GB).
+// A lobe weighing under 1/1024 is not traced, so the rays stay few at any depth.
+TEST(ExtremeRadiometry, WhittedGlassInGlassStaysBoundedAtAnyDepth) {
+  // OutwardCube's faces once more, on 8 more vertices twice as far out.
+  std::string nested = OutwardCube(), outer;
+  for (int i = 0; i < 8; ++i)
+    nested += std::string("v ") + (i & 1 ? "2" : "-2") + (i & 2 ? " 2" : " -2") + (i & 4 ? " 2\n" : " -2\n");
+  for (size_t at = nested.find("f "); at < nested.size() && nested[at] == 'f';) {
+    int a = 0, b = 0, c = 0;
+    std::sscanf(nested.c_str() + at, "f %d %d %d", &a, &b, &c);
+    outer += "f " + std::to_string(a + 8) + " " + std::to_string(b + 8) + " " + std::to_string(c + 8) + "\n";
+    at = nested.find('\n', at) + 1;
+  }
+  nested += outer;
+  TestStore s = BuildObj(nested);
+  render::Scene scene;
+  render::CameraDesc cam;
+  cam.position = {0.1f, 0.2f, 0.3f};
+  cam.look_at = {1, 0.4f, 0.2f};
+  cam.width = 8;
+  cam.height = 8;
+  scene.cameras.push_back(cam);
+  scene.background = {1, 1, 1};
+  scene.default_material.type = render::MaterialType::kGlass;
+  scene.default_material.albedo = {1, 1, 1};
+  scene.default_material.ior = 1.5f;
+  scene.integrator.type = render::IntegratorType::kWhitted;
+  for (const int depth : {20, 64}) {
+    scene.integrator.max_depth = depth;
+    const RenderOutcome r = Render(*s.reader, scene, Stack());
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
+    EXPECT_EQ(NonFinitePixels(r.image), 0);
+    const double per_pixel = static_cast<double>(r.stats.rays_total) / 64;
+    std::printf("glass in glass, Whitted depth %d: %.0f rays per pixel\n", depth, per_pixel);
+    EXPECT_LT(per_pixel, 2000) << "depth " << depth;
+    for (size_t i = 0; i < r.image.z.size(); ++i) EXPECT_LE(r.image.rgba[4 * i], 1.0f + 1e-5f);
+  }
+}
+
 // --- Translation invariance ------------------------------------------------------------------
 
 // A sphere (radius 10, 64 x 32 latitude-longitude) floating 3 units above a 200 x 200 floor,
