@@ -30,12 +30,39 @@ void DirectBuffer::Free::operator()(uint8_t* p) const { std::free(p); }
 
 namespace {
 
+// Opens a store file for reading; only a regular file is one. O_NONBLOCK so that a FIFO in a
+// store's place does not block the open forever (it has no effect on a regular file's reads).
+// A file missing beside a prep's temporary is named as an interrupted prep's leftover.
+Status OpenStoreFile(const std::string& path, int flags, int* fd_out, struct stat* st) {
+  const int fd = ::open(path.c_str(), flags | O_RDONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) {
+    const int error = errno;
+    const std::string dir = path.substr(0, path.rfind('/') + 1);
+    for (const char* file : {kBlocksFile, kIndexFile, kOctreeFile}) {
+      struct stat tmp {};
+      const std::string leftover = dir + file + ".tmp";
+      if (error == ENOENT && ::stat(leftover.c_str(), &tmp) == 0)
+        return Status::Error(path + ": missing, and " + leftover + " is there: the store is "
+                             "incomplete (a raystack-prep was interrupted?); convert it again");
+    }
+    return Status::Error(path + ": cannot open: " + std::strerror(error));
+  }
+  ::fstat(fd, st);
+  if (!S_ISREG(st->st_mode)) {
+    ::close(fd);
+    return Status::Error(path + (S_ISDIR(st->st_mode)
+                                     ? ": is a folder, not a store file"
+                                     : ": is not a regular file (a FIFO, device or socket)"));
+  }
+  *fd_out = fd;
+  return OkStatus();
+}
+
 // Reads a whole small file (index or octree), checks its FileHeader and body checksum.
 Status ReadChecked(const std::string& path, const char (&magic)[8], std::vector<uint8_t>* body) {
-  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return Status::Error(path + ": cannot open: " + std::strerror(errno));
+  int fd = -1;
   struct stat st {};
-  ::fstat(fd, &st);
+  RAYSTACK_RETURN_IF_ERROR(OpenStoreFile(path, 0, &fd, &st));
   const uint64_t size = static_cast<uint64_t>(st.st_size);
   FileHeader h{};
   Status status;
@@ -247,10 +274,8 @@ NodeBounds StoreReader::NodeBoundsView() const {
 
 Status StoreReader::OpenBlocks() {
   const std::string path = dir_ + "/" + kBlocksFile;
-  blocks_fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (blocks_fd_ < 0) return Status::Error(path + ": cannot open: " + std::strerror(errno));
   struct stat st {};
-  ::fstat(blocks_fd_, &st);
+  RAYSTACK_RETURN_IF_ERROR(OpenStoreFile(path, 0, &blocks_fd_, &st));
   blocks_file_bytes_ = static_cast<uint64_t>(st.st_size);
   FileHeader h{};
   if (::pread(blocks_fd_, &h, sizeof h, 0) != static_cast<ssize_t>(sizeof h) ||

@@ -1,5 +1,10 @@
 #include "common/store/store_writer.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -31,6 +36,22 @@ Status WriteWhole(const std::string& path, const char (&magic)[8],
   return OkStatus();
 }
 
+// Opens `dir` and takes its exclusive lock without waiting; the folder's descriptor holds it.
+Status LockFolder(const std::string& dir, int* fd_out) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return Status::Error(dir + ": cannot open the folder: " + std::strerror(errno));
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    const int error = errno;
+    ::close(fd);
+    if (error == EWOULDBLOCK)
+      return Status::Error(dir + ": another raystack-prep is writing this store now; wait for it "
+                           "or give another -o");
+    return Status::Error(dir + ": cannot lock the folder: " + std::strerror(error));
+  }
+  *fd_out = fd;
+  return OkStatus();
+}
+
 template <typename T>
 void Append(std::vector<uint8_t>* out, const T* data, size_t count) {
   const auto* p = reinterpret_cast<const uint8_t*>(data);
@@ -43,10 +64,11 @@ Expected<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& di
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) return Status::Error(dir + ": cannot create directory: " + ec.message());
-  // A half-written store must not look complete: drop the old index first.
-  std::filesystem::remove(dir + "/" + kIndexFile, ec);
   std::unique_ptr<StoreWriter> w(new StoreWriter());
   w->dir_ = dir;
+  RAYSTACK_RETURN_IF_ERROR(LockFolder(dir, &w->lock_fd_));
+  // A half-written store must not look complete: drop the old index first.
+  std::filesystem::remove(dir + "/" + kIndexFile, ec);
   const std::string path = Tmp(dir + "/" + kBlocksFile);
   w->blocks_ = std::fopen(path.c_str(), "wb");
   if (!w->blocks_) return Status::Error(path + ": cannot create: " + std::strerror(errno));
@@ -58,8 +80,18 @@ Expected<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& di
   return w;
 }
 
+Status StoreWriter::CheckNotBeingWritten(const std::string& dir) {
+  struct stat st {};
+  if (::stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return OkStatus();
+  int fd = -1;
+  RAYSTACK_RETURN_IF_ERROR(LockFolder(dir, &fd));
+  ::close(fd);  // free again: Create takes it for the writing
+  return OkStatus();
+}
+
 StoreWriter::~StoreWriter() {
   if (blocks_) std::fclose(blocks_);
+  if (lock_fd_ >= 0) ::close(lock_fd_);
 }
 
 Status StoreWriter::Add(const EncodedBlock& b) {
@@ -100,7 +132,7 @@ Status StoreWriter::Finish(StoreSummary s, std::span<const OctreeNode> octree,
   blocks_ = nullptr;
   if (!ok) return Status::Error(blocks_path + ": write failed (disk full?)");
   if (std::rename(Tmp(blocks_path).c_str(), blocks_path.c_str()) != 0)
-    return Status::Error(blocks_path + ": cannot rename into place");
+    return Status::Error(blocks_path + ": cannot rename into place: " + std::strerror(errno));
 
   std::vector<uint8_t> body;
   Append(&body, octree.data(), octree.size());

@@ -43,6 +43,16 @@ std::vector<TestPlyElement> OddSquare() {
   return {vertex, edge, face, tail};
 }
 
+// A 2 x 3 grid of vertices (z = 0) as triangle strips, the way Stanford's tools write them:
+// one record, strips separated by -1 ({0 3 1 4 2 5}: four triangles, all facing +z).
+std::vector<TestPlyElement> StripGrid() {
+  TestPlyElement vertex{"vertex", {{"float", "x", ""}, {"float", "y", ""}, {"float", "z", ""}}, {}};
+  for (int i = 0; i < 6; ++i) vertex.rows.push_back({double(i % 3), double(i / 3), 0});
+  TestPlyElement strips{"tristrips", {{"int", "vertex_indices", "int"}},
+                        {{9, 3, 0, 4, 1, 5, 2, -1, 0, 1}}};  // ends with a strip too short
+  return {vertex, strips};
+}
+
 struct PlyResult {
   Status status;
   ModelInfo info;
@@ -54,6 +64,21 @@ PlyResult ReadPlyText(const ScratchFiles& files, const std::string& bytes,
   PlyResult result;
   result.status = ReadFile(files.Write(name, bytes), &result.sink, &result.info);
   return result;
+}
+
+// Triangle strips give their triangles, every one facing the same way (Stanford's
+// tristrips element used to be skipped without a word).
+TEST(PlyReader, TriangleStripsGiveTheirTrianglesFacingOneWay) {
+  ScratchFiles files;
+  for (const char* format : kFormats) {
+    SCOPED_TRACE(format);
+    PlyResult r = ReadPlyText(files, TestPlyWriter::Build(format, StripGrid()));
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
+    ASSERT_EQ(r.sink.triangles.size(), 4u);
+    for (const SourceTriangle& t : r.sink.triangles)
+      EXPECT_GT(Cross(t.p[1] - t.p[0], t.p[2] - t.p[0]).z, 0) << "turned over";
+    EXPECT_EQ(r.sink.triangles[1].p[0], (Vec3f{1, 1, 0}));  // (4 0 1): the second, turned
+  }
 }
 
 TEST(PlyReader, ReadsAnyLayoutInEveryFormatAlike) {

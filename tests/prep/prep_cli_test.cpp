@@ -12,6 +12,7 @@
 
 #include "common/base/temp_dir.h"
 #include "common/store/store_reader.h"
+#include "common/store/store_writer.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/test_dir.h"
 
@@ -177,6 +178,21 @@ TEST_F(PrepCliTest, AModelOutsideTheRangeFloatTracingWorksInIsRefused) {
     const ProcessResult r = Prep({triangle("ok.obj", size), "-o", dir_->File("c"), "-q"});
     EXPECT_EQ(r.exit_code, 0) << size << ": " << r.err;
   }
+}
+
+// Two converters writing one store shared its temporaries and left it corrupt, each saying
+// it had succeeded or failing with "cannot rename into place". The store's folder is locked
+// while it is written: a second writer is refused at once, naming the folder.
+TEST_F(PrepCliTest, TwoWritersOfOneStoreAreRefused) {
+  const std::string out = dir_->File("shared");
+  Expected<std::unique_ptr<store::StoreWriter>> writing = store::StoreWriter::Create(out);
+  ASSERT_TRUE(writing.ok()) << writing.status().message();
+  ExpectFailsNaming(Prep({"--generate", "sphere:1000", "-o", out, "-q"}),
+                    {out + ": another raystack-prep is writing this store now"});
+  writing->reset();  // that writer gone (as when its process ends), the store can be written
+  const ProcessResult r = Prep({"--generate", "sphere:1000", "-o", out, "-q"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(Info({out, "--verify"}).exit_code, 0);
 }
 
 TEST_F(PrepCliTest, MalformedObjNamesFileAndLine) {

@@ -4,6 +4,7 @@
 #include "common/store/store_reader.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <cstring>
 #include <filesystem>
@@ -318,6 +319,36 @@ TEST_F(StoreReaderTest, EmptyFilesAreRefused) {
     ASSERT_FALSE(s.ok()) << file;
     EXPECT_NE(s.status().message().find(file), std::string::npos) << s.status().message();
   }
+}
+
+// Only regular files are store files: a folder or a FIFO in a file's place is named as such
+// (a FIFO used to block the open forever: a hung render), and a store a killed raystack-prep
+// left without its index says it is incomplete.
+TEST_F(StoreReaderTest, AFolderOrFifoInAFilesPlaceOrAnInterruptedPrepIsNamed) {
+  namespace fs = std::filesystem;
+  for (const char* file : {kIndexFile, kOctreeFile, kBlocksFile}) {
+    SetUp();
+    const std::string at = path_ + "/" + file;
+    fs::remove(at);
+    fs::create_directory(at);
+    Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+    ASSERT_FALSE(s.ok()) << file;
+    EXPECT_NE(s.status().message().find(at + ": is a folder"), std::string::npos)
+        << s.status().message();
+    fs::remove(at);
+    ASSERT_EQ(mkfifo(at.c_str(), 0600), 0);
+    s = StoreReader::Open(path_);  // returns at once (before: blocked in open())
+    ASSERT_FALSE(s.ok()) << file;
+    EXPECT_NE(s.status().message().find(at + ": is not a regular file"), std::string::npos)
+        << s.status().message();
+  }
+  SetUp();
+  fs::rename(path_ + "/" + kBlocksFile, path_ + "/" + kBlocksFile + ".tmp");
+  fs::remove(path_ + "/" + kIndexFile);
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("the store is incomplete (a raystack-prep was interrupted?)"),
+            std::string::npos) << s.status().message();
 }
 
 // Direct reads (O_DIRECT) must be aligned to the device's blocks; blocks are not. Every block

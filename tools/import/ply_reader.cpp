@@ -41,6 +41,9 @@ class PlyReader {
   Status ReadVertices(const PlyElement& element);
   Status ReadFaces(const PlyElement& element);
   Status ReadFaceCorners(const PlyProperty& list);
+  Status ReadTriangleStrips(const PlyElement& element);
+  Status ReadStrip(const PlyProperty& list);
+  Status Corner(int64_t index, FanCorner* corner);
   Status SkipElement(const PlyElement& element);
   Status SkipProperty(const PlyProperty& property);
 
@@ -62,11 +65,19 @@ Status PlyReader::Read() {
   for (const PlyElement& element : header->elements) {
     if (element.name == "vertex") {
       RAYSTACK_RETURN_IF_ERROR(ReadVertices(element));
-    } else if (element.name == "face") {
+    } else if (element.name == "face" || element.name == "tristrips") {
       if (!vertices_)
-        return input_.LineError("PLY face element before the vertex element is not supported");
-      RAYSTACK_RETURN_IF_ERROR(ReadFaces(element));
+        return input_.LineError("PLY " + element.name +
+                                " element before the vertex element is not supported");
+      RAYSTACK_RETURN_IF_ERROR(element.name == "face" ? ReadFaces(element)
+                                                      : ReadTriangleStrips(element));
     } else {
+      // Other elements (edges, materials, ...) hold no triangles; one with a vertex index list
+      // might, so its leaving out is said.
+      if (element.Find("vertex_indices") >= 0 || element.Find("vertex_index") >= 0)
+        LOG_WARNING("import", "%s: element '%s' (%llu) ignored: only 'face' and 'tristrips' "
+                    "give triangles", input_.path().c_str(), element.name.c_str(),
+                    static_cast<unsigned long long>(element.count));
       RAYSTACK_RETURN_IF_ERROR(SkipElement(element));
     }
   }
@@ -173,24 +184,81 @@ Status PlyReader::ReadFaceCorners(const PlyProperty& list) {
                                     static_cast<long long>(count),
                                     static_cast<long long>(kMaxFaceVertices)));
   corners_.resize(static_cast<size_t>(count));
-  float record[VertexTable::kMaxFloatsPerVertex];
   for (FanCorner& corner : corners_) {
     int64_t index = 0;
     RAYSTACK_RETURN_IF_ERROR(values_->ReadInteger(list.type, &index));
-    if (index < 0 || static_cast<uint64_t>(index) >= vertices_->size())
-      return values_->Error(StrFormat("face index %lld out of range (file has %llu vertices)",
-                                      static_cast<long long>(index),
-                                      static_cast<unsigned long long>(vertices_->size())));
-    RAYSTACK_RETURN_IF_ERROR(vertices_->Get(static_cast<uint64_t>(index), record));
-    corner.p = {record[0], record[1], record[2]};
-    int next = 3;
-    corner.has_normal = layout_.has_normals;
-    if (corner.has_normal) {
-      corner.n = {record[next], record[next + 1], record[next + 2]};
-      next += 3;
+    RAYSTACK_RETURN_IF_ERROR(Corner(index, &corner));
+  }
+  return OkStatus();
+}
+
+// The corner of vertex `index` (checked against the vertex count).
+Status PlyReader::Corner(int64_t index, FanCorner* corner) {
+  if (index < 0 || static_cast<uint64_t>(index) >= vertices_->size())
+    return values_->Error(StrFormat("face index %lld out of range (file has %llu vertices)",
+                                    static_cast<long long>(index),
+                                    static_cast<unsigned long long>(vertices_->size())));
+  float record[VertexTable::kMaxFloatsPerVertex];
+  RAYSTACK_RETURN_IF_ERROR(vertices_->Get(static_cast<uint64_t>(index), record));
+  corner->p = {record[0], record[1], record[2]};
+  int next = 3;
+  corner->has_normal = layout_.has_normals;
+  if (corner->has_normal) {
+    corner->n = {record[next], record[next + 1], record[next + 2]};
+    next += 3;
+  }
+  corner->has_uv = layout_.has_uvs;
+  if (corner->has_uv) corner->uv[0] = record[next], corner->uv[1] = record[next + 1];
+  return OkStatus();
+}
+
+// A "tristrips" element (as Stanford's tools write it): each record a list of vertex indices,
+// strips separated by -1; each index past a strip's second makes a triangle with the two
+// before it, every other one turned over so that all face the same way.
+Status PlyReader::ReadTriangleStrips(const PlyElement& element) {
+  int list = element.Find("vertex_indices");
+  if (list < 0) list = element.Find("vertex_index");
+  if (list < 0) return input_.LineError("PLY tristrips element has no vertex_indices list");
+  const PlyProperty& indices = element.properties[static_cast<size_t>(list)];
+  if (!indices.is_list || !IsIntegerType(indices.type))
+    return input_.LineError("PLY " + indices.name + " must be a list of integers");
+  for (uint64_t i = 0; i < element.count; ++i) {
+    RAYSTACK_RETURN_IF_ERROR(values_->BeginRecord(element.name));
+    for (size_t p = 0; p < element.properties.size(); ++p) {
+      if (p == static_cast<size_t>(list)) RAYSTACK_RETURN_IF_ERROR(ReadStrip(indices));
+      else RAYSTACK_RETURN_IF_ERROR(SkipProperty(element.properties[p]));
     }
-    corner.has_uv = layout_.has_uvs;
-    if (corner.has_uv) corner.uv[0] = record[next], corner.uv[1] = record[next + 1];
+    RAYSTACK_RETURN_IF_ERROR(values_->EndRecord());
+  }
+  return OkStatus();
+}
+
+Status PlyReader::ReadStrip(const PlyProperty& list) {
+  int64_t count = 0;
+  RAYSTACK_RETURN_IF_ERROR(values_->ReadInteger(list.count_type, &count));
+  if (count < 0) return values_->Error(StrFormat("strip with %lld indices", static_cast<long long>(count)));
+  FanCorner window[3];  // the last two corners of the strip, and the new one
+  int64_t in_strip = 0;  // corners of the current strip so far
+  for (int64_t k = 0; k < count; ++k) {
+    int64_t index = 0;
+    RAYSTACK_RETURN_IF_ERROR(values_->ReadInteger(list.type, &index));
+    if (index == -1) {  // the next strip starts
+      in_strip = 0;
+      continue;
+    }
+    RAYSTACK_RETURN_IF_ERROR(Corner(index, &window[2]));
+    if (in_strip >= 2) {
+      ++info_->faces;
+      if (batcher_.WouldExceedLimit(1))
+        return values_->Error(StrFormat("more than %llu triangles",
+                                        static_cast<unsigned long long>(batcher_.max_triangles())));
+      corners_.assign({window[in_strip % 2 == 0 ? 0 : 1], window[in_strip % 2 == 0 ? 1 : 0],
+                       window[2]});
+      RAYSTACK_RETURN_IF_ERROR(batcher_.AddFan(corners_, kNoMaterial));
+    }
+    window[0] = window[1];
+    window[1] = window[2];
+    ++in_strip;
   }
   return OkStatus();
 }

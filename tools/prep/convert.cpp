@@ -64,6 +64,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     return Status::Error("give input files or a model to generate (not both)");
   if (args.target_block_bytes > args.max_block_bytes)
     return Status::Error("the target block size is above the cap");
+  RAYSTACK_RETURN_IF_ERROR(store::StoreWriter::CheckNotBeingWritten(args.output));
   const uint64_t budget = args.memory_limit_bytes;
   Expected<TempDir> temp = TempDir::Create(args.temp_dir);
   if (!temp.ok()) return temp.status();
