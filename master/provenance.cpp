@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "common/base/log.h"
+#include "common/store/block_codec.h"
 #include "common/store/format.h"
 
 namespace raystack::master {
@@ -50,6 +51,16 @@ std::string Provenance(const render::Scene& scene, size_t camera) {
   const render::IntegratorDesc& i = scene.integrator;
   text += StrFormat("integrator type %d max_depth %d spp %d seed %llu\n", static_cast<int>(i.type),
                     i.max_depth, i.spp, static_cast<unsigned long long>(i.seed));
+  // The record rides in every image's header: a scene of thousands of lights or materials
+  // keeps its first lines and a checksum of the whole, which tells scenes apart as well.
+  constexpr size_t kMaxBytes = 16 << 10;
+  if (text.size() > kMaxBytes) {
+    const uint64_t sum = store::Checksum(
+        {reinterpret_cast<const uint8_t*>(text.data()), text.size()});
+    const size_t cut = text.rfind('\n', kMaxBytes) + 1;
+    text = text.substr(0, cut) + StrFormat("... %zu bytes more; checksum of the whole %016llx\n",
+                                           text.size() - cut, static_cast<unsigned long long>(sum));
+  }
   return text;
 }
 

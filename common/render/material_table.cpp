@@ -69,13 +69,18 @@ MaterialTable MaterialTable::Build(std::span<const store::MaterialRecord> record
       table.materials_.push_back(MaterialFromMtl(record));
     }
   }
+  constexpr size_t kNamedUnused = 8;  // then a count: a scene may list thousands
+  size_t unused = 0;
   for (const auto& [name, material] : scene.overrides) {
-    if (!matched.count(name))
-      LOG_WARNING(kComponent,
-                  "%s: materials.%s: the store has no material of that name; the override is "
-                  "unused",
-                  scene.source.c_str(), name.c_str());
+    if (matched.count(name) || ++unused > kNamedUnused) continue;
+    LOG_WARNING(kComponent,
+                "%s: materials.%s: the store has no material of that name; the override is "
+                "unused",
+                scene.source.c_str(), name.c_str());
   }
+  if (unused > kNamedUnused)
+    LOG_WARNING(kComponent, "%s: %zu more material overrides name no material of the store",
+                scene.source.c_str(), unused - kNamedUnused);
   table.any_specular_ = table.default_.specular();
   table.any_emissive_ = table.default_.emissive();
   for (const Material& m : table.materials_) {
