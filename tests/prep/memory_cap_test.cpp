@@ -89,5 +89,24 @@ TEST(MemoryCap, ConvertsAModelLargerThanTheCap) {
   EXPECT_NE(info.out.find("all "), std::string::npos) << info.out;
 }
 
+// A --mem-limit above the cap would end in the OOM killer without a word: prep says so first
+// (and, at a budget that fits, says nothing).
+TEST(MemoryCap, ABudgetAboveTheCapIsWarnedAbout) {
+  std::string why;
+  const std::unique_ptr<MemoryCgroup> group = MemoryCgroup::CreateOwnChild("raystack-memwarn", &why);
+  if (!group) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
+  ASSERT_TRUE(group->Limit(kCapBytes)) << "cannot set the limit of " << group->path();
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok()) << dir.status().message();
+  for (const int mb : {1024, 128}) {
+    const ProcessResult r = RunProcess({kPrepBinary, "--generate", "sphere:1000", "--mem-limit",
+                                        std::to_string(mb), "-q", "-o", dir->File("s")},
+                                       dir->path(), group->Joiner());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.err.find("--mem-limit " + std::to_string(mb) + " MB is above the") !=
+                  std::string::npos, mb == 1024) << mb << ": " << r.err;
+  }
+}
+
 }  // namespace
 }  // namespace raystack::prep

@@ -5,10 +5,12 @@
 #include <charconv>
 #include <cstdio>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "common/base/log.h"
+#include "common/base/memory_available.h"
 #include "common/store/format.h"
 #include "tools/prep/convert.h"
 #include "tools/prep/generator.h"
@@ -140,7 +142,19 @@ double PeakRssMb() {
   return u.ru_maxrss / 1024.0;
 }
 
+// A budget above what this process may fill (the machine's available memory, or a cgroup
+// limit nearer) ends in the kernel's OOM killer, without a word from us: say so first.
+void WarnIfBudgetAboveMemory(uint64_t budget) {
+  const std::optional<uint64_t> room = MemoryAvailable();
+  if (room && budget > *room)
+    LOG_WARNING("prep", "--mem-limit %llu MB is above the %llu MB this process may fill now (the "
+                "memory available, or its cgroup's limit): the kernel may kill it; give a "
+                "smaller --mem-limit", static_cast<unsigned long long>(budget >> 20),
+                static_cast<unsigned long long>(*room >> 20));
+}
+
 int Run(const Args& args) {
+  WarnIfBudgetAboveMemory(args.convert.memory_limit_bytes);
   Expected<ConvertReport> converted = Convert(args.convert);
   if (!converted.ok()) {
     std::fprintf(stderr, "raystack-prep: error: %s\n", converted.status().message().c_str());
