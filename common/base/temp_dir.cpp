@@ -1,26 +1,67 @@
 #include "common/base/temp_dir.h"
 
+#include <unistd.h>
+
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <vector>
 
+#include "common/base/process_names.h"
+
 namespace raystack {
 
-Expected<TempDir> TempDir::Create(const std::string& parent) {
-  std::string base = parent;
-  if (base.empty()) {
-    const char* env = std::getenv("TMPDIR");
-    base = env && *env ? env : "/tmp";
-  }
-  std::string pattern = base + "/raystack-XXXXXX";
+namespace {
+
+std::string BaseFolder(const std::string& parent) {
+  if (!parent.empty()) return parent;
+  const char* env = std::getenv("TMPDIR");
+  return env && *env ? env : "/tmp";
+}
+
+Expected<std::string> MakeFolder(const std::string& base, const std::string& name) {
+  std::string pattern = base + "/" + name + "XXXXXX";
   std::vector<char> buf(pattern.begin(), pattern.end());
   buf.push_back('\0');
   if (!mkdtemp(buf.data()))
     return Status::Error("cannot create a temporary directory in " + base + ": " +
                          std::strerror(errno));
-  return TempDir(std::string(buf.data()));
+  return std::string(buf.data());
+}
+
+}  // namespace
+
+Expected<TempDir> TempDir::Create(const std::string& parent) {
+  Expected<std::string> made = MakeFolder(BaseFolder(parent), "raystack-");
+  if (!made.ok()) return made.status();
+  return TempDir(*made);
+}
+
+Expected<TempDir> TempDir::CreateOwned(const std::string& parent, const std::string& prefix,
+                                       int* removed) {
+  const std::string base = BaseFolder(parent);
+  const std::string own = prefix + "-" + HostName() + "-";
+  int count = 0;
+  std::error_code ec;
+  for (const std::filesystem::directory_entry& entry :
+       std::filesystem::directory_iterator(base, ec)) {
+    // PREFIX-HOST-PID-XXXXXX: a process id, then mkdtemp's six characters.
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(own, 0) != 0 || !entry.is_directory(ec)) continue;
+    const std::string rest = name.substr(own.size());
+    const size_t dash = rest.find('-');
+    if (dash == std::string::npos || dash == 0 || dash > 9 || rest.size() != dash + 7 ||
+        rest.find_first_not_of("0123456789") != dash)
+      continue;
+    if (!ProcessGone(std::strtol(rest.substr(0, dash).c_str(), nullptr, 10))) continue;
+    std::filesystem::remove_all(entry.path(), ec);
+    if (!ec) ++count;
+  }
+  if (removed) *removed = count;
+  Expected<std::string> made = MakeFolder(base, own + std::to_string(getpid()) + "-");
+  if (!made.ok()) return made.status();
+  return TempDir(*made);
 }
 
 TempDir::~TempDir() {

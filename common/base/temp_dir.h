@@ -11,6 +11,11 @@ class TempDir {
  public:
   // Creates a fresh directory under `parent` (default: $TMPDIR or /tmp).
   static Expected<TempDir> Create(const std::string& parent = "");
+  // The same, named PREFIX-HOST-PID-XXXXXX, after removing the folders of that shape a
+  // process of this machine that is gone left there (killed: it could not remove its own).
+  // `*removed` (optional) counts them.
+  static Expected<TempDir> CreateOwned(const std::string& parent, const std::string& prefix,
+                                       int* removed = nullptr);
   TempDir(TempDir&& other) noexcept : path_(std::move(other.path_)) { other.path_.clear(); }
   TempDir& operator=(TempDir&&) = delete;
   TempDir(const TempDir&) = delete;

@@ -16,25 +16,12 @@
 #include <utility>
 
 #include "common/base/log.h"
+#include "common/base/process_names.h"
 
 namespace raystack::image {
 namespace {
 
 namespace fs = std::filesystem;
-
-// This machine's name, in temporaries' names: a process id means something on its own host only
-// (the folder may be shared by several machines).
-const std::string& HostName() {
-  static const std::string name = [] {
-    char buffer[256] = {};
-    if (gethostname(buffer, sizeof buffer - 1) != 0 || buffer[0] == '\0') return std::string("host");
-    std::string n(buffer);
-    for (char& c : n)
-      if (c == '/' || c == '\0') c = '_';
-    return n;
-  }();
-  return name;
-}
 
 bool AllDigits(std::string_view s) {
   return !s.empty() && s.find_first_not_of("0123456789") == std::string_view::npos;
@@ -105,8 +92,7 @@ int RemoveStaleTemporaries(const std::string& path) {
         !AllDigits(rest.substr(dash + 1)) || dash > 9)
       continue;
     const long pid = std::strtol(std::string(rest.substr(0, dash)).c_str(), nullptr, 10);
-    if (pid <= 0) continue;
-    if (kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) continue;  // alive, or not ours to judge
+    if (!ProcessGone(pid)) continue;  // alive, or not ours to judge
     if (unlink(entry.path().c_str()) == 0) {
       ++removed;
       LOG_INFO("render", "removed %s, left by an interrupted run", entry.path().c_str());

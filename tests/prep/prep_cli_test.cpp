@@ -2,14 +2,18 @@
 // problem, statistics after a good run, and --verify catching a damaged block.
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <thread>
 
+#include "common/base/process_names.h"
 #include "common/base/temp_dir.h"
 #include "common/store/store_reader.h"
 #include "common/store/store_writer.h"
@@ -193,6 +197,31 @@ TEST_F(PrepCliTest, TwoWritersOfOneStoreAreRefused) {
   const ProcessResult r = Prep({"--generate", "sphere:1000", "-o", out, "-q"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(Info({out, "--verify"}).exit_code, 0);
+}
+
+// A killed prep leaves its work folder (bucket files: up to gigabytes); the next prep with the
+// same temporary folder removes those of processes gone from this machine, and nothing else.
+TEST_F(PrepCliTest, WorkFoldersOfKilledPrepsAreRemoved) {
+  namespace fs = std::filesystem;
+  const std::string temp = dir_->File("temp");
+  fs::create_directory(temp);
+  const pid_t child = fork();
+  if (child == 0) _exit(0);
+  ASSERT_GT(child, 0);
+  ASSERT_EQ(waitpid(child, nullptr, 0), child);  // a process id now gone
+  const std::string own = "raystack-prep-" + HostName() + "-";
+  const std::string gone = own + std::to_string(child) + "-a1B2c3";
+  const std::vector<std::string> kept = {own + std::to_string(getpid()) + "-a1B2c3",  // alive
+                                         "raystack-prep-elsewhere-" + std::to_string(child) + "-a1B2c3",
+                                         own + std::to_string(child) + "-short", "other"};
+  for (const std::string& name : kept) fs::create_directory(temp + "/" + name);
+  fs::create_directory(temp + "/" + gone);
+  std::ofstream(temp + "/" + gone + "/bucket-0") << "bytes";
+  const ProcessResult r = Prep({"--generate", "sphere:1000", "--temp-dir", temp, "-o", dir_->File("s")});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(temp + "/" + gone));
+  EXPECT_NE(r.err.find("removed 1 work folder left by interrupted runs"), std::string::npos) << r.err;
+  for (const std::string& name : kept) EXPECT_TRUE(fs::exists(temp + "/" + name)) << name;
 }
 
 TEST_F(PrepCliTest, MalformedObjNamesFileAndLine) {

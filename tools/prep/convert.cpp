@@ -66,8 +66,11 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     return Status::Error("the target block size is above the cap");
   RAYSTACK_RETURN_IF_ERROR(store::StoreWriter::CheckNotBeingWritten(args.output));
   const uint64_t budget = args.memory_limit_bytes;
-  Expected<TempDir> temp = TempDir::Create(args.temp_dir);
+  int stale = 0;  // work folders of killed preps (their bucket files can be gigabytes)
+  Expected<TempDir> temp = TempDir::CreateOwned(args.temp_dir, "raystack-prep", &stale);
   if (!temp.ok()) return temp.status();
+  if (stale > 0)
+    LOG_INFO("prep", "removed %d work folder%s left by interrupted runs", stale, stale > 1 ? "s" : "");
   ConvertReport report;
 
   // 1. Read every input into one spool (RAM up to a fifth of the budget, then disk).
