@@ -201,11 +201,13 @@ TEST_F(OctreeBuilderTest, HugeTriangleAmongSmallOnesTerminates) {
   EXPECT_GT(blocks_with_huge, 1u) << "the huge triangle is clipped into many cells";
 }
 
-// Coincident triangles cannot be separated, but the builder tries for kMaxStall (4) levels
-// before it gives up, and each of those levels copies the whole stack into every child cell
-// the triangle crosses: ~21 leaves of the full stack here (736 blocks for 5001 triangles at
-// 145 per block). Bounded, but far above the 8 copies of ordinary input; 64 pins that bound.
-constexpr uint64_t kCoincidentCopies = 64;
+// Coincident triangles cannot be separated: the builder used to try for kMaxStall (4) levels,
+// copying the whole stack into every child cell the triangle crosses (302 references per
+// triangle for 30,000 copies), and a stack of triangles each shifted a little, which a split
+// never quite separates, was copied ~6 times per level down to the depth limit (600 of them
+// ran for minutes). Splits that separate nothing may now multiply the references by at most 4
+// (kMaxRunGrowth) before the cell becomes a leaf of several blocks: 1 to 3 per triangle here.
+constexpr uint64_t kCoincidentCopies = 4;
 
 // An OBJ with `copies` identical faces and one other triangle.
 void WriteCoincidentObj(const std::string& path, int copies) {
@@ -227,9 +229,55 @@ TEST_F(OctreeBuilderTest, CoincidentTrianglesTerminate) {
   StoreContents s;
   ReadStore(o.output, &s);
   ExpectBounded(*r, s, o.max_block_bytes, kCoincidentCopies);
+  EXPECT_LE(r->references, kCoincidentCopies * r->triangles);
   EXPECT_GE(r->multi_block_leaves, 1u);
   ExpectEveryIdPresent(s, 5001);
   ExpectBlocksMatchTheirCells(s);
+}
+
+// An OBJ of `count` copies of one triangle, copy i moved by i * `shift` along x and y: a stack
+// whose triangles all overlap, so no split separates them.
+void WriteShiftedStackObj(const std::string& path, int count, double shift) {
+  std::ofstream f(path);
+  f.precision(9);
+  for (int i = 0; i < count; ++i) {
+    const double d = i * shift;
+    f << "v " << d << " " << d << " 0\nv " << 1 + d << " " << d << " 0\nv " << d << " " << 1 + d
+      << " 0\nf " << 3 * i + 1 << " " << 3 * i + 2 << " " << 3 * i + 3 << "\n";
+  }
+}
+
+TEST_F(OctreeBuilderTest, InseparableTrianglesKeepFewReferences) {
+  // With the default block sizes, as the tester met them. Without the fix the copies gave 302
+  // references per triangle, and the stack did not finish (ctest's timeout ends it).
+  struct Case {
+    const char* name;
+    int count;
+    std::function<void(const std::string&)> write;
+  } cases[] = {
+      {"coincident", 30001, [](const std::string& p) { WriteCoincidentObj(p, 30000); }},
+      {"shifted-stack", 20000, [](const std::string& p) { WriteShiftedStackObj(p, 20000, 1e-5); }},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string obj = dir_->File(std::string(c.name) + ".obj");
+    c.write(obj);
+    ConvertOptions o = Options(c.name);
+    o.inputs = {obj};
+    Expected<ConvertReport> r = Convert(o);
+    ASSERT_TRUE(r.ok()) << r.status().message();
+    ASSERT_EQ(r->triangles, static_cast<uint64_t>(c.count));
+    EXPECT_LE(r->references, kCoincidentCopies * r->triangles);
+    StoreContents s;
+    ReadStore(o.output, &s);
+    ExpectBounded(*r, s, o.max_block_bytes, kCoincidentCopies);
+    ExpectEveryIdPresent(s, r->triangles);
+    ExpectBlocksMatchTheirCells(s);
+    EXPECT_EQ(ExpectCentroidsReachable(s), r->triangles);
+    const testing::ProcessResult info = testing::RunProcess(
+        {testing::kInfoBinary, o.output, "--verify"}, dir_->path());
+    EXPECT_EQ(info.exit_code, 0) << info.out << info.err;
+  }
 }
 
 TEST_F(OctreeBuilderTest, CoincidentTrianglesBeyondMemoryTerminate) {
@@ -247,6 +295,7 @@ TEST_F(OctreeBuilderTest, CoincidentTrianglesBeyondMemoryTerminate) {
   StoreContents s;
   ReadStore(o.output, &s);
   ExpectBounded(*r, s, o.max_block_bytes, kCoincidentCopies);
+  EXPECT_LE(r->references, kCoincidentCopies * r->triangles);
   ExpectEveryIdPresent(s, 300001);
   ExpectBlocksMatchTheirCells(s);
 }

@@ -3,6 +3,7 @@
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <memory>
@@ -28,6 +29,20 @@ constexpr int kMaxDepth = 24;
 constexpr double kAimOverTarget = 1.3;
 // Levels in a row where some child kept every triangle of its parent before we give up.
 constexpr int kMaxStall = 4;
+// A split whose largest child keeps a fraction k of the parent's references, while the
+// children together hold g times as many, separates nothing worth its copies when k * g
+// reaches this: coincident or stacked triangles give 3 to 8 (every child they cross keeps
+// them all, level after level: the references multiplied until kMaxStall, or forever for a
+// stack whose children each lose a few), while no split of the shared models or the
+// generated ones gave more than 1.23, even with 1 KB blocks.
+constexpr double kNoSeparation = 2.0;
+// How much a run of such splits in a row may multiply the references before the cell is made
+// a leaf. Not 1: a sheet lying across a splitting plane doubles at that one level (k = 1,
+// g = 2 when it is all in one quadrant) and separates below it.
+constexpr double kMaxRunGrowth = 4.0;
+// The references the whole build may make, per source triangle (ordinary models need ~1.1):
+// past it, cells stop splitting, so triangles that defeat kNoSeparation cannot fill the disk.
+constexpr uint64_t kMaxReferencesPerTriangle = 4;
 // Bucket files are written in pieces of this size (one being filled per bucket), with at
 // most this many pieces waiting for the writer thread.
 constexpr size_t kBucketWriteBytes = 64 << 10;
@@ -45,6 +60,22 @@ struct Ref {
   uint32_t tri;
   Bounds3f bounds;  // clipped to the current cell
 };
+
+// Whether splitting a cell of `parent` references into children holding `total`, the largest
+// `largest`, separates its triangles enough to pay for the copies (see kNoSeparation).
+bool SplitSeparates(uint64_t parent, uint64_t largest, uint64_t total) {
+  const double p = static_cast<double>(parent);
+  return static_cast<double>(largest) * static_cast<double>(total) < kNoSeparation * p * p;
+}
+
+// The growth of the references over the run of splits that separate nothing this split would
+// extend (`run_growth` so far; 1 again after a split that separates), or 0 when it would pass
+// kMaxRunGrowth: the cell is then a leaf.
+double RunGrowthAfter(double run_growth, uint64_t parent, uint64_t largest, uint64_t total) {
+  if (parent == 0 || SplitSeparates(parent, largest, total)) return 1.0;
+  const double grown = run_growth * static_cast<double>(total) / static_cast<double>(parent);
+  return grown > kMaxRunGrowth ? 0.0 : grown;
+}
 
 // The cube the octree starts from: the model's box grown to its largest side, plus a margin
 // so no triangle sits on the outer faces.
@@ -85,10 +116,11 @@ class Builder {
         return Status::Error("the model's box is too large for float coordinates (the octree's "
                              "cube around it overflows); keep coordinates within +-1e38");
     nodes_.push_back({0, 0, store::kOctreeEmpty, 0});
+    spare_references_ = (kMaxReferencesPerTriangle - 1) * source.triangles();
     if (source.triangles() <= bucket_capacity_) {
-      RAYSTACK_RETURN_IF_ERROR(BuildInMemory(source, 0, root_, 0));
+      RAYSTACK_RETURN_IF_ERROR(BuildInMemory(source, 0, root_, 0, 1.0));
     } else {
-      RAYSTACK_RETURN_IF_ERROR(Partition(source, 0, root_, 0, 0));
+      RAYSTACK_RETURN_IF_ERROR(Partition(source, 0, root_, 0, 0, 1.0));
     }
     RAYSTACK_RETURN_IF_ERROR(pipeline_.Drain());
     // Blocks got their ids as they were written: point each leaf at its range.
@@ -118,6 +150,22 @@ class Builder {
     return sizeof(store::BlockHeader) + bytes_per_triangle_ * static_cast<double>(triangles);
   }
 
+  // Takes the references a split adds (`total` for `parent`) from the build's budget; false,
+  // taking nothing, when they would overdraw it: the cell is then a leaf.
+  bool TakeReferences(uint64_t parent, uint64_t total) {
+    if (total <= parent) return true;
+    if (total - parent > spare_references_) {
+      if (!budget_spent_)
+        LOG_WARNING("prep", "references reached %llu per triangle: the cells left stop splitting, "
+                    "so some leaves hold several blocks",
+                    static_cast<unsigned long long>(kMaxReferencesPerTriangle));
+      budget_spent_ = true;
+      return false;
+    }
+    spare_references_ -= total - parent;
+    return true;
+  }
+
   uint32_t AddChildren() {
     const uint32_t first = static_cast<uint32_t>(nodes_.size());
     nodes_.resize(nodes_.size() + 8, {0, 0, store::kOctreeEmpty, 0});
@@ -125,8 +173,9 @@ class Builder {
   }
 
   // Loads a whole source (small model or one bucket) and subdivides it.
+  // `run_growth` as in Subdivide.
   Status BuildInMemory(const TriangleSource& source, uint32_t node, const Bounds3f& cell,
-                       int depth) {
+                       int depth, double run_growth) {
     // Jobs of the previous bucket may still be encoding from its triangles: the new bucket
     // gets its own arrays, and jobs share ownership of theirs (so loading this bucket overlaps
     // encoding the last one). The bucket budget allows for two in memory, so the one before
@@ -151,7 +200,7 @@ class Builder {
       const Bounds3f b = ClipTriangleToCell(bucket->triangles[i].p, cell);
       if (!b.Empty()) refs.push_back({i, b});
     }
-    Subdivide(node, cell, std::move(refs), depth, 0);
+    Subdivide(node, cell, std::move(refs), depth, 0, run_growth);
     bucket_.reset();
     return OkStatus();
   }
@@ -185,8 +234,10 @@ class Builder {
     return largest;
   }
 
+  // `stall` counts the levels in a row where some child kept every reference of its parent;
+  // `run_growth` is what the splits above that separated nothing multiplied them by.
   void Subdivide(uint32_t node, const Bounds3f& cell, std::vector<Ref> refs, int depth,
-                 int stall) {
+                 int stall, double run_growth) {
     max_depth_ = std::max(max_depth_, depth);
     if (refs.empty()) return;  // stays kOctreeEmpty
     const bool must_split = EstimateBytes(refs.size()) > options_.max_block_bytes;
@@ -197,25 +248,30 @@ class Builder {
 
     std::vector<Ref> kids[8];
     const size_t largest = SplitRefs(cell, refs, kids);
+    size_t filled = 0, total = 0;
+    for (const auto& k : kids) {
+      filled += !k.empty();
+      total += k.size();
+    }
+    // Triangles that no split separates (coincident, stacked) stay together in one leaf of
+    // several blocks, rather than being copied into every child level after level.
+    const double next_growth = RunGrowthAfter(run_growth, refs.size(), largest, total);
+    if (next_growth == 0.0) return MakeLeaf(node, cell, std::move(refs));
     if (!must_split) {
       // Leaf or split, whichever lands closer to the target size (in ratio).
-      size_t filled = 0, total = 0;
-      for (const auto& k : kids) {
-        filled += !k.empty();
-        total += k.size();
-      }
       const double mean_child = EstimateBytes(total / std::max<size_t>(filled, 1));
       const double leaf_error = std::fabs(std::log(EstimateBytes(refs.size()) / aim_bytes_));
       const double split_error = std::fabs(std::log(mean_child / aim_bytes_));
       if (leaf_error <= split_error) return MakeLeaf(node, cell, std::move(refs));
     }
+    if (!TakeReferences(refs.size(), total)) return MakeLeaf(node, cell, std::move(refs));
     const int next_stall = largest == refs.size() ? stall + 1 : 0;
     std::vector<Ref>().swap(refs);  // free before recursing
     const uint32_t first = AddChildren();
     nodes_[node] = {first, 0, store::kOctreeInner, 0};
     for (int i = 0; i < 8; ++i) {
       Subdivide(first + static_cast<uint32_t>(i), store::ChildCell(cell, i), std::move(kids[i]),
-                depth + 1, next_stall);
+                depth + 1, next_stall, next_growth);
     }
   }
 
@@ -243,9 +299,15 @@ class Builder {
   }
 
   // Splits a source too large for memory into the cells `levels` levels down, on disk.
-  // `stall` counts the levels in a row where one bucket kept every triangle of its source.
+  // `stall` counts the levels in a row where one bucket kept every triangle of its source;
+  // `run_growth` as in Subdivide.
   Status Partition(const TriangleSource& source, uint32_t node, const Bounds3f& cell, int depth,
-                   int stall);
+                   int stall, double run_growth);
+  // One partition pass into the cells `levels` levels down. Stops early, setting `*over`,
+  // once the buckets hold more than `max_references` triangles (the outcome does not depend
+  // on the threads: the count only grows, and its last addition sees the final total).
+  Status FillBuckets(const TriangleSource& source, uint32_t node, const Bounds3f& cell, int depth,
+                     int levels, uint64_t max_references, struct BucketFiles* files, bool* over);
   // A source too large for memory that splitting cannot separate (coincident triangles, or the
   // depth limit): one leaf of several blocks, streamed a block at a time.
   Status StreamLeaf(const TriangleSource& source, uint32_t node, const Bounds3f& cell, int depth);
@@ -258,6 +320,9 @@ class Builder {
   double aim_bytes_;
   uint64_t bucket_capacity_;
   Bounds3f root_;
+  // References splits may still add (see kMaxReferencesPerTriangle); warned once when spent.
+  uint64_t spare_references_ = 0;
+  bool budget_spent_ = false;
   std::vector<OctreeNode> nodes_;
   std::shared_ptr<const Bucket> bucket_;  // the one being subdivided
   // The last two buckets loaded (alive while jobs hold them).
@@ -301,6 +366,24 @@ class BucketSource : public TriangleSource {
   std::vector<const TriangleSpool*> spools_;
   Bounds3f bounds_;
   bool attributes_;
+};
+
+// The bucket files of a partition pass: one file per bucket and piece of the source.
+struct BucketFiles {
+  // Declared before the buckets, which flush through it until they are destroyed.
+  std::unique_ptr<WriteBehind> writer;
+  std::vector<std::vector<TriangleSpool>> pieces;
+
+  uint64_t Triangles(uint32_t bucket) const {
+    uint64_t n = 0;
+    for (const auto& piece : pieces) n += piece[bucket].triangles();
+    return n;
+  }
+  // Deletes the files (before a pass that reuses their names).
+  void Reset() {
+    pieces.clear();
+    writer.reset();
+  }
 };
 
 // Appends to `out` the index (in Morton order) of every level-`levels` cell below `cell` that
@@ -388,10 +471,11 @@ int PiecesWithinFileLimit(int pieces, uint32_t buckets) {
   return static_cast<int>(std::clamp<uint64_t>(fit, 1, static_cast<uint64_t>(pieces)));
 }
 
-// Appends each triangle of a batch to the bucket of every level-`levels` cell it overlaps.
+// Appends each triangle of a batch to the bucket of every level-`levels` cell it overlaps;
+// adds to `*appended` the triangles appended.
 Status ClassifyBatch(std::span<const PackedTriangle> tris, std::span<const TriangleAttributes> attrs,
                      const Bounds3f& cell, const CellGrid& grid, std::vector<uint32_t>* cells,
-                     std::vector<TriangleSpool>* buckets) {
+                     std::vector<TriangleSpool>* buckets, uint64_t* appended) {
   for (size_t i = 0; i < tris.size(); ++i) {
     const Bounds3f b = ClipTriangleToCell(tris[i].p, cell);
     if (b.Empty()) continue;
@@ -399,11 +483,13 @@ Status ClassifyBatch(std::span<const PackedTriangle> tris, std::span<const Trian
     uint32_t only;
     if (grid.CellOf(b, &only)) {  // most triangles: a lookup instead of a descent
       RAYSTACK_RETURN_IF_ERROR((*buckets)[only].Append(tris[i], a));
+      ++*appended;
       continue;
     }
     cells->clear();
     Classify(tris[i], b, cell, grid.levels, 0, cells);
     for (uint32_t c : *cells) RAYSTACK_RETURN_IF_ERROR((*buckets)[c].Append(tris[i], a));
+    *appended += cells->size();
   }
   return OkStatus();
 }
@@ -451,14 +537,9 @@ Status Builder::StreamLeaf(const TriangleSource& source, uint32_t node, const Bo
   return OkStatus();
 }
 
-Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bounds3f& cell,
-                          int depth, int stall) {
-  ++partition_passes_;
-  // Enough levels that an even spread fits in memory with room for unevenness; at most 3
-  // (512 open bucket files).
-  int levels = 1;
-  while (levels < 3 && source.triangles() / (1ull << (3 * levels)) > bucket_capacity_ / 4) ++levels;
-  if (depth + levels > kMaxDepth) levels = std::max(1, kMaxDepth - depth);
+Status Builder::FillBuckets(const TriangleSource& source, uint32_t node, const Bounds3f& cell,
+                            int depth, int levels, uint64_t max_references, BucketFiles* files,
+                            bool* over) {
   const uint32_t count = 1u << (3 * levels);
   const auto start = std::chrono::steady_clock::now();
   LOG_INFO("prep", "partitioning %llu triangles into %u buckets on disk (depth %d)",
@@ -468,28 +549,40 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
   // result does not depend on the number of threads. One writer thread copies the files'
   // buffers into the page cache (the kernel's work) behind them.
   const int parts = PiecesWithinFileLimit(std::clamp(options_.threads, 1, source.MaxParts()), count);
-  // Declared before the buckets, which flush through it until they are destroyed.
-  WriteBehind writer(kBucketWriteBytes / static_cast<size_t>(parts), kBucketWritesQueued);
-  std::vector<std::vector<TriangleSpool>> pieces(static_cast<size_t>(parts));
+  files->writer = std::make_unique<WriteBehind>(kBucketWriteBytes / static_cast<size_t>(parts),
+                                                kBucketWritesQueued);
+  auto& pieces = files->pieces;
+  pieces.resize(static_cast<size_t>(parts));
   for (int part = 0; part < parts; ++part) {
     pieces[part].reserve(count);
     for (uint32_t i = 0; i < count; ++i)
       pieces[part].emplace_back(StrFormat("%s/bucket-d%d-n%u-%u-%d.tmp", options_.temp_dir.c_str(),
                                           depth, node, i, part),
-                                writer);
+                                *files->writer);
   }
   const CellGrid grid(cell, levels);
   // The blocks' progress bar only moves once buckets are subdivided: this pass has its own.
   ProgressReporter progress(StrFormat("partitioning into %u buckets", count), source.triangles(),
                             "tri", options_.quiet);
   std::vector<Status> piece_status(static_cast<size_t>(parts));
+  std::vector<char> stopped(static_cast<size_t>(parts), 0);  // by the reference limit
+  std::atomic<uint64_t> references{0};
+  std::atomic<bool> too_many{false};
   auto classify = [&](int part) {
     std::vector<uint32_t> cells;
     piece_status[part] = source.ForEachPart(
         part, parts,
         [&](std::span<const PackedTriangle> tris, std::span<const TriangleAttributes> attrs) {
           progress.Update(tris.size());
-          return ClassifyBatch(tris, attrs, cell, grid, &cells, &pieces[part]);
+          uint64_t appended = 0;
+          if (!too_many) {
+            RAYSTACK_RETURN_IF_ERROR(
+                ClassifyBatch(tris, attrs, cell, grid, &cells, &pieces[part], &appended));
+            if (references.fetch_add(appended) + appended > max_references) too_many = true;
+          }
+          if (!too_many) return OkStatus();
+          stopped[part] = 1;
+          return Status::Error("too many references");  // ends this piece's scan
         });
     for (TriangleSpool& b : pieces[part])
       if (piece_status[part].ok()) piece_status[part] = b.Close();
@@ -498,7 +591,14 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
   for (int part = 1; part < parts; ++part) helpers.emplace_back(classify, part);
   classify(0);
   for (std::thread& h : helpers) h.join();
-  for (const Status& s : piece_status) RAYSTACK_RETURN_IF_ERROR(s);
+  for (int part = 0; part < parts; ++part)
+    if (!stopped[part]) RAYSTACK_RETURN_IF_ERROR(piece_status[part]);
+  *over = too_many;
+  if (*over) {
+    LOG_INFO("prep", "partition stopped: the buckets would hold more than %llu triangles",
+             static_cast<unsigned long long>(max_references));
+    return OkStatus();
+  }
   progress.Done();
   uint64_t bucket_bytes = 0;
   for (const auto& piece : pieces)
@@ -506,12 +606,53 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
   LOG_INFO("prep", "partitioned in %.1f s on %d threads (%.2f GB of bucket files)",
            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), parts,
            static_cast<double>(bucket_bytes) / 1e9);
+  return OkStatus();
+}
+
+Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bounds3f& cell,
+                          int depth, int stall, double run_growth) {
+  ++partition_passes_;
+  // Enough levels that an even spread fits in memory with room for unevenness; at most 3
+  // (512 open bucket files).
+  int levels = 1;
+  while (levels < 3 && source.triangles() / (1ull << (3 * levels)) > bucket_capacity_ / 4) ++levels;
+  if (depth + levels > kMaxDepth) levels = std::max(1, kMaxDepth - depth);
+  // The buckets may hold the source and what is left of the reference budget. Past that, one
+  // level may still do (a triangle reaches at most 8 of its cells, not 512); if even that is
+  // over, the cell is a leaf.
+  const uint64_t max_references = source.triangles() + spare_references_;
+  BucketFiles files;
+  for (bool over = true; over;) {
+    RAYSTACK_RETURN_IF_ERROR(
+        FillBuckets(source, node, cell, depth, levels, max_references, &files, &over));
+    if (!over) break;
+    files.Reset();
+    if (levels == 1) return StreamLeaf(source, node, cell, depth);
+    levels = 1;
+  }
+  const uint32_t count = 1u << (3 * levels);
+  uint64_t largest = 0, total = 0;
+  for (uint32_t i = 0; i < count; ++i) {
+    largest = std::max(largest, files.Triangles(i));
+    total += files.Triangles(i);
+  }
+  // As in Subdivide: triangles the split does not separate stay in one leaf.
+  const double next_growth = RunGrowthAfter(run_growth, source.triangles(), largest, total);
+  if (next_growth == 0.0) {
+    files.Reset();
+    return StreamLeaf(source, node, cell, depth);
+  }
+  // The budget covers `total`: max_references left room for it.
+  const bool taken = TakeReferences(source.triangles(), total);
+  CHECK(taken);
+  auto& pieces = files.pieces;
 
   // Walk the levels in Morton order, creating inner nodes; buckets become subtrees.
   struct Walk {
     Builder* self;
     std::vector<std::vector<TriangleSpool>>* pieces;
     int levels, base_depth, stall;
+    double run_growth;
     uint64_t source_triangles;
     Status Go(uint32_t n, const Bounds3f& c, int level, uint32_t morton) {
       if (level == levels) {
@@ -529,10 +670,10 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
         // again and again, one level deeper each time, forever.
         const int next_stall = triangles >= source_triangles ? stall + levels : 0;
         Status s = triangles <= self->bucket_capacity_
-                       ? self->BuildInMemory(sub, n, c, depth)
+                       ? self->BuildInMemory(sub, n, c, depth, run_growth)
                    : depth >= kMaxDepth || next_stall >= kMaxStall
                        ? self->StreamLeaf(sub, n, c, depth)
-                       : self->Partition(sub, n, c, depth, next_stall);
+                       : self->Partition(sub, n, c, depth, next_stall, run_growth);
         for (auto& piece : *pieces) piece[morton].Clear();
         return s;
       }
@@ -547,7 +688,7 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
       if (!any) self->nodes_[n] = {0, 0, store::kOctreeEmpty, 0};
       return OkStatus();
     }
-  } walk{this, &pieces, levels, depth, stall, source.triangles()};
+  } walk{this, &pieces, levels, depth, stall, next_growth, source.triangles()};
   return walk.Go(node, cell, 0, 0);
 }
 

@@ -13,8 +13,10 @@
 // Subdivision stops at a cell whose block size estimate is closer (in ratio) to the target
 // than its children's mean would be. The cap is never exceeded: the encoding pipeline splits
 // any block that comes out above it. A cell that cannot be split (all triangles at one point,
-// depth limit) becomes a leaf with several blocks, so depth and block count stay bounded on
-// degenerate input.
+// depth limit, or splits that copy the triangles into every child without separating them,
+// as coincident or stacked ones) becomes a leaf with several blocks, and the references stay
+// under 4 per source triangle (a partition pass that would pass that stops early), so depth,
+// block count and temporary disk stay bounded on degenerate input.
 
 #include <cstdint>
 #include <functional>
