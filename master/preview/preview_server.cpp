@@ -12,6 +12,7 @@
 #include <random>
 #include <string_view>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <boost/asio.hpp>
@@ -81,6 +82,35 @@ bool IsLoopbackHost(std::string_view host) {
   return !ec && a.is_loopback();
 }
 
+// A place in a bounded count of things held (connections), given back when its holder goes.
+// The count is shared with the holders: a handler dropped with the io_context, after the
+// server has gone, still gives its place back.
+class Slot {
+ public:
+  using Count = std::shared_ptr<std::atomic<int>>;
+
+  Slot() = default;
+  // A place in `count`, or none (false) when it already holds `max`. One thread takes places.
+  static Slot Take(const Count& count, int max) {
+    if (count->load() >= max) return Slot();
+    count->fetch_add(1);
+    return Slot(count);
+  }
+  Slot(Slot&& other) noexcept = default;  // leaves `other` empty
+  Slot& operator=(Slot&& other) noexcept {
+    Slot(std::move(other)).count_.swap(count_);
+    return *this;
+  }
+  ~Slot() {
+    if (count_) count_->fetch_sub(1);
+  }
+  explicit operator bool() const { return count_ != nullptr; }
+
+ private:
+  explicit Slot(Count count) : count_(std::move(count)) {}
+  Count count_;
+};
+
 }  // namespace
 
 class PreviewServer::Impl {
@@ -89,7 +119,7 @@ class PreviewServer::Impl {
   class Request;
 
   Impl(const ServerOptions& options, const asio::ip::address& address)
-      : options_(options), acceptor_(ioc_), tick_(ioc_) {
+      : options_(options), acceptor_(ioc_), accept_retry_(ioc_), tick_(ioc_) {
     if (!address.is_loopback()) token_ = RandomToken();
     // 0.0.0.0 or :: is no address to open: name this machine instead.
     bind_text_ = address.is_unspecified() ? asio::ip::host_name()
@@ -130,10 +160,11 @@ class PreviewServer::Impl {
     asio::post(ioc_, [this] {
       error_code ec;
       acceptor_.close(ec);
+      accept_retry_.cancel();
       tick_.cancel();
       CloseViewers();
       // What is left (requests being read, handlers of closed sockets) is dropped with the
-      // io_context; none of it refers to the server.
+      // io_context; none of it refers to the server (their slots share only the count).
       ioc_.stop();
     });
     thread_.join();
@@ -198,7 +229,7 @@ class PreviewServer::Impl {
 
   ServerCounters counters() const {
     return {snapshots_.load(), frames_sent_.load(), frames_skipped_.load(), refused_.load(),
-            viewers_.load()};
+            accept_failures_.load(), viewers_.load(), connections_->load()};
   }
 
   uint16_t port() const { return port_; }
@@ -233,6 +264,8 @@ class PreviewServer::Impl {
 
  private:
   void Accept();
+  void Accepted(tcp::socket socket);
+  void AcceptFailed(const error_code& ec);
   void ArmTick() {
     // Copying the film holds its lock (a merge waits meanwhile): on a large film, refresh
     // less often, so that copies hold it at most 1/kMaxCopyShare of the time.
@@ -253,6 +286,7 @@ class PreviewServer::Impl {
   ServerOptions options_;
   asio::io_context ioc_{1};
   tcp::acceptor acceptor_;
+  asio::steady_timer accept_retry_;
   asio::steady_timer tick_;
   std::thread thread_;
   std::string token_, bind_text_;
@@ -269,7 +303,9 @@ class PreviewServer::Impl {
   PreviewStatus status_;
   bool status_dirty_ = false;
   std::atomic<uint64_t> snapshots_{0}, frames_sent_{0}, frames_skipped_{0}, refused_{0};
+  std::atomic<uint64_t> accept_failures_{0};
   std::atomic<int> viewers_{0};
+  const Slot::Count connections_ = std::make_shared<std::atomic<int>>(0);
 
   // The server's thread only.
   static constexpr int kMaxCopyShare = 20;
@@ -277,6 +313,7 @@ class PreviewServer::Impl {
   std::vector<std::shared_ptr<Viewer>> viewers_list_;
   std::shared_ptr<const FilmSnapshot> latest_;
   std::shared_ptr<const std::string> latest_status_;
+  bool said_full_ = false, said_accept_failed_ = false;  // each warned of once
 };
 
 // One WebSocket viewer. Sends the newest status and frame, one message at a time; a message
@@ -284,8 +321,9 @@ class PreviewServer::Impl {
 // queued). Reads the viewer's exposure ("exposure EV").
 class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> {
  public:
-  Viewer(tcp::socket socket, Impl* server)
-      : ws_(std::move(socket)), server_(server), exposure_(server->exposure()) {}
+  Viewer(tcp::socket socket, Slot connection, Impl* server)
+      : connection_(std::move(connection)), ws_(std::move(socket)), server_(server),
+        exposure_(server->exposure()) {}
 
   void Start(http::request<http::empty_body> req) {
     websocket::stream_base::timeout timeout{};
@@ -372,6 +410,7 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
     server_->RemoveViewer(this);
   }
 
+  Slot connection_;  // before ws_: given back once its socket is closed
   websocket::stream<beast::tcp_stream> ws_;
   Impl* server_;
   float exposure_;
@@ -385,7 +424,8 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
 // One HTTP request: the page, the stream's upgrade, or a refusal; then the connection closes.
 class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request> {
  public:
-  Request(tcp::socket socket, Impl* server) : stream_(std::move(socket)), server_(server) {}
+  Request(tcp::socket socket, Slot connection, Impl* server)
+      : connection_(std::move(connection)), stream_(std::move(socket)), server_(server) {}
 
   void Start() {
     parser_.header_limit(kMaxRequestBytes);
@@ -419,7 +459,8 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
     if (path == "/ws" && websocket::is_upgrade(req)) {
       if (server_->Full()) return Respond(http::status::service_unavailable, "too many viewers\n");
       stream_.expires_never();  // the stream has timeouts of its own
-      std::make_shared<Viewer>(stream_.release_socket(), server_)->Start(std::move(req));
+      std::make_shared<Viewer>(stream_.release_socket(), std::move(connection_), server_)
+          ->Start(std::move(req));
       return;
     }
     Respond(http::status::not_found, "not found\n");
@@ -449,6 +490,7 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
     });
   }
 
+  Slot connection_;  // before stream_: given back once its socket is closed
   beast::tcp_stream stream_;
   Impl* server_;
   beast::flat_buffer buffer_{kMaxRequestBytes};
@@ -459,8 +501,39 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
 void PreviewServer::Impl::Accept() {
   acceptor_.async_accept([this](const error_code& ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted) return;  // closing
-    if (!ec) std::make_shared<Request>(std::move(socket), this)->Start();
+    if (ec) return AcceptFailed(ec);
+    Accepted(std::move(socket));
     Accept();
+  });
+}
+
+// Every connection takes a file descriptor until it closes, in whatever state it is: past
+// kMaxConnections a new one is closed at once, so that clients (idle ones are kept up to
+// kRequestTimeout) never take the descriptors the render needs to write its image.
+void PreviewServer::Impl::Accepted(tcp::socket socket) {
+  Slot slot = Slot::Take(connections_, kMaxConnections);
+  if (!slot) {
+    CountRefused();
+    if (!std::exchange(said_full_, true))
+      LOG_WARNING("preview", "%d connections open, the most the preview holds: further ones are "
+                  "closed at once (counted as refused)", kMaxConnections);
+    error_code ignored;
+    socket.close(ignored);
+    return;
+  }
+  std::make_shared<Request>(std::move(socket), std::move(slot), this)->Start();
+}
+
+// The connection that failed (out of file descriptors, most likely) is still waiting, so
+// accepting again at once would fail again at once, and spin: wait a little first.
+void PreviewServer::Impl::AcceptFailed(const error_code& ec) {
+  accept_failures_.fetch_add(1);
+  if (!std::exchange(said_accept_failed_, true))
+    LOG_WARNING("preview", "cannot accept a connection: %s; trying again every %d ms",
+                ec.message().c_str(), kAcceptRetryMs);
+  accept_retry_.expires_after(std::chrono::milliseconds(kAcceptRetryMs));
+  accept_retry_.async_wait([this](const error_code& wait_ec) {
+    if (!wait_ec) Accept();
   });
 }
 

@@ -3,10 +3,16 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <chrono>
 #include <cstring>
+#include <filesystem>
+#include <functional>
 #include <thread>
+#include <vector>
 
 #include "common/image/png_writer.h"
 #include "master/preview/preview_frame.h"
@@ -18,6 +24,10 @@ namespace {
 using testing::Get;
 using testing::StatusOf;
 using testing::WsViewer;
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+using tcp = asio::ip::tcp;
 
 std::unique_ptr<PreviewServer> StartOn(const std::string& bind) {
   ServerOptions options;
@@ -37,6 +47,23 @@ void FillFilm(render::Film* film, uint32_t n, float v) {
     batch[i].rgb[0] = batch[i].rgb[1] = batch[i].rgb[2] = v;
   }
   film->Merge(batch);
+}
+
+// Waits until `done` holds (true) or 10 s passed (false).
+bool WaitUntil(const std::function<bool()>& done) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > give_up) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return true;
+}
+
+// File descriptors this process has open (the directory's own included, always the same).
+int OpenFds() {
+  int n = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) ++n;
+  return n;
 }
 
 TEST(PreviewServer, ServesThePageAndNothingElse) {
@@ -109,6 +136,69 @@ TEST(PreviewServer, BadAddressesAreErrorsNamingThem) {
   ASSERT_FALSE(taken.ok());
   EXPECT_NE(taken.status().message().find("127.0.0.1:" + std::to_string(first->port())),
             std::string::npos) << taken.status().message();
+}
+
+// Idle connections (nothing ever sent) are each kept until the request timeout: past
+// kMaxConnections the server closes new ones at once, so that clients cannot take the file
+// descriptors the render needs to write its image; it serves again once they have gone.
+TEST(PreviewServer, HoldsAtMostkMaxConnectionsWhateverTheyDo) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  asio::io_context ioc;
+  tcp::socket(ioc).open(tcp::v4());  // the client's own descriptors (epoll's), before counting
+  const int fds_before = OpenFds();
+  constexpr int kClients = 3 * kMaxConnections;
+  std::vector<tcp::socket> idle;
+  for (int i = 0; i < kClients; ++i) {
+    idle.emplace_back(ioc);
+    idle.back().connect({asio::ip::make_address("127.0.0.1"), server->port()});
+  }
+  EXPECT_TRUE(WaitUntil([&] { return server->counters().refused >= kClients - kMaxConnections; }))
+      << server->counters().refused << " refused";
+  const ServerCounters c = server->counters();
+  EXPECT_EQ(c.connections, kMaxConnections);
+  EXPECT_EQ(c.refused, static_cast<uint64_t>(kClients - kMaxConnections));
+  // The server's own side of them: the ones it holds, the others closed.
+  EXPECT_LE(OpenFds() - fds_before - kClients, kMaxConnections);
+  EXPECT_EQ(Get(server->port(), "/"), -1) << "full: closed without an answer";
+  idle.clear();
+  EXPECT_TRUE(WaitUntil([&] { return server->counters().connections == 0; }));
+  EXPECT_EQ(Get(server->port(), "/"), 200);
+}
+
+// Out of file descriptors, an accept fails and the connection stays pending: the server tries
+// again every kAcceptRetryMs instead of at once (which spun a core), and serves it once
+// descriptors are free again.
+TEST(PreviewServer, AfterAFailedAcceptItWaitsBeforeTheNext) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  asio::io_context ioc;
+  tcp::socket pending(ioc);
+  pending.open(tcp::v4());  // its descriptor now: connecting needs none
+  rlimit normal{};
+  ASSERT_EQ(getrlimit(RLIMIT_NOFILE, &normal), 0);
+  const int lowest_free = dup(0);
+  ASSERT_GE(lowest_free, 0);
+  close(lowest_free);
+  rlimit none_free = normal;
+  none_free.rlim_cur = static_cast<rlim_t>(lowest_free);
+  ASSERT_EQ(setrlimit(RLIMIT_NOFILE, &none_free), 0);
+  beast::error_code ec;
+  pending.connect({asio::ip::make_address("127.0.0.1"), server->port()}, ec);
+  constexpr int kStarvedMs = 1000;
+  std::this_thread::sleep_for(std::chrono::milliseconds(kStarvedMs));
+  ASSERT_EQ(setrlimit(RLIMIT_NOFILE, &normal), 0);
+  ASSERT_FALSE(ec) << ec.message();
+  const uint64_t failures = server->counters().accept_failures;
+  EXPECT_GE(failures, 1u);
+  EXPECT_LE(failures, static_cast<uint64_t>(kStarvedMs / kAcceptRetryMs + 2));
+  const std::string get = "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n";
+  asio::write(pending, asio::buffer(get), ec);
+  beast::flat_buffer buffer;
+  http::response<http::string_body> res;
+  http::read(pending, buffer, res, ec);
+  ASSERT_FALSE(ec) << ec.message();
+  EXPECT_EQ(res.result_int(), 200u);
 }
 
 TEST(PreviewServer, AViewerGetsTheStatusAndTheCurrentImageAndCanSetItsExposure) {
