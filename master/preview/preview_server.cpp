@@ -82,7 +82,7 @@ bool IsLoopbackHost(std::string_view host) {
   return !ec && a.is_loopback();
 }
 
-// A place in a bounded count of things held (connections), given back when its holder goes.
+// A place in a bounded count of things held (connections, viewers), given back when its holder goes.
 // The count is shared with the holders: a handler dropped with the io_context, after the
 // server has gone, still gives its place back.
 class Slot {
@@ -255,7 +255,9 @@ class PreviewServer::Impl {
   void CountRefused() { refused_.fetch_add(1); }
   void CountSent() { frames_sent_.fetch_add(1); }
   void CountSkipped() { frames_skipped_.fetch_add(1); }
-  bool Full() const { return viewers_.load() >= kMaxViewers; }
+  // A viewer's place from the moment its upgrade is accepted: counting only the handshakes
+  // done let any number of simultaneous upgrades through. None (false) when kMaxViewers hold.
+  Slot TakeViewerSlot() { return Slot::Take(viewer_slots_, kMaxViewers); }
   const Srgb8Encoder& encoder() const { return encoder_; }
   float exposure() const { return options_.exposure; }
 
@@ -306,6 +308,7 @@ class PreviewServer::Impl {
   std::atomic<uint64_t> accept_failures_{0};
   std::atomic<int> viewers_{0};
   const Slot::Count connections_ = std::make_shared<std::atomic<int>>(0);
+  const Slot::Count viewer_slots_ = std::make_shared<std::atomic<int>>(0);  // open or opening
 
   // The server's thread only.
   static constexpr int kMaxCopyShare = 20;
@@ -321,9 +324,9 @@ class PreviewServer::Impl {
 // queued). Reads the viewer's exposure ("exposure EV").
 class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> {
  public:
-  Viewer(tcp::socket socket, Slot connection, Impl* server)
-      : connection_(std::move(connection)), ws_(std::move(socket)), server_(server),
-        exposure_(server->exposure()) {}
+  Viewer(tcp::socket socket, Slot connection, Slot viewer, Impl* server)
+      : connection_(std::move(connection)), viewer_(std::move(viewer)), ws_(std::move(socket)),
+        server_(server), exposure_(server->exposure()) {}
 
   void Start(http::request<http::empty_body> req) {
     websocket::stream_base::timeout timeout{};
@@ -407,10 +410,12 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
   void Drop() {
     if (!open_) return;
     Close();
+    viewer_ = Slot();  // its handlers may linger a moment; its place is free at once
     server_->RemoveViewer(this);
   }
 
   Slot connection_;  // before ws_: given back once its socket is closed
+  Slot viewer_;      // given back when dropped, or with the viewer if its handshake fails
   websocket::stream<beast::tcp_stream> ws_;
   Impl* server_;
   float exposure_;
@@ -457,9 +462,11 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
     if (!server_->Allowed(req, query)) return Respond(http::status::forbidden, "forbidden\n");
     if (path == "/") return Respond(http::status::ok, std::string(PageHtml()), "text/html; charset=utf-8");
     if (path == "/ws" && websocket::is_upgrade(req)) {
-      if (server_->Full()) return Respond(http::status::service_unavailable, "too many viewers\n");
+      Slot viewer = server_->TakeViewerSlot();
+      if (!viewer) return Respond(http::status::service_unavailable, "too many viewers\n");
       stream_.expires_never();  // the stream has timeouts of its own
-      std::make_shared<Viewer>(stream_.release_socket(), std::move(connection_), server_)
+      std::make_shared<Viewer>(stream_.release_socket(), std::move(connection_), std::move(viewer),
+                               server_)
           ->Start(std::move(req));
       return;
     }

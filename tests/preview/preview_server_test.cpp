@@ -201,6 +201,50 @@ TEST(PreviewServer, AfterAFailedAcceptItWaitsBeforeTheNext) {
   EXPECT_EQ(res.result_int(), 200u);
 }
 
+// Many upgrades at once: a viewer counts from the moment its upgrade is accepted, so at most
+// kMaxViewers get 101, the others 503 (while the cap counted only finished handshakes, all
+// the upgrades that arrived during one got 101); a place is free again once one closes.
+TEST(PreviewServer, SimultaneousUpgradesGetNoMoreThankMaxViewers) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  // A large final image: each new viewer's first frame is encoded on the server's thread as
+  // its handshake ends, long enough for the other upgrades to arrive meanwhile.
+  render::Film film(1024, 1024);
+  FillFilm(&film, 0, 0.5f);
+  server->AttachFilm(&film, 0);
+  server->DetachFilm();
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // its Refresh, on the server's thread
+  constexpr int kClients = kMaxConnections - 4;
+  static_assert(kClients > 2 * kMaxViewers);
+  const std::string upgrade = "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
+                              "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                              "Sec-WebSocket-Version: 13\r\n\r\n";
+  asio::io_context ioc;
+  std::vector<tcp::socket> clients;
+  for (int i = 0; i < kClients; ++i) {
+    clients.emplace_back(ioc);
+    clients.back().connect({asio::ip::make_address("127.0.0.1"), server->port()});
+  }
+  for (tcp::socket& c : clients) asio::write(c, asio::buffer(upgrade));
+  int switched = 0, unavailable = 0;
+  for (tcp::socket& c : clients) {
+    std::string head;
+    beast::error_code ec;
+    asio::read_until(c, asio::dynamic_buffer(head), "\r\n\r\n", ec);
+    ASSERT_FALSE(ec) << ec.message();
+    if (head.starts_with("HTTP/1.1 101 ")) ++switched;
+    if (head.starts_with("HTTP/1.1 503 ")) ++unavailable;
+  }
+  EXPECT_EQ(switched, kMaxViewers);
+  EXPECT_EQ(unavailable, kClients - kMaxViewers);
+  EXPECT_TRUE(WaitUntil([&] { return server->counters().viewers == kMaxViewers; }));
+  WsViewer late, later;
+  EXPECT_FALSE(late.Open(server->port()));
+  clients.clear();
+  EXPECT_TRUE(WaitUntil([&] { return server->counters().viewers == 0; }));
+  EXPECT_TRUE(later.Open(server->port()));
+}
+
 TEST(PreviewServer, AViewerGetsTheStatusAndTheCurrentImageAndCanSetItsExposure) {
   auto server = StartOn("127.0.0.1");
   ASSERT_TRUE(server);
