@@ -321,7 +321,7 @@ class PreviewServer::Impl {
 
 // One WebSocket viewer. Sends the newest status and frame, one message at a time; a message
 // that arrives while one is being written replaces the one waiting (frames are skipped, never
-// queued). Reads the viewer's exposure ("exposure EV").
+// queued). Reads the viewer's exposure ("exposure EV"), applied at the next tick.
 class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> {
  public:
   Viewer(tcp::socket socket, Slot connection, Slot viewer, Impl* server)
@@ -356,6 +356,14 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
     pending_status_ = std::move(status);
     Pump();
   }
+  // On every tick: a changed exposure re-sends the frame on show (unless a newer one, which
+  // will have it, is waiting). So a viewer costs at most one encoding per tick however often
+  // it sends its exposure; the latest value wins.
+  void ApplyExposure() {
+    if (!exposure_changed_ || pending_frame_ || !shown_) return;
+    pending_frame_ = shown_;
+    Pump();
+  }
   void Close() {
     open_ = false;
     error_code ec;
@@ -375,6 +383,7 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
     } else if (pending_frame_) {
       shown_ = std::move(pending_frame_);
       EncodeFrame(*shown_, exposure_, server_->encoder(), &out_);
+      exposure_changed_ = false;
       ws_.binary(true);
       writing_ = true;
       ws_.async_write(asio::buffer(out_), [self = shared_from_this()](const error_code& ec, size_t) {
@@ -396,7 +405,7 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
       self->Read();
     });
   }
-  // "exposure EV": re-send the frame on show at the viewer's exposure.
+  // "exposure EV": noted only; re-encoding here cost a full frame per message.
   void Heard(const std::string& text) {
     constexpr std::string_view kExposure = "exposure ";
     if (!text.starts_with(kExposure)) return;
@@ -404,8 +413,7 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
     const float ev = std::strtof(text.c_str() + kExposure.size(), &end);
     if (end == text.c_str() + kExposure.size() || !(ev >= -32 && ev <= 32)) return;
     exposure_ = ev;
-    if (!pending_frame_ && shown_) pending_frame_ = shown_;
-    Pump();
+    exposure_changed_ = true;
   }
   void Drop() {
     if (!open_) return;
@@ -420,6 +428,7 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
   Impl* server_;
   float exposure_;
   bool open_ = false, writing_ = false;
+  bool exposure_changed_ = false;  // since the frame on show was encoded
   beast::flat_buffer in_;
   std::vector<uint8_t> out_;
   std::shared_ptr<const std::string> out_text_, pending_status_;
@@ -601,6 +610,7 @@ void PreviewServer::Impl::Refresh() {
   for (const auto& v : all) {
     if (status) v->QueueStatus(latest_status_);
     if (fresh) v->QueueFrame(fresh);
+    v->ApplyExposure();
   }
 }
 

@@ -291,6 +291,39 @@ TEST(PreviewServer, AViewerGetsTheStatusAndTheCurrentImageAndCanSetItsExposure) 
   server->DetachFilm();
 }
 
+// A viewer sending its exposure every 2 ms costs at most one frame per tick (each used to be
+// a full re-encode), and the last value it sent is the one its last frame shows.
+TEST(PreviewServer, ExposureMessagesAreAppliedAtMostOncePerTick) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  render::Film film(8, 4);
+  FillFilm(&film, 0, 0.125f);
+  server->AttachFilm(&film, 0);
+  server->DetachFilm();
+  WsViewer viewer;
+  ASSERT_TRUE(viewer.Open(server->port()));
+  ASSERT_TRUE(WaitUntil([&] { return server->counters().frames_sent == 1; }));
+  constexpr int kMessages = 500, kEveryMs = 2;
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 1; i <= kMessages; ++i) {
+    viewer.Write("exposure " + std::to_string((i + 2) % 4 - 1));  // ..., -1, 0, 1 last
+    std::this_thread::sleep_for(std::chrono::milliseconds(kEveryMs));
+  }
+  const auto ticks = (std::chrono::steady_clock::now() - start) / std::chrono::milliseconds(kRefreshMs);
+  std::this_thread::sleep_for(std::chrono::milliseconds(3 * kRefreshMs));  // the last one applied
+  const uint64_t sent = server->counters().frames_sent;
+  // The first frame, one a tick while they came (one more for a tick's phase), the last.
+  EXPECT_LE(sent, static_cast<uint64_t>(1 + ticks + 1 + 1)) << ticks << " ticks";
+  EXPECT_GE(sent, 2u);
+  std::string message, last_frame;
+  bool binary = false;
+  for (uint64_t frames = 0; frames < sent;) {
+    ASSERT_TRUE(viewer.Read(&message, &binary));
+    if (binary) ++frames, last_frame = message;
+  }
+  EXPECT_EQ(static_cast<uint8_t>(last_frame[kFrameHeaderBytes]), image::LinearToSrgb8(0.25f));
+}
+
 // A viewer that never reads: the server skips its frames (at most one waits), the film keeps
 // being published, other viewers keep getting frames, and the server still stops.
 TEST(PreviewServer, AViewerThatNeverReadsBlocksNothing) {
