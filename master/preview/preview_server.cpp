@@ -121,10 +121,9 @@ class PreviewServer::Impl {
   Impl(const ServerOptions& options, const asio::ip::address& address)
       : options_(options), acceptor_(ioc_), accept_retry_(ioc_), tick_(ioc_) {
     if (!address.is_loopback()) token_ = RandomToken();
+    address_text_ = address.is_v6() ? "[" + address.to_string() + "]" : address.to_string();
     // 0.0.0.0 or :: is no address to open: name this machine instead.
-    bind_text_ = address.is_unspecified() ? asio::ip::host_name()
-                 : address.is_v6()        ? "[" + address.to_string() + "]"
-                                          : address.to_string();
+    bind_text_ = address.is_unspecified() ? asio::ip::host_name() : address_text_;
   }
 
   Status Listen(const asio::ip::address& address) {
@@ -135,7 +134,8 @@ class PreviewServer::Impl {
     if (!ec) acceptor_.bind(endpoint, ec);
     if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
     if (ec)
-      return Status::Error(StrFormat("preview: cannot listen on %s:%u: %s", bind_text_.c_str(),
+      // The address asked for (not this machine's name): that is what could not be bound.
+      return Status::Error(StrFormat("preview: cannot listen on %s:%u: %s", address_text_.c_str(),
                                      options_.port, ec.message().c_str()));
     port_ = acceptor_.local_endpoint().port();
     return OkStatus();
@@ -234,6 +234,7 @@ class PreviewServer::Impl {
 
   uint16_t port() const { return port_; }
   const std::string& token() const { return token_; }
+  const std::string& address() const { return address_text_; }
   std::string Url() const {
     return StrFormat("http://%s:%u/%s", bind_text_.c_str(), port_,
                      token_.empty() ? "" : ("?token=" + token_).c_str());
@@ -291,7 +292,7 @@ class PreviewServer::Impl {
   asio::steady_timer accept_retry_;
   asio::steady_timer tick_;
   std::thread thread_;
-  std::string token_, bind_text_;
+  std::string token_, address_text_, bind_text_;
   uint16_t port_ = 0;
   const Srgb8Encoder encoder_;
 
@@ -630,6 +631,7 @@ PreviewServer::PreviewServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)
 PreviewServer::~PreviewServer() { Stop(); }
 uint16_t PreviewServer::port() const { return impl_->port(); }
 const std::string& PreviewServer::token() const { return impl_->token(); }
+const std::string& PreviewServer::address() const { return impl_->address(); }
 std::string PreviewServer::Url() const { return impl_->Url(); }
 void PreviewServer::AttachFilm(const render::Film* film, uint32_t frame) { impl_->AttachFilm(film, frame); }
 void PreviewServer::DetachFilm() { impl_->DetachFilm(); }

@@ -65,6 +65,8 @@ class PreviewServer {
   uint16_t port() const;
   // Empty when the bind address is loopback (no token needed).
   const std::string& token() const;
+  // The address listened on, as in a URL ("127.0.0.1", "[::1]", "0.0.0.0").
+  const std::string& address() const;
   // The address to open, with the token when one is needed.
   std::string Url() const;
 

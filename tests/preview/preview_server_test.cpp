@@ -136,6 +136,21 @@ TEST(PreviewServer, BadAddressesAreErrorsNamingThem) {
   ASSERT_FALSE(taken.ok());
   EXPECT_NE(taken.status().message().find("127.0.0.1:" + std::to_string(first->port())),
             std::string::npos) << taken.status().message();
+  // Not this machine's name (what the URL shows for 0.0.0.0): the address asked for.
+  auto any = StartOn("0.0.0.0");
+  ASSERT_TRUE(any);
+  options.bind = "0.0.0.0";
+  options.port = any->port();
+  Expected<std::unique_ptr<PreviewServer>> busy = PreviewServer::Start(options);
+  ASSERT_FALSE(busy.ok());
+  EXPECT_NE(busy.status().message().find("cannot listen on 0.0.0.0:" + std::to_string(any->port())),
+            std::string::npos) << busy.status().message();
+  // The address as in a URL, as the ssh tunnel's hint uses it.
+  EXPECT_EQ(first->address(), "127.0.0.1");
+  auto v6 = StartOn("::1");
+  ASSERT_TRUE(v6);
+  EXPECT_EQ(v6->address(), "[::1]");
+  EXPECT_EQ(v6->Url(), "http://[::1]:" + std::to_string(v6->port()) + "/");
 }
 
 // Idle connections (nothing ever sent) are each kept until the request timeout: past
