@@ -213,9 +213,11 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       std::string v;
       RAYSTACK_RETURN_IF_ERROR(value(&v));
       uint16_t port = 0;
-      if (v != "any" && (!ParseNumber(v, &port)))
-        return Status::Error("--preview: '" + v + "' is not a port number (0 to 65535) or 'any'");
-      a->preview.enabled = v == "any" || port != 0;
+      // Port 0 is no port to open: it used to turn the preview off without a word.
+      if (v != "any" && (!ParseNumber(v, &port) || port == 0))
+        return Status::Error("--preview: '" + v + "' is not a port number (1 to 65535) or 'any' "
+                             "(a free port)");
+      a->preview.enabled = true;
       a->preview.server.port = port;
     } else if (arg == "--preview-bind") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->preview.server.bind));

@@ -17,9 +17,10 @@ Expected<LivePreview> LivePreview::Start(const LivePreviewOptions& options) {
     std::printf("preview: bound to %s, so the token above is required (token=%s)\n",
                 options.server.bind.c_str(), preview.server_->token().c_str());
   else
-    std::printf("preview: loopback only; from another machine: ssh -L %u:127.0.0.1:%u THIS_HOST, "
+    // The tunnel's far end is the address bound (ssh takes an IPv6 one in brackets).
+    std::printf("preview: loopback only; from another machine: ssh -L %u:%s:%u THIS_HOST, "
                 "then open http://localhost:%u/\n", preview.server_->port(),
-                preview.server_->port(), preview.server_->port());
+                preview.server_->address().c_str(), preview.server_->port(), preview.server_->port());
   std::fflush(stdout);
   return preview;
 }

@@ -12,6 +12,7 @@
 #include <random>
 #include <string_view>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <boost/asio.hpp>
@@ -81,6 +82,35 @@ bool IsLoopbackHost(std::string_view host) {
   return !ec && a.is_loopback();
 }
 
+// A place in a bounded count of things held (connections, viewers), given back when its holder goes.
+// The count is shared with the holders: a handler dropped with the io_context, after the
+// server has gone, still gives its place back.
+class Slot {
+ public:
+  using Count = std::shared_ptr<std::atomic<int>>;
+
+  Slot() = default;
+  // A place in `count`, or none (false) when it already holds `max`. One thread takes places.
+  static Slot Take(const Count& count, int max) {
+    if (count->load() >= max) return Slot();
+    count->fetch_add(1);
+    return Slot(count);
+  }
+  Slot(Slot&& other) noexcept = default;  // leaves `other` empty
+  Slot& operator=(Slot&& other) noexcept {
+    Slot(std::move(other)).count_.swap(count_);
+    return *this;
+  }
+  ~Slot() {
+    if (count_) count_->fetch_sub(1);
+  }
+  explicit operator bool() const { return count_ != nullptr; }
+
+ private:
+  explicit Slot(Count count) : count_(std::move(count)) {}
+  Count count_;
+};
+
 }  // namespace
 
 class PreviewServer::Impl {
@@ -89,12 +119,11 @@ class PreviewServer::Impl {
   class Request;
 
   Impl(const ServerOptions& options, const asio::ip::address& address)
-      : options_(options), acceptor_(ioc_), tick_(ioc_) {
+      : options_(options), acceptor_(ioc_), accept_retry_(ioc_), tick_(ioc_) {
     if (!address.is_loopback()) token_ = RandomToken();
+    address_text_ = address.is_v6() ? "[" + address.to_string() + "]" : address.to_string();
     // 0.0.0.0 or :: is no address to open: name this machine instead.
-    bind_text_ = address.is_unspecified() ? asio::ip::host_name()
-                 : address.is_v6()        ? "[" + address.to_string() + "]"
-                                          : address.to_string();
+    bind_text_ = address.is_unspecified() ? asio::ip::host_name() : address_text_;
   }
 
   Status Listen(const asio::ip::address& address) {
@@ -105,7 +134,8 @@ class PreviewServer::Impl {
     if (!ec) acceptor_.bind(endpoint, ec);
     if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
     if (ec)
-      return Status::Error(StrFormat("preview: cannot listen on %s:%u: %s", bind_text_.c_str(),
+      // The address asked for (not this machine's name): that is what could not be bound.
+      return Status::Error(StrFormat("preview: cannot listen on %s:%u: %s", address_text_.c_str(),
                                      options_.port, ec.message().c_str()));
     port_ = acceptor_.local_endpoint().port();
     return OkStatus();
@@ -130,10 +160,11 @@ class PreviewServer::Impl {
     asio::post(ioc_, [this] {
       error_code ec;
       acceptor_.close(ec);
+      accept_retry_.cancel();
       tick_.cancel();
       CloseViewers();
       // What is left (requests being read, handlers of closed sockets) is dropped with the
-      // io_context; none of it refers to the server.
+      // io_context; none of it refers to the server (their slots share only the count).
       ioc_.stop();
     });
     thread_.join();
@@ -198,11 +229,12 @@ class PreviewServer::Impl {
 
   ServerCounters counters() const {
     return {snapshots_.load(), frames_sent_.load(), frames_skipped_.load(), refused_.load(),
-            viewers_.load()};
+            accept_failures_.load(), viewers_.load(), connections_->load()};
   }
 
   uint16_t port() const { return port_; }
   const std::string& token() const { return token_; }
+  const std::string& address() const { return address_text_; }
   std::string Url() const {
     return StrFormat("http://%s:%u/%s", bind_text_.c_str(), port_,
                      token_.empty() ? "" : ("?token=" + token_).c_str());
@@ -224,7 +256,9 @@ class PreviewServer::Impl {
   void CountRefused() { refused_.fetch_add(1); }
   void CountSent() { frames_sent_.fetch_add(1); }
   void CountSkipped() { frames_skipped_.fetch_add(1); }
-  bool Full() const { return viewers_.load() >= kMaxViewers; }
+  // A viewer's place from the moment its upgrade is accepted: counting only the handshakes
+  // done let any number of simultaneous upgrades through. None (false) when kMaxViewers hold.
+  Slot TakeViewerSlot() { return Slot::Take(viewer_slots_, kMaxViewers); }
   const Srgb8Encoder& encoder() const { return encoder_; }
   float exposure() const { return options_.exposure; }
 
@@ -233,6 +267,8 @@ class PreviewServer::Impl {
 
  private:
   void Accept();
+  void Accepted(tcp::socket socket);
+  void AcceptFailed(const error_code& ec);
   void ArmTick() {
     // Copying the film holds its lock (a merge waits meanwhile): on a large film, refresh
     // less often, so that copies hold it at most 1/kMaxCopyShare of the time.
@@ -253,9 +289,10 @@ class PreviewServer::Impl {
   ServerOptions options_;
   asio::io_context ioc_{1};
   tcp::acceptor acceptor_;
+  asio::steady_timer accept_retry_;
   asio::steady_timer tick_;
   std::thread thread_;
-  std::string token_, bind_text_;
+  std::string token_, address_text_, bind_text_;
   uint16_t port_ = 0;
   const Srgb8Encoder encoder_;
 
@@ -269,7 +306,10 @@ class PreviewServer::Impl {
   PreviewStatus status_;
   bool status_dirty_ = false;
   std::atomic<uint64_t> snapshots_{0}, frames_sent_{0}, frames_skipped_{0}, refused_{0};
+  std::atomic<uint64_t> accept_failures_{0};
   std::atomic<int> viewers_{0};
+  const Slot::Count connections_ = std::make_shared<std::atomic<int>>(0);
+  const Slot::Count viewer_slots_ = std::make_shared<std::atomic<int>>(0);  // open or opening
 
   // The server's thread only.
   static constexpr int kMaxCopyShare = 20;
@@ -277,15 +317,17 @@ class PreviewServer::Impl {
   std::vector<std::shared_ptr<Viewer>> viewers_list_;
   std::shared_ptr<const FilmSnapshot> latest_;
   std::shared_ptr<const std::string> latest_status_;
+  bool said_full_ = false, said_accept_failed_ = false;  // each warned of once
 };
 
 // One WebSocket viewer. Sends the newest status and frame, one message at a time; a message
 // that arrives while one is being written replaces the one waiting (frames are skipped, never
-// queued). Reads the viewer's exposure ("exposure EV").
+// queued). Reads the viewer's exposure ("exposure EV"), applied at the next tick.
 class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> {
  public:
-  Viewer(tcp::socket socket, Impl* server)
-      : ws_(std::move(socket)), server_(server), exposure_(server->exposure()) {}
+  Viewer(tcp::socket socket, Slot connection, Slot viewer, Impl* server)
+      : connection_(std::move(connection)), viewer_(std::move(viewer)), ws_(std::move(socket)),
+        server_(server), exposure_(server->exposure()) {}
 
   void Start(http::request<http::empty_body> req) {
     websocket::stream_base::timeout timeout{};
@@ -315,6 +357,14 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
     pending_status_ = std::move(status);
     Pump();
   }
+  // On every tick: a changed exposure re-sends the frame on show (unless a newer one, which
+  // will have it, is waiting). So a viewer costs at most one encoding per tick however often
+  // it sends its exposure; the latest value wins.
+  void ApplyExposure() {
+    if (!exposure_changed_ || pending_frame_ || !shown_) return;
+    pending_frame_ = shown_;
+    Pump();
+  }
   void Close() {
     open_ = false;
     error_code ec;
@@ -334,6 +384,7 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
     } else if (pending_frame_) {
       shown_ = std::move(pending_frame_);
       EncodeFrame(*shown_, exposure_, server_->encoder(), &out_);
+      exposure_changed_ = false;
       ws_.binary(true);
       writing_ = true;
       ws_.async_write(asio::buffer(out_), [self = shared_from_this()](const error_code& ec, size_t) {
@@ -355,7 +406,7 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
       self->Read();
     });
   }
-  // "exposure EV": re-send the frame on show at the viewer's exposure.
+  // "exposure EV": noted only; re-encoding here cost a full frame per message.
   void Heard(const std::string& text) {
     constexpr std::string_view kExposure = "exposure ";
     if (!text.starts_with(kExposure)) return;
@@ -363,19 +414,22 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
     const float ev = std::strtof(text.c_str() + kExposure.size(), &end);
     if (end == text.c_str() + kExposure.size() || !(ev >= -32 && ev <= 32)) return;
     exposure_ = ev;
-    if (!pending_frame_ && shown_) pending_frame_ = shown_;
-    Pump();
+    exposure_changed_ = true;
   }
   void Drop() {
     if (!open_) return;
     Close();
+    viewer_ = Slot();  // its handlers may linger a moment; its place is free at once
     server_->RemoveViewer(this);
   }
 
+  Slot connection_;  // before ws_: given back once its socket is closed
+  Slot viewer_;      // given back when dropped, or with the viewer if its handshake fails
   websocket::stream<beast::tcp_stream> ws_;
   Impl* server_;
   float exposure_;
   bool open_ = false, writing_ = false;
+  bool exposure_changed_ = false;  // since the frame on show was encoded
   beast::flat_buffer in_;
   std::vector<uint8_t> out_;
   std::shared_ptr<const std::string> out_text_, pending_status_;
@@ -385,7 +439,8 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
 // One HTTP request: the page, the stream's upgrade, or a refusal; then the connection closes.
 class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request> {
  public:
-  Request(tcp::socket socket, Impl* server) : stream_(std::move(socket)), server_(server) {}
+  Request(tcp::socket socket, Slot connection, Impl* server)
+      : connection_(std::move(connection)), stream_(std::move(socket)), server_(server) {}
 
   void Start() {
     parser_.header_limit(kMaxRequestBytes);
@@ -417,9 +472,12 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
     if (!server_->Allowed(req, query)) return Respond(http::status::forbidden, "forbidden\n");
     if (path == "/") return Respond(http::status::ok, std::string(PageHtml()), "text/html; charset=utf-8");
     if (path == "/ws" && websocket::is_upgrade(req)) {
-      if (server_->Full()) return Respond(http::status::service_unavailable, "too many viewers\n");
+      Slot viewer = server_->TakeViewerSlot();
+      if (!viewer) return Respond(http::status::service_unavailable, "too many viewers\n");
       stream_.expires_never();  // the stream has timeouts of its own
-      std::make_shared<Viewer>(stream_.release_socket(), server_)->Start(std::move(req));
+      std::make_shared<Viewer>(stream_.release_socket(), std::move(connection_), std::move(viewer),
+                               server_)
+          ->Start(std::move(req));
       return;
     }
     Respond(http::status::not_found, "not found\n");
@@ -449,6 +507,7 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
     });
   }
 
+  Slot connection_;  // before stream_: given back once its socket is closed
   beast::tcp_stream stream_;
   Impl* server_;
   beast::flat_buffer buffer_{kMaxRequestBytes};
@@ -459,8 +518,39 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
 void PreviewServer::Impl::Accept() {
   acceptor_.async_accept([this](const error_code& ec, tcp::socket socket) {
     if (ec == asio::error::operation_aborted) return;  // closing
-    if (!ec) std::make_shared<Request>(std::move(socket), this)->Start();
+    if (ec) return AcceptFailed(ec);
+    Accepted(std::move(socket));
     Accept();
+  });
+}
+
+// Every connection takes a file descriptor until it closes, in whatever state it is: past
+// kMaxConnections a new one is closed at once, so that clients (idle ones are kept up to
+// kRequestTimeout) never take the descriptors the render needs to write its image.
+void PreviewServer::Impl::Accepted(tcp::socket socket) {
+  Slot slot = Slot::Take(connections_, kMaxConnections);
+  if (!slot) {
+    CountRefused();
+    if (!std::exchange(said_full_, true))
+      LOG_WARNING("preview", "%d connections open, the most the preview holds: further ones are "
+                  "closed at once (counted as refused)", kMaxConnections);
+    error_code ignored;
+    socket.close(ignored);
+    return;
+  }
+  std::make_shared<Request>(std::move(socket), std::move(slot), this)->Start();
+}
+
+// The connection that failed (out of file descriptors, most likely) is still waiting, so
+// accepting again at once would fail again at once, and spin: wait a little first.
+void PreviewServer::Impl::AcceptFailed(const error_code& ec) {
+  accept_failures_.fetch_add(1);
+  if (!std::exchange(said_accept_failed_, true))
+    LOG_WARNING("preview", "cannot accept a connection: %s; trying again every %d ms",
+                ec.message().c_str(), kAcceptRetryMs);
+  accept_retry_.expires_after(std::chrono::milliseconds(kAcceptRetryMs));
+  accept_retry_.async_wait([this](const error_code& wait_ec) {
+    if (!wait_ec) Accept();
   });
 }
 
@@ -521,6 +611,7 @@ void PreviewServer::Impl::Refresh() {
   for (const auto& v : all) {
     if (status) v->QueueStatus(latest_status_);
     if (fresh) v->QueueFrame(fresh);
+    v->ApplyExposure();
   }
 }
 
@@ -540,6 +631,7 @@ PreviewServer::PreviewServer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)
 PreviewServer::~PreviewServer() { Stop(); }
 uint16_t PreviewServer::port() const { return impl_->port(); }
 const std::string& PreviewServer::token() const { return impl_->token(); }
+const std::string& PreviewServer::address() const { return impl_->address(); }
 std::string PreviewServer::Url() const { return impl_->Url(); }
 void PreviewServer::AttachFilm(const render::Film* film, uint32_t frame) { impl_->AttachFilm(film, frame); }
 void PreviewServer::DetachFilm() { impl_->DetachFilm(); }

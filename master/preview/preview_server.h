@@ -11,7 +11,10 @@
 //
 // Served: exactly "/" (the page) and "/ws" (the stream); everything else is 404, requests over
 // kMaxRequestBytes are refused (431), viewer messages over kMaxViewerMessageBytes close the
-// stream. Bound to a loopback address, a request must name a loopback host (no DNS
+// stream. The server holds at most kMaxConnections connections at a time, whatever their state
+// (a request being read or answered, a stream): beyond them a new one is closed at once, so
+// that idle clients cannot take the file descriptors the render needs to write its image.
+// Bound to a loopback address, a request must name a loopback host (no DNS
 // rebinding); on any other address a random token printed at start is required on both
 // (?token=...), and a request without it gets 403.
 
@@ -29,6 +32,10 @@ inline constexpr int kRefreshMs = 200;
 inline constexpr size_t kMaxRequestBytes = 8192;
 inline constexpr size_t kMaxViewerMessageBytes = 256;
 inline constexpr int kMaxViewers = 16;
+inline constexpr int kMaxConnections = 64;  // of which at most kMaxViewers streams
+// After a failed accept (e.g. out of file descriptors), wait this long before the next one:
+// the pending connection stays pending, so trying again at once would spin.
+inline constexpr int kAcceptRetryMs = 100;
 
 struct ServerOptions {
   std::string bind = "127.0.0.1";
@@ -41,8 +48,11 @@ struct ServerCounters {
   uint64_t snapshots = 0;       // film copies taken
   uint64_t frames_sent = 0;     // frame messages written to viewers
   uint64_t frames_skipped = 0;  // replaced while waiting for a slow viewer
-  uint64_t refused = 0;         // requests answered 403, 404, 405, 431 or 503
+  uint64_t refused = 0;         // requests answered 403, 404, 405, 431 or 503, and
+                                // connections closed at once beyond kMaxConnections
+  uint64_t accept_failures = 0;  // accepts that failed (each followed by kAcceptRetryMs)
   int viewers = 0;              // open streams now
+  int connections = 0;          // connections held now (streams included)
 };
 
 class PreviewServer {
@@ -55,6 +65,8 @@ class PreviewServer {
   uint16_t port() const;
   // Empty when the bind address is loopback (no token needed).
   const std::string& token() const;
+  // The address listened on, as in a URL ("127.0.0.1", "[::1]", "0.0.0.0").
+  const std::string& address() const;
   // The address to open, with the token when one is needed.
   std::string Url() const;
 

@@ -240,5 +240,49 @@ TEST_F(PreviewCli, AViewerThatNeverReadsDoesNotHoldTheRender) {
   std::printf("%s", render.out().c_str());  // how many frames were skipped, for the log
 }
 
+// The messages name what was asked: port 0 is refused (it turned the preview off silently),
+// and bound to ::1 the tunnel's hint names [::1] (127.0.0.1 cannot reach it).
+TEST_F(PreviewCli, MessagesNameWhatWasAsked) {
+  const std::string scene = Scene(16, 16, 1);
+  const ProcessResult zero = RunProcess(Command(0, scene, {"--preview", "0"}), dir_->path());
+  EXPECT_NE(zero.exit_code, 0);
+  EXPECT_NE(zero.err.find("--preview: '0' is not a port number (1 to 65535)"), std::string::npos) << zero.err;
+  const ProcessResult v6 = RunProcess(Command(0, scene, {"--preview", "any", "--preview-bind", "::1"}),
+                                      dir_->path());
+  ASSERT_EQ(v6.exit_code, 0) << v6.err;
+  const size_t at = v6.out.find("preview: http://[::1]:");
+  ASSERT_NE(at, std::string::npos) << v6.out;
+  const std::string port = std::to_string(PortOf(v6.out.substr(at, v6.out.find('/', at + 16) - at)));
+  EXPECT_NE(v6.out.find("ssh -L " + port + ":[::1]:" + port + " "), std::string::npos) << v6.out;
+}
+
+// Clients that open connections and send nothing, more of them than the render may open
+// files (ulimit -n): the preview holds only kMaxConnections of them, so the render still
+// writes its image (it failed with "Too many open files" when the server kept them all).
+TEST_F(PreviewCli, IdleConnectionsDoNotTakeTheRendersFileDescriptors) {
+  constexpr int kFileLimit = 256, kClients = 2 * kFileLimit;
+  // Slow on purpose (one thread, many samples), and cut after 3 s: its image is written while
+  // the connections, held up to 10 s each before, are open.
+  std::vector<std::string> argv = {"/bin/sh", "-c", "ulimit -n " + std::to_string(kFileLimit) +
+                                                        " && exec \"$0\" \"$@\""};
+  for (std::string& a : Command(0, Scene(160, 120, 512), {"--threads", "1", "--time-limit", "3",
+                                                           "--preview", "any", "--no-png"}))
+    argv.push_back(std::move(a));
+  BackgroundProcess render(argv, dir_->path());
+  ASSERT_TRUE(render.WaitForOutput("preview: http", kPatience)) << render.out() << render.err();
+  const std::string url = render.LineAfter("preview: ");
+  const uint16_t port = PortOf(url.substr(0, url.size() - 1));
+  boost::asio::io_context ioc;
+  std::vector<boost::asio::ip::tcp::socket> idle;
+  for (int i = 0; i < kClients; ++i) {
+    idle.emplace_back(ioc);
+    boost::system::error_code ec;
+    idle.back().connect({boost::asio::ip::make_address("127.0.0.1"), port}, ec);
+  }
+  EXPECT_EQ(render.Wait(), 0) << render.out() << render.err();
+  EXPECT_TRUE(std::filesystem::exists(dir_->File("out.exr")));
+  EXPECT_NE(render.out().find("requests refused"), std::string::npos) << render.out();
+}
+
 }  // namespace
 }  // namespace raystack::master::preview

@@ -3,10 +3,16 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <atomic>
 #include <chrono>
 #include <cstring>
+#include <filesystem>
+#include <functional>
 #include <thread>
+#include <vector>
 
 #include "common/image/png_writer.h"
 #include "master/preview/preview_frame.h"
@@ -18,6 +24,10 @@ namespace {
 using testing::Get;
 using testing::StatusOf;
 using testing::WsViewer;
+namespace asio = boost::asio;
+namespace beast = boost::beast;
+namespace http = beast::http;
+using tcp = asio::ip::tcp;
 
 std::unique_ptr<PreviewServer> StartOn(const std::string& bind) {
   ServerOptions options;
@@ -37,6 +47,23 @@ void FillFilm(render::Film* film, uint32_t n, float v) {
     batch[i].rgb[0] = batch[i].rgb[1] = batch[i].rgb[2] = v;
   }
   film->Merge(batch);
+}
+
+// Waits until `done` holds (true) or 10 s passed (false).
+bool WaitUntil(const std::function<bool()>& done) {
+  const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > give_up) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return true;
+}
+
+// File descriptors this process has open (the directory's own included, always the same).
+int OpenFds() {
+  int n = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) ++n;
+  return n;
 }
 
 TEST(PreviewServer, ServesThePageAndNothingElse) {
@@ -109,6 +136,128 @@ TEST(PreviewServer, BadAddressesAreErrorsNamingThem) {
   ASSERT_FALSE(taken.ok());
   EXPECT_NE(taken.status().message().find("127.0.0.1:" + std::to_string(first->port())),
             std::string::npos) << taken.status().message();
+  // Not this machine's name (what the URL shows for 0.0.0.0): the address asked for.
+  auto any = StartOn("0.0.0.0");
+  ASSERT_TRUE(any);
+  options.bind = "0.0.0.0";
+  options.port = any->port();
+  Expected<std::unique_ptr<PreviewServer>> busy = PreviewServer::Start(options);
+  ASSERT_FALSE(busy.ok());
+  EXPECT_NE(busy.status().message().find("cannot listen on 0.0.0.0:" + std::to_string(any->port())),
+            std::string::npos) << busy.status().message();
+  // The address as in a URL, as the ssh tunnel's hint uses it.
+  EXPECT_EQ(first->address(), "127.0.0.1");
+  auto v6 = StartOn("::1");
+  ASSERT_TRUE(v6);
+  EXPECT_EQ(v6->address(), "[::1]");
+  EXPECT_EQ(v6->Url(), "http://[::1]:" + std::to_string(v6->port()) + "/");
+}
+
+// Idle connections (nothing ever sent) are each kept until the request timeout: past
+// kMaxConnections the server closes new ones at once, so that clients cannot take the file
+// descriptors the render needs to write its image; it serves again once they have gone.
+TEST(PreviewServer, HoldsAtMostkMaxConnectionsWhateverTheyDo) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  asio::io_context ioc;
+  tcp::socket(ioc).open(tcp::v4());  // the client's own descriptors (epoll's), before counting
+  const int fds_before = OpenFds();
+  constexpr int kClients = 3 * kMaxConnections;
+  std::vector<tcp::socket> idle;
+  for (int i = 0; i < kClients; ++i) {
+    idle.emplace_back(ioc);
+    idle.back().connect({asio::ip::make_address("127.0.0.1"), server->port()});
+  }
+  EXPECT_TRUE(WaitUntil([&] { return server->counters().refused >= kClients - kMaxConnections; }))
+      << server->counters().refused << " refused";
+  const ServerCounters c = server->counters();
+  EXPECT_EQ(c.connections, kMaxConnections);
+  EXPECT_EQ(c.refused, static_cast<uint64_t>(kClients - kMaxConnections));
+  // The server's own side of them: the ones it holds, the others closed.
+  EXPECT_LE(OpenFds() - fds_before - kClients, kMaxConnections);
+  EXPECT_EQ(Get(server->port(), "/"), -1) << "full: closed without an answer";
+  idle.clear();
+  EXPECT_TRUE(WaitUntil([&] { return server->counters().connections == 0; }));
+  EXPECT_EQ(Get(server->port(), "/"), 200);
+}
+
+// Out of file descriptors, an accept fails and the connection stays pending: the server tries
+// again every kAcceptRetryMs instead of at once (which spun a core), and serves it once
+// descriptors are free again.
+TEST(PreviewServer, AfterAFailedAcceptItWaitsBeforeTheNext) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  asio::io_context ioc;
+  tcp::socket pending(ioc);
+  pending.open(tcp::v4());  // its descriptor now: connecting needs none
+  rlimit normal{};
+  ASSERT_EQ(getrlimit(RLIMIT_NOFILE, &normal), 0);
+  const int lowest_free = dup(0);
+  ASSERT_GE(lowest_free, 0);
+  close(lowest_free);
+  rlimit none_free = normal;
+  none_free.rlim_cur = static_cast<rlim_t>(lowest_free);
+  ASSERT_EQ(setrlimit(RLIMIT_NOFILE, &none_free), 0);
+  beast::error_code ec;
+  pending.connect({asio::ip::make_address("127.0.0.1"), server->port()}, ec);
+  constexpr int kStarvedMs = 1000;
+  std::this_thread::sleep_for(std::chrono::milliseconds(kStarvedMs));
+  ASSERT_EQ(setrlimit(RLIMIT_NOFILE, &normal), 0);
+  ASSERT_FALSE(ec) << ec.message();
+  const uint64_t failures = server->counters().accept_failures;
+  EXPECT_GE(failures, 1u);
+  EXPECT_LE(failures, static_cast<uint64_t>(kStarvedMs / kAcceptRetryMs + 2));
+  const std::string get = "GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n";
+  asio::write(pending, asio::buffer(get), ec);
+  beast::flat_buffer buffer;
+  http::response<http::string_body> res;
+  http::read(pending, buffer, res, ec);
+  ASSERT_FALSE(ec) << ec.message();
+  EXPECT_EQ(res.result_int(), 200u);
+}
+
+// Many upgrades at once: a viewer counts from the moment its upgrade is accepted, so at most
+// kMaxViewers get 101, the others 503 (while the cap counted only finished handshakes, all
+// the upgrades that arrived during one got 101); a place is free again once one closes.
+TEST(PreviewServer, SimultaneousUpgradesGetNoMoreThankMaxViewers) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  // A large final image: each new viewer's first frame is encoded on the server's thread as
+  // its handshake ends, long enough for the other upgrades to arrive meanwhile.
+  render::Film film(1024, 1024);
+  FillFilm(&film, 0, 0.5f);
+  server->AttachFilm(&film, 0);
+  server->DetachFilm();
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // its Refresh, on the server's thread
+  constexpr int kClients = kMaxConnections - 4;
+  static_assert(kClients > 2 * kMaxViewers);
+  const std::string upgrade = "GET /ws HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\n"
+                              "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                              "Sec-WebSocket-Version: 13\r\n\r\n";
+  asio::io_context ioc;
+  std::vector<tcp::socket> clients;
+  for (int i = 0; i < kClients; ++i) {
+    clients.emplace_back(ioc);
+    clients.back().connect({asio::ip::make_address("127.0.0.1"), server->port()});
+  }
+  for (tcp::socket& c : clients) asio::write(c, asio::buffer(upgrade));
+  int switched = 0, unavailable = 0;
+  for (tcp::socket& c : clients) {
+    std::string head;
+    beast::error_code ec;
+    asio::read_until(c, asio::dynamic_buffer(head), "\r\n\r\n", ec);
+    ASSERT_FALSE(ec) << ec.message();
+    if (head.starts_with("HTTP/1.1 101 ")) ++switched;
+    if (head.starts_with("HTTP/1.1 503 ")) ++unavailable;
+  }
+  EXPECT_EQ(switched, kMaxViewers);
+  EXPECT_EQ(unavailable, kClients - kMaxViewers);
+  EXPECT_TRUE(WaitUntil([&] { return server->counters().viewers == kMaxViewers; }));
+  WsViewer late, later;
+  EXPECT_FALSE(late.Open(server->port()));
+  clients.clear();
+  EXPECT_TRUE(WaitUntil([&] { return server->counters().viewers == 0; }));
+  EXPECT_TRUE(later.Open(server->port()));
 }
 
 TEST(PreviewServer, AViewerGetsTheStatusAndTheCurrentImageAndCanSetItsExposure) {
@@ -155,6 +304,39 @@ TEST(PreviewServer, AViewerGetsTheStatusAndTheCurrentImageAndCanSetItsExposure) 
   while (viewer.Read(&message, &binary)) {
   }
   server->DetachFilm();
+}
+
+// A viewer sending its exposure every 2 ms costs at most one frame per tick (each used to be
+// a full re-encode), and the last value it sent is the one its last frame shows.
+TEST(PreviewServer, ExposureMessagesAreAppliedAtMostOncePerTick) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  render::Film film(8, 4);
+  FillFilm(&film, 0, 0.125f);
+  server->AttachFilm(&film, 0);
+  server->DetachFilm();
+  WsViewer viewer;
+  ASSERT_TRUE(viewer.Open(server->port()));
+  ASSERT_TRUE(WaitUntil([&] { return server->counters().frames_sent == 1; }));
+  constexpr int kMessages = 500, kEveryMs = 2;
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 1; i <= kMessages; ++i) {
+    viewer.Write("exposure " + std::to_string((i + 2) % 4 - 1));  // ..., -1, 0, 1 last
+    std::this_thread::sleep_for(std::chrono::milliseconds(kEveryMs));
+  }
+  const auto ticks = (std::chrono::steady_clock::now() - start) / std::chrono::milliseconds(kRefreshMs);
+  std::this_thread::sleep_for(std::chrono::milliseconds(3 * kRefreshMs));  // the last one applied
+  const uint64_t sent = server->counters().frames_sent;
+  // The first frame, one a tick while they came (one more for a tick's phase), the last.
+  EXPECT_LE(sent, static_cast<uint64_t>(1 + ticks + 1 + 1)) << ticks << " ticks";
+  EXPECT_GE(sent, 2u);
+  std::string message, last_frame;
+  bool binary = false;
+  for (uint64_t frames = 0; frames < sent;) {
+    ASSERT_TRUE(viewer.Read(&message, &binary));
+    if (binary) ++frames, last_frame = message;
+  }
+  EXPECT_EQ(static_cast<uint8_t>(last_frame[kFrameHeaderBytes]), image::LinearToSrgb8(0.25f));
 }
 
 // A viewer that never reads: the server skips its frames (at most one waits), the film keeps
