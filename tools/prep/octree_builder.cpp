@@ -114,7 +114,7 @@ class Builder {
     for (int a = 0; a < 3; ++a)  // the readers refuse coordinates this large; copies may reach them
       if (!std::isfinite(root_.lower[a]) || !std::isfinite(root_.upper[a]))
         return Status::Error("the model's box is too large for float coordinates (the octree's "
-                             "cube around it overflows); keep coordinates within +-1e38");
+                             "cube around it overflows); keep coordinates within +-1e18");
     nodes_.push_back({0, 0, store::kOctreeEmpty, 0});
     spare_references_ = (kMaxReferencesPerTriangle - 1) * source.triangles();
     if (source.triangles() <= bucket_capacity_) {
