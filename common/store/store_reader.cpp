@@ -141,6 +141,7 @@ Status StoreReader::ReadIndex() {
     return Status::Error(StrFormat("%s: block size cap %u is above the format's %u", path.c_str(),
                                    s.max_block_bytes, kMaxBlockBytesCap));
   if (!FiniteBox(s.root_lower, s.root_upper)) return Status::Error(path + ": bad root cell");
+  if (!FiniteBox(s.model_lower, s.model_upper)) return Status::Error(path + ": bad model bounds");
   materials_.resize(s.material_count);
   blocks_.resize(s.block_count);
   // (memcpy from or to an empty vector's null data() is undefined even for 0 bytes.)
@@ -164,6 +165,16 @@ Status StoreReader::ReadIndex() {
       if (std::isnan(e.bounds_lower[a]) || std::isnan(e.bounds_upper[a]))
         return Status::Error(StrFormat("%s: block %u has NaN bounds", path.c_str(), i));
   }
+  // The summary's totals are the blocks' sums (the writer fills them so): what raystack-info
+  // prints and the renderer sizes by must agree with the blocks.
+  uint64_t references = 0, raw = 0, stored = 0;
+  for (const BlockEntry& e : blocks_) {
+    references += e.triangle_count;
+    raw += e.raw_bytes;
+    stored += e.stored_bytes;
+  }
+  if (references != s.references || raw != s.raw_bytes || stored != s.stored_bytes)
+    return Status::Error(path + ": the summary's totals (references, bytes) are not its blocks' sums");
   return OkStatus();
 }
 

@@ -67,18 +67,36 @@ class StoreReaderTest : public ::testing::Test {
     out.write(reinterpret_cast<const char*>(body.data()), static_cast<std::streamsize>(body.size()));
   }
 
-  // Lets `edit` change block `id`'s index entry (index.bin re-sealed).
+  // Lets `edit` change block `id`'s index entry (index.bin re-sealed, and the summary's totals
+  // made the blocks' sums again, so that the checks of the entry itself are reached).
   template <typename Edit>
   void EditIndexEntry(uint32_t id, Edit&& edit) {
     EditBody(kIndexFile, [&](std::vector<uint8_t>* body) {
       StoreSummary summary;
       std::memcpy(&summary, body->data(), sizeof summary);
-      const size_t at = sizeof summary + summary.material_count * sizeof(MaterialRecord) +
-                        id * sizeof(BlockEntry);
+      const size_t first = sizeof summary + summary.material_count * sizeof(MaterialRecord);
       BlockEntry e;
-      std::memcpy(&e, body->data() + at, sizeof e);
+      std::memcpy(&e, body->data() + first + id * sizeof(BlockEntry), sizeof e);
       edit(&e);
-      std::memcpy(body->data() + at, &e, sizeof e);
+      std::memcpy(body->data() + first + id * sizeof(BlockEntry), &e, sizeof e);
+      summary.references = summary.raw_bytes = summary.stored_bytes = 0;
+      for (uint32_t i = 0; i < summary.block_count; ++i) {
+        std::memcpy(&e, body->data() + first + i * sizeof(BlockEntry), sizeof e);
+        summary.references += e.triangle_count;
+        summary.raw_bytes += e.raw_bytes;
+        summary.stored_bytes += e.stored_bytes;
+      }
+      std::memcpy(body->data(), &summary, sizeof summary);
+    });
+  }
+  // Lets `edit` change index.bin's summary (re-sealed).
+  template <typename Edit>
+  void EditSummary(Edit&& edit) {
+    EditBody(kIndexFile, [&](std::vector<uint8_t>* body) {
+      StoreSummary summary;
+      std::memcpy(&summary, body->data(), sizeof summary);
+      edit(&summary);
+      std::memcpy(body->data(), &summary, sizeof summary);
     });
   }
 
@@ -227,6 +245,22 @@ TEST_F(StoreReaderTest, GapsBetweenOrAfterBlocksAreRefusedAtOpen) {
   s = StoreReader::Open(path_);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.status().message().find("blocks.bin: 1 bytes after the last block"), std::string::npos)
+      << s.status().message();
+}
+
+// The summary is what raystack-info prints and the renderer sizes by: NaN model bounds, or
+// totals that are not the blocks' sums (a forged index: its checksum re-sealed), are refused.
+TEST_F(StoreReaderTest, ASummaryThatIsNotItsBlocksIsRefusedAtOpen) {
+  EditSummary([](StoreSummary* summary) { summary->model_lower[1] = std::numeric_limits<float>::quiet_NaN(); });
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("index.bin: bad model bounds"), std::string::npos)
+      << s.status().message();
+  SetUp();
+  EditSummary([](StoreSummary* summary) { summary->references += 1000; });
+  s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("index.bin: the summary's totals"), std::string::npos)
       << s.status().message();
 }
 
