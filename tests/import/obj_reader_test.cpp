@@ -87,7 +87,7 @@ TEST(ObjReader, PolygonsBecomeFans) {
 TEST(ObjReader, ToleratesCrlfTabsCommentsGroupsAndContinuations) {
   ScratchFiles files;
   ObjResult r = ReadObjText(files,
-                            "# header\r\n"
+                            "\xEF\xBB\xBF# header, after a UTF-8 byte order mark\r\n"
                             "o thing\r\n"
                             "g part:1%2\r\n"
                             "s off\r\n"
@@ -223,7 +223,7 @@ TEST(ObjReader, MalformedInputNamesFileAndLine) {
       {Square("f 0 1 2"), {"model.obj:10:", "face index 0"}},
       {Square("f 1/9 2/1 3/1"), {"model.obj:10:", "texture index 9"}},
       {Square("f 1//2 2//1 3//1"), {"model.obj:10:", "normal index 2"}},
-      {Square("f 1/1/1/1 2 3"), {"model.obj:10:", "more than 3 indices"}},
+      {Square("f 1/1/1/1 2 3"), {"model.obj:10:", "'1/1/1/1' has more than 3 indices"}},
       {Square("f 1 2"), {"model.obj:10:", "2 vertices"}},
       {Square("f 1 2 x"), {"model.obj:10:", "'x'"}},
       {Square("f 1 2 3.5"), {"model.obj:10:"}},

@@ -197,6 +197,8 @@ TEST(PlyReader, AsciiErrorsNameFileAndLine) {
       {good.substr(0, good.size() - 4), {"m.ply:14:", "fewer values"}},  // mid-face
       {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n",
        {"m.ply:4:", "without end_header"}},
+      {"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n-1.5\n",
+       {"m.ply:5:", "'-1.5' (numbers: the data? the header needs an end_header line"}},
       {"ply\nformat ascii 2.0\nend_header\n", {"m.ply:2:", "version"}},
       {"ply\nformat binary_middle_endian 1.0\nend_header\n", {"m.ply:2:", "unsupported"}},
       {"ply\nformat ascii 1.0\nelement vertex 1\nproperty quad x\n", {"m.ply:4:", "quad"}},

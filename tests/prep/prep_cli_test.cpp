@@ -157,11 +157,13 @@ TEST_F(PrepCliTest, IgnoredOrClampedInputIsReportedWithItsPlace) {
             std::string::npos) << r.err;
   const std::string obj = dir_->File("tri.obj");
   std::ofstream(obj) << "mtllib tri.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
-  std::ofstream(dir_->File("tri.mtl")) << "newmtl red\nKd 1 -0.5 0\n";
+  std::ofstream(dir_->File("tri.mtl")) << "Ka 1 1 1\nnewmtl red\nKd 1 -0.5 0\n";
   r = Prep({obj, "-o", dir_->File("b")});
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.err.find("tri.mtl:2: Kd: a colour value below 0 (rendered as 0)"), std::string::npos)
+  EXPECT_NE(r.err.find("tri.mtl:3: Kd: a colour value below 0 (rendered as 0)"), std::string::npos)
       << r.err;
+  EXPECT_NE(r.err.find("tri.mtl:1: 'Ka' before any newmtl belongs to no material; ignored"),
+            std::string::npos) << r.err;
 }
 
 // Float ray tracing multiplies coordinates: a model whose copies reach past +-1e18, or one

@@ -97,12 +97,19 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
                 key.data(), what);
   };
   std::string_view line;
+  bool any_newmtl = false;
   while (input.NextLine(&line)) {
+    if (input.line_number() == 1) line = WithoutByteOrderMark(line);
     std::string_view rest = StripComment(line);
     std::string_view key = NextToken(&rest);
     if (key.empty()) continue;
     MtlLine values(input, rest);
+    if (key != "newmtl" && !any_newmtl && warned.insert("before newmtl").second)
+      LOG_WARNING("import", "%s:%llu: '%.*s' before any newmtl belongs to no material; ignored",
+                  input.path().c_str(), static_cast<unsigned long long>(input.line_number()),
+                  static_cast<int>(key.size()), key.data());
     if (key == "newmtl") {
+      any_newmtl = true;
       std::string_view name = Trim(rest);
       if (name.empty()) return input.LineError("newmtl without a name");
       current = table->Define(name);

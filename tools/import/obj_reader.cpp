@@ -95,6 +95,7 @@ bool ObjReader::NextStatement(std::string_view* line) {
 }
 
 Status ObjReader::ReadStatement(std::string_view line) {
+  if (input_.line_number() == 1) line = WithoutByteOrderMark(line);
   std::string_view rest = StripComment(line);
   std::string_view keyword = NextToken(&rest);
   if (keyword.empty()) return OkStatus();
@@ -165,10 +166,11 @@ Status ObjReader::ReadFace(std::string_view rest) {
 
 // "v", "v/vt", "v//vn" or "v/vt/vn".
 Status ObjReader::ReadCorner(std::string_view token, FanCorner* corner) {
+  const std::string_view whole = token;
   std::string_view parts[3];
   int count = 0;
   for (;;) {
-    if (count == 3) return input_.LineError("face vertex '" + std::string(token) +
+    if (count == 3) return input_.LineError("face vertex '" + std::string(whole) +
                                             "' has more than 3 indices");
     size_t slash = token.find('/');
     parts[count++] = token.substr(0, slash);

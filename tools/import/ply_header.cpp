@@ -71,7 +71,12 @@ Expected<PlyHeader> HeaderParser::Parse() {
     else if (keyword == "element") status = ParseElement(rest);
     else if (keyword == "property") status = ParseProperty(rest);
     else if (keyword == "comment" || keyword == "obj_info" || keyword.empty()) continue;
-    else status = input_.LineError("unknown PLY header line '" + std::string(keyword) + "'");
+    else
+      status = input_.LineError(
+          "unknown PLY header line '" + std::string(keyword) + "'" +
+          (keyword.find_first_not_of("0123456789+-.eE") == std::string_view::npos
+               ? " (numbers: the data? the header needs an end_header line before it)"
+               : ""));
     if (!status.ok()) return status;
   }
   if (!input_.status().ok()) return input_.status();

@@ -32,6 +32,11 @@ inline std::string_view NextToken(std::string_view* rest) {
   return token;
 }
 
+// A file's first line without the UTF-8 byte order mark some editors put there.
+inline std::string_view WithoutByteOrderMark(std::string_view first_line) {
+  return first_line.starts_with("\xEF\xBB\xBF") ? first_line.substr(3) : first_line;
+}
+
 // The text before a '#' comment.
 inline std::string_view StripComment(std::string_view line) {
   size_t hash = line.find('#');
