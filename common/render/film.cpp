@@ -193,10 +193,19 @@ void Film::ResolveInto(image::ImageLayers* into) const {
   }
 }
 
-void Film::ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts) const {
+void Film::ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts,
+                         std::chrono::steady_clock::duration* held) const {
   rgb->resize(pixels_.size() * 3);
   counts->resize(pixels_.size());
   std::lock_guard lock(mu_);
+  const auto start = std::chrono::steady_clock::now();
+  struct Timed {  // the time under the lock, stopped as the lock is released
+    std::chrono::steady_clock::time_point start;
+    std::chrono::steady_clock::duration* held;
+    ~Timed() {
+      if (held) *held = std::chrono::steady_clock::now() - start;
+    }
+  } timed{start, held};
   for (size_t i = 0; i < pixels_.size(); ++i) {
     const Pixel& p = pixels_[i];
     (*counts)[i] = p.count;

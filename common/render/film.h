@@ -4,6 +4,7 @@
 // (Z, normal, albedo) from each pixel's sample 0. Merging is exact integer arithmetic, so the
 // same samples give the same bits in any order, from any number of threads or ranks.
 
+#include <chrono>
 #include <cstdint>
 #include <mutex>
 #include <span>
@@ -62,7 +63,9 @@ class Film {
   // Only the mean radiance (3 floats per pixel, 0 without samples) and the sample counts, into
   // the caller's buffers (resized): the light copy the live preview takes several times a
   // second, holding the lock far shorter than Resolve. Thread-safe.
-  void ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts) const;
+  // `held` (optional): how long the film's lock was held, the copy without the allocation.
+  void ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts,
+                     std::chrono::steady_clock::duration* held = nullptr) const;
 
  private:
   struct Pixel {

@@ -10,12 +10,13 @@
 
 namespace raystack::master::preview {
 
-FilmSnapshot TakeSnapshot(const render::Film& film, uint32_t frame) {
+FilmSnapshot TakeSnapshot(const render::Film& film, uint32_t frame,
+                          std::chrono::steady_clock::duration* held) {
   FilmSnapshot s;
   s.width = film.width();
   s.height = film.height();
   s.frame = frame;
-  film.ResolveColour(&s.rgb, &s.counts);
+  film.ResolveColour(&s.rgb, &s.counts, held);
   for (uint32_t n : s.counts) s.samples_merged += n;
   return s;
 }

@@ -5,6 +5,7 @@
 // agree to the bit.
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <vector>
 
@@ -22,8 +23,9 @@ struct FilmSnapshot {
   std::vector<uint32_t> counts;  // samples per pixel; 0 = not computed yet
 };
 
-// Copies `film` (thread-safe, as Film::Resolve).
-FilmSnapshot TakeSnapshot(const render::Film& film, uint32_t frame);
+// Copies `film` (thread-safe, as Film::Resolve); `held` as in Film::ResolveColour.
+FilmSnapshot TakeSnapshot(const render::Film& film, uint32_t frame,
+                          std::chrono::steady_clock::duration* held = nullptr);
 
 // Binary frame message: a 32-byte little-endian header, then width*height RGBA8 pixels.
 inline constexpr uint32_t kFrameMagic = 0x56505352;  // "RSPV"

@@ -585,9 +585,9 @@ void PreviewServer::Impl::Refresh() {
       // Only when it changed: a paused render costs nothing.
       const uint64_t merged = film_->samples_merged();
       if (merged != last_merged_) {
-        const auto start = std::chrono::steady_clock::now();
-        fresh = std::make_shared<const FilmSnapshot>(TakeSnapshot(*film_, film_frame_));
-        last_copy_ = std::chrono::steady_clock::now() - start;
+        // The film's lock only (not the new snapshot's allocation, which merges do not wait
+        // for: counting it slowed a 960 x 540 preview to a frame every 1.5-3 s here).
+        fresh = std::make_shared<const FilmSnapshot>(TakeSnapshot(*film_, film_frame_, &last_copy_));
         snapshots_.fetch_add(1);
         last_merged_ = merged;
       }

@@ -66,7 +66,9 @@ TEST(TakeSnapshot, HasTheBitsOfResolve) {
   }
   film.Merge(batch);
   const image::ImageLayers layers = film.Resolve();
-  const FilmSnapshot s = TakeSnapshot(film, 0);
+  std::chrono::steady_clock::duration held{-1};  // how long the film's lock was held: set
+  const FilmSnapshot s = TakeSnapshot(film, 0, &held);
+  EXPECT_GE(held.count(), 0);
   ASSERT_EQ(s.counts, layers.samples);
   EXPECT_EQ(s.samples_merged, 400u);
   for (size_t i = 0; i < layers.pixel_count(); ++i)
