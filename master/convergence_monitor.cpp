@@ -84,23 +84,31 @@ render::ConvergencePoint ConvergenceMonitor::Measure(const image::ImageLayers* r
 }
 
 void ConvergenceMonitor::CheckPassEnds(const image::ImageLayers* resolved) {
-  while (passes_ended_ < plan_.passes.size() && !stopped()) {
+  if (stopped()) return;
+  // Every pass that has ended since the last look (several, when passes are short): the film
+  // measured now is the newest's, so the stop rule judges that one, named as such.
+  size_t ended = passes_ended_;
+  while (ended < plan_.passes.size()) {
     // The last pass ends with the frame: Finish measures it on the image resolved for the
     // EXR. Measured here, the film would be resolved twice at the end of every frame (~20 ms
     // for 960x540, inside the frame's time: 4% of a frame at 8 slaves).
-    if (!resolved && passes_ended_ + 1 == plan_.passes.size()) return;
-    const uint32_t end = plan_.passes[passes_ended_].end;
-    if (film_.samples_below(end) < pass_samples_[passes_ended_]) return;
+    if (!resolved && ended + 1 == plan_.passes.size()) break;
+    if (film_.samples_below(plan_.passes[ended].end) < pass_samples_[ended]) break;
+    ++ended;
+  }
+  if (ended == passes_ended_) return;
+  last_ = Measure(resolved);
+  while (passes_ended_ < ended) {
     ++passes_ended_;
-    last_ = Measure(resolved);
     if (log_) log_->Write(frame_, "pass", passes_ended_, last_);
-    if (rules_.target_error > 0 && last_.min_samples >= 2 &&
-        last_.error_estimate <= rules_.target_error && passes_ended_ < plan_.passes.size()) {
-      stop_reason_ = StrFormat("--target-error %g reached after pass %u (%u samples per pixel, "
-                               "estimated error %g)", rules_.target_error, passes_ended_, end,
-                               last_.error_estimate);
-      if (log_) log_->Write(frame_, "stop", passes_ended_, last_);
-    }
+  }
+  if (rules_.target_error > 0 && last_.min_samples >= 2 &&
+      last_.error_estimate <= rules_.target_error && passes_ended_ < plan_.passes.size()) {
+    stop_reason_ = StrFormat("--target-error %g reached after pass %u (%u samples per pixel; the "
+                             "fewest a pixel has: %u; estimated error %g)", rules_.target_error,
+                             passes_ended_, plan_.passes[passes_ended_ - 1].end,
+                             last_.min_samples, last_.error_estimate);
+    if (log_) log_->Write(frame_, "stop", passes_ended_, last_);
   }
 }
 

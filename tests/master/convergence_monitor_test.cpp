@@ -84,5 +84,21 @@ TEST(ConvergenceMonitor, ATargetErrorStillStopsAfterAPassBeforeTheLast) {
   EXPECT_TRUE(monitor.stopped());
 }
 
+// Passes short enough that several end between two looks: the film measured is the newest
+// pass's, so the stop names that pass and what the pixels hold (it used to stop "after pass 1
+// (1 samples per pixel)" with the figures of pass 3).
+TEST(ConvergenceMonitor, PassesEndedBetweenLooksAreJudgedAsTheNewest) {
+  render::Film film(kSide, kSide);
+  const render::FramePlan plan = Passes({{0, 1}, {1, 2}, {2, 3}, {3, 4}});
+  StopRules rules;
+  rules.target_error = 1e9;
+  ConvergenceMonitor monitor(film, plan, rules, 0, nullptr, nullptr, 1.0);
+  for (uint32_t s = 0; s < 3; ++s) MergeSample(&film, s);
+  EXPECT_FALSE(monitor.Poll());
+  ASSERT_TRUE(monitor.stopped());
+  EXPECT_NE(monitor.stop_reason().find("after pass 3 (3 samples per pixel; the fewest a pixel "
+                                       "has: 3;"), std::string::npos) << monitor.stop_reason();
+}
+
 }  // namespace
 }  // namespace raystack::master
