@@ -59,6 +59,8 @@ Status CheckOutputs(const render::Scene& scene, const std::string& output, bool 
                          "image.exr)");
   const size_t dot = output.rfind('.'), slash = output.rfind('/');
   if (dot != std::string::npos && (slash == std::string::npos || dot > slash)) {
+    if (dot == slash + 1)  // "dir/.exr": the files would be the hidden .exr and .png
+      return Status::Error(output + ": the output needs a name before .exr (e.g. image.exr)");
     if (!SameIgnoringCase(output.substr(dot), ".exr"))
       return Status::Error(output + ": the output is an OpenEXR image; give a path ending in "
                                     ".exr (the PNG quick look goes beside it)");

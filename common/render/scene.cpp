@@ -551,7 +551,10 @@ Expected<Scene> LoadScene(const std::string& path) {
   in.read(text.data(), static_cast<std::streamsize>(text.size()));
   if (in.bad()) return Status::Error(path + ": read error: " + std::strerror(errno));
   text.resize(static_cast<size_t>(in.gcount()));
-  return ParseScene(text, path, fs::path(path).parent_path().string());
+  // Relative paths are the scene file's neighbours; a scene read from a pipe (/dev/stdin, a
+  // process substitution) has none, so they are the working folder's (not /dev's).
+  const bool regular = fs::is_regular_file(path, ec);
+  return ParseScene(text, path, regular ? fs::path(path).parent_path().string() : "");
 }
 
 }  // namespace raystack::render

@@ -63,6 +63,7 @@ TEST(OutputChecks, AFolderOrAnotherExtensionIsRefused) {
            {dir->File("images"), "images: is a folder"},
            {dir->File("images") + "/", "images/: is a folder"},
            {dir->File("images/out.tar"), "out.tar: the output is an OpenEXR image"},
+           {dir->File("images/.exr"), "images/.exr: the output needs a name before .exr"},
            {dir->File("png"), "png.png: cannot write: it is a folder"},  // where the PNG goes
            {dir->File("images/out.EXR"), "no-such-store"}}) {
     const ProcessResult r = RunProcess(

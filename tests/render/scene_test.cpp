@@ -1,6 +1,7 @@
 #include "common/render/scene.h"
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <cmath>
 #include <filesystem>
@@ -8,6 +9,7 @@
 #include <initializer_list>
 #include <sstream>
 #include <string>
+#include <thread>
 
 #include "common/base/temp_dir.h"
 
@@ -351,6 +353,20 @@ TEST(Scene, LoadResolvesPathsAgainstTheFileFolder) {
   ASSERT_TRUE(scene.ok()) << scene.status().message();
   EXPECT_EQ(scene->store, dir.File("x.store"));
   EXPECT_EQ(scene->output, dir.File("out.exr"));
+}
+
+// A scene read from a pipe (`raystack render /dev/stdin < scene.json`) has no folder of its
+// own: its relative paths are the working folder's, not /dev's.
+TEST(Scene, AScenePipedInResolvesPathsAgainstTheWorkingFolder) {
+  TempDir dir = TempDir::Create().value();
+  const std::string fifo = dir.File("scene.fifo");
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  std::thread writer([&] { std::ofstream(fifo) << R"({"store": "x.store", "camera": {}})"; });
+  Expected<Scene> scene = LoadScene(fifo);
+  writer.join();
+  ASSERT_TRUE(scene.ok()) << scene.status().message();
+  EXPECT_EQ(scene->store, "x.store");
+  EXPECT_EQ(scene->output, "out.exr");
 }
 
 TEST(Scene, LoadErrorsNameThePath) {
