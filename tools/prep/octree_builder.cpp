@@ -542,8 +542,11 @@ Status Builder::FillBuckets(const TriangleSource& source, uint32_t node, const B
                             bool* over) {
   const uint32_t count = 1u << (3 * levels);
   const auto start = std::chrono::steady_clock::now();
-  LOG_INFO("prep", "partitioning %llu triangles into %u buckets on disk (depth %d)",
-           static_cast<unsigned long long>(source.triangles()), count, depth);
+  // The first pass is news; the passes over its buckets (dozens on a large model with a
+  // small --mem-limit) are detail.
+  RAYSTACK_LOG(depth == 0 ? LogLevel::kInfo : LogLevel::kDebug, "prep",
+               "partitioning %llu triangles into %u buckets on disk (depth %d)",
+               static_cast<unsigned long long>(source.triangles()), count, depth);
   // The source is read in pieces on `parts` threads, each with its own bucket files; a
   // bucket is then its pieces' files read in order, which is the source's order, so the
   // result does not depend on the number of threads. One writer thread copies the files'
@@ -563,7 +566,7 @@ Status Builder::FillBuckets(const TriangleSource& source, uint32_t node, const B
   const CellGrid grid(cell, levels);
   // The blocks' progress bar only moves once buckets are subdivided: this pass has its own.
   ProgressReporter progress(StrFormat("partitioning into %u buckets", count), source.triangles(),
-                            "tri", options_.quiet);
+                            "tri", options_.quiet || depth > 0);
   std::vector<Status> piece_status(static_cast<size_t>(parts));
   std::vector<char> stopped(static_cast<size_t>(parts), 0);  // by the reference limit
   std::atomic<uint64_t> references{0};
