@@ -29,13 +29,15 @@ constexpr Vec3f Cross(Vec3f a, Vec3f b) {
 }
 inline float Length(Vec3f a) { return std::sqrt(Dot(a, a)); }
 inline Vec3f Normalize(Vec3f a) { return a * (1.0f / Length(a)); }
-// `a` times the power of two that brings its largest component into [0.5, 1): the same
-// direction, bit for bit the same after Normalize (a power of two scales exactly), but a
-// vector whose squared length would overflow or underflow float can now be normalised.
-// Zero, infinite and NaN vectors come back as they are.
+// `a` times the power of two that brings its largest component into [0.5, 1) when it lies
+// outside [2^-30, 2^30]: the same direction, bit for bit the same after Normalize (a power of
+// two scales exactly), but a vector whose squared length (or, for an edge, its cross
+// product's squared length: the 4th power) would overflow or underflow float can now be
+// normalised. Inside that range (every ordinary scene) it costs one comparison. Zero, infinite
+// and NaN vectors come back as they are.
 inline Vec3f ScaledToUnitRange(Vec3f a) {
   const float m = std::max(std::fabs(a.x), std::max(std::fabs(a.y), std::fabs(a.z)));
-  if (!(m > 0) || !std::isfinite(m)) return a;
+  if ((m >= 0x1p-30f && m <= 0x1p30f) || !(m > 0) || !std::isfinite(m)) return a;
   int e = 0;
   std::frexp(m, &e);
   return {std::ldexp(a.x, -e), std::ldexp(a.y, -e), std::ldexp(a.z, -e)};
