@@ -34,6 +34,7 @@ int main(int argc, char** argv) {
     std::fputs(kUsage, stdout);
     return 0;
   }
+  if (argc >= 2) std::fprintf(stderr, "raystack: unknown command '%s'\n", argv[1]);
   std::fputs(kUsage, stderr);
   return 2;
 }

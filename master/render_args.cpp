@@ -122,6 +122,7 @@ bool ParseNumber(const std::string& s, T* out) {
 }  // namespace
 
 Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
+  bool bind_given = false, hold_given = false;
   a->engine.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -221,8 +222,10 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       a->preview.server.port = port;
     } else if (arg == "--preview-bind") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->preview.server.bind));
+      bind_given = true;
     } else if (arg == "--preview-hold") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->preview.hold_seconds, 0, 1e9));
+      hold_given = true;
     } else if (arg == "--stats") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->stats));
     } else if (arg == "--resume") {
@@ -254,6 +257,10 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
     }
   }
   if (!*help && a->scene.empty()) return Status::Error("a scene file is required (see --help)");
+  // Options of the preview without the preview would be taken and do nothing.
+  if (!a->preview.enabled && (bind_given || hold_given))
+    return Status::Error(std::string(bind_given ? "--preview-bind" : "--preview-hold") +
+                         " needs the preview on: add --preview PORT (or any)");
   a->preview.server.exposure = a->exposure;
   return OkStatus();
 }

@@ -247,6 +247,13 @@ TEST_F(PreviewCli, MessagesNameWhatWasAsked) {
   const ProcessResult zero = RunProcess(Command(0, scene, {"--preview", "0"}), dir_->path());
   EXPECT_NE(zero.exit_code, 0);
   EXPECT_NE(zero.err.find("--preview: '0' is not a port number (1 to 65535)"), std::string::npos) << zero.err;
+  const ProcessResult off = RunProcess(Command(0, scene, {"--preview-bind", "0.0.0.0"}), dir_->path());
+  EXPECT_EQ(off.exit_code, 2);  // taken and doing nothing, before
+  EXPECT_NE(off.err.find("--preview-bind needs the preview on"), std::string::npos) << off.err;
+  const ProcessResult unknown =
+      RunProcess({raystack::testing::kRaystackBinary, std::string("rendr")}, dir_->path());
+  EXPECT_EQ(unknown.exit_code, 2);
+  EXPECT_NE(unknown.err.find("raystack: unknown command 'rendr'"), std::string::npos) << unknown.err;
   const ProcessResult v6 = RunProcess(Command(0, scene, {"--preview", "any", "--preview-bind", "::1"}),
                                       dir_->path());
   ASSERT_EQ(v6.exit_code, 0) << v6.err;
