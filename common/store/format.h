@@ -21,6 +21,8 @@ inline constexpr char kBlocksMagic[8] = {'R', 'S', 'T', 'K', 'B', 'L', 'K', '\0'
 inline constexpr const char* kIndexFile = "index.bin";
 inline constexpr const char* kOctreeFile = "octree.bin";
 inline constexpr const char* kBlocksFile = "blocks.bin";
+// Empty; locked by the converter while it writes the store (not part of the format).
+inline constexpr const char* kLockFile = ".lock";
 
 // Heads each of the three files. The body checksum covers everything after the header (for
 // blocks.bin it is 0: each block carries its own checksum in its BlockEntry).

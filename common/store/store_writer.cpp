@@ -1,7 +1,6 @@
 #include "common/store/store_writer.h"
 
 #include <fcntl.h>
-#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -9,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "common/base/file_lock.h"
 #include "common/base/log.h"
 #include "common/store/block_codec.h"
 
@@ -36,20 +36,25 @@ Status WriteWhole(const std::string& path, const char (&magic)[8],
   return OkStatus();
 }
 
-// Opens `dir` and takes its exclusive lock without waiting; the folder's descriptor holds it.
-Status LockFolder(const std::string& dir, int* fd_out) {
-  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (fd < 0) return Status::Error(dir + ": cannot open the folder: " + std::strerror(errno));
-  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
-    const int error = errno;
-    ::close(fd);
-    if (error == EWOULDBLOCK)
+// Takes the store's lock (the file kLockFile in it, created if missing) without waiting;
+// *fd holds it. A filesystem without locks is warned about, and the store written unlocked.
+Status LockStore(const std::string& dir, int* fd) {
+  std::string error;
+  switch (TryLockFile(dir + "/" + kLockFile, /*create=*/true, fd, &error)) {
+    case LockResult::kLocked:
+      return OkStatus();
+    case LockResult::kHeldElsewhere:
       return Status::Error(dir + ": another raystack-prep is writing this store now; wait for it "
                            "or give another -o");
-    return Status::Error(dir + ": cannot lock the folder: " + std::strerror(error));
+    case LockResult::kNoLocks:
+      LOG_WARNING("prep", "%s: its filesystem takes no file locks: nothing keeps two raystack-prep "
+                  "from writing this store at once", dir.c_str());
+      return OkStatus();
+    case LockResult::kNoFile:
+    case LockResult::kError:
+      break;
   }
-  *fd_out = fd;
-  return OkStatus();
+  return Status::Error(error);
 }
 
 template <typename T>
@@ -66,7 +71,7 @@ Expected<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& di
   if (ec) return Status::Error(dir + ": cannot create directory: " + ec.message());
   std::unique_ptr<StoreWriter> w(new StoreWriter());
   w->dir_ = dir;
-  RAYSTACK_RETURN_IF_ERROR(LockFolder(dir, &w->lock_fd_));
+  RAYSTACK_RETURN_IF_ERROR(LockStore(dir, &w->lock_fd_));
   // A half-written store must not look complete: drop the old index first.
   std::filesystem::remove(dir + "/" + kIndexFile, ec);
   const std::string path = Tmp(dir + "/" + kBlocksFile);
@@ -81,11 +86,13 @@ Expected<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& di
 }
 
 Status StoreWriter::CheckNotBeingWritten(const std::string& dir) {
-  struct stat st {};
-  if (::stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return OkStatus();
   int fd = -1;
-  RAYSTACK_RETURN_IF_ERROR(LockFolder(dir, &fd));
-  ::close(fd);  // free again: Create takes it for the writing
+  std::string error;  // (a lock that cannot be tried here is Create's to report)
+  const LockResult r = TryLockFile(dir + "/" + kLockFile, /*create=*/false, &fd, &error);
+  if (fd >= 0) ::close(fd);  // free again: Create takes it for the writing
+  if (r == LockResult::kHeldElsewhere)
+    return Status::Error(dir + ": another raystack-prep is writing this store now; wait for it "
+                         "or give another -o");
   return OkStatus();
 }
 

@@ -29,9 +29,9 @@ struct EncodedBlock {
 
 class StoreWriter {
  public:
-  // Creates `dir` if needed, locks it (flock on the folder: two writers of one store would
-  // share its temporaries and leave it corrupt) and starts blocks.bin. Existing store files
-  // are replaced. The lock goes with the writer.
+  // Creates `dir` if needed, locks it (the file kLockFile in it: two writers of one store
+  // would share its temporaries and leave it corrupt) and starts blocks.bin. Existing store
+  // files are replaced. The lock goes with the writer.
   static Expected<std::unique_ptr<StoreWriter>> Create(const std::string& dir);
   // An error if another process is writing the store in `dir` now (OK when `dir` is missing):
   // for a converter to find out before it reads its model, not after.
@@ -49,7 +49,7 @@ class StoreWriter {
  private:
   StoreWriter() = default;
   std::string dir_;
-  int lock_fd_ = -1;  // the folder, flock()ed
+  int lock_fd_ = -1;  // kLockFile, locked
   std::FILE* blocks_ = nullptr;
   uint64_t offset_ = 0;
   std::vector<BlockEntry> entries_;

@@ -13,6 +13,7 @@
 #include <regex>
 #include <thread>
 
+#include "common/base/file_lock.h"
 #include "common/base/process_names.h"
 #include "common/base/temp_dir.h"
 #include "common/store/store_reader.h"
@@ -202,24 +203,30 @@ TEST_F(PrepCliTest, TwoWritersOfOneStoreAreRefused) {
 }
 
 // A killed prep leaves its work folder (bucket files: up to gigabytes); the next prep with the
-// same temporary folder removes those of processes gone from this machine, and nothing else.
+// same temporary folder removes those whose owner lock no process holds, and nothing else: not
+// a live prep's (whatever its process id says: it may run in another PID namespace), not a
+// folder of that name without an owner file (a user's), not another machine's.
 TEST_F(PrepCliTest, WorkFoldersOfKilledPrepsAreRemoved) {
   namespace fs = std::filesystem;
   const std::string temp = dir_->File("temp");
   fs::create_directory(temp);
-  const pid_t child = fork();
-  if (child == 0) _exit(0);
-  ASSERT_GT(child, 0);
-  ASSERT_EQ(waitpid(child, nullptr, 0), child);  // a process id now gone
   const std::string own = "raystack-prep-" + HostName() + "-";
-  const std::string gone = own + std::to_string(child) + "-a1B2c3";
-  const std::vector<std::string> kept = {own + std::to_string(getpid()) + "-a1B2c3",  // alive
-                                         "raystack-prep-elsewhere-" + std::to_string(child) + "-a1B2c3",
-                                         own + std::to_string(child) + "-short", "other"};
+  const std::string gone = own + "4242-a1B2c3";  // its owner file unlocked: a killed prep's
+  const std::string live = own + "4243-a1B2c3";  // locked below, as a live prep holds it
+  const std::vector<std::string> kept = {live, own + "4244-a1B2c3" /* no owner file */,
+                                         "raystack-prep-elsewhere-4242-a1B2c3",
+                                         own + "4242-short", "other"};
   for (const std::string& name : kept) fs::create_directory(temp + "/" + name);
   fs::create_directory(temp + "/" + gone);
+  for (const std::string& name : {gone, live, std::string("raystack-prep-elsewhere-4242-a1B2c3")})
+    std::ofstream(temp + "/" + name + "/" + TempDir::kOwnerFile);
   std::ofstream(temp + "/" + gone + "/bucket-0") << "bytes";
+  int held = -1;
+  std::string error;
+  ASSERT_EQ(TryLockFile(temp + "/" + live + "/" + TempDir::kOwnerFile, false, &held, &error),
+            LockResult::kLocked) << error;
   const ProcessResult r = Prep({"--generate", "sphere:1000", "--temp-dir", temp, "-o", dir_->File("s")});
+  ::close(held);
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_FALSE(fs::exists(temp + "/" + gone));
   EXPECT_NE(r.err.find("removed 1 work folder left by interrupted runs"), std::string::npos) << r.err;

@@ -1,0 +1,23 @@
+#pragma once
+// An exclusive lock on a file, taken without waiting and held while its descriptor is open:
+// an open file description lock (fcntl F_OFD_SETLK). Unlike flock() on a folder, it is carried
+// to the server on NFS, and a process in another PID namespace sees it too, so "locked" means
+// "some live process holds it", wherever that process runs.
+
+#include <string>
+
+namespace raystack {
+
+enum class LockResult {
+  kLocked,         // ours now: *fd holds it
+  kHeldElsewhere,  // a live process holds it
+  kNoLocks,        // the filesystem takes no locks (ENOLCK, EOPNOTSUPP): *fd open, unlocked
+  kNoFile,         // missing, and not to be created
+  kError,          // cannot open: *error says why
+};
+
+// Opens `path` (read-write, created if `create`) and tries its lock. *fd is the open
+// descriptor for kLocked and kNoLocks (the caller closes it to release), -1 otherwise.
+LockResult TryLockFile(const std::string& path, bool create, int* fd, std::string* error);
+
+}  // namespace raystack
