@@ -551,10 +551,13 @@ Expected<Scene> LoadScene(const std::string& path) {
   in.read(text.data(), static_cast<std::streamsize>(text.size()));
   if (in.bad()) return Status::Error(path + ": read error: " + std::strerror(errno));
   text.resize(static_cast<size_t>(in.gcount()));
-  // Relative paths are the scene file's neighbours; a scene read from a pipe (/dev/stdin, a
-  // process substitution) has none, so they are the working folder's (not /dev's).
-  const bool regular = fs::is_regular_file(path, ec);
-  return ParseScene(text, path, regular ? fs::path(path).parent_path().string() : "");
+  // Relative paths are the scene file's neighbours; a scene read from a pipe or a descriptor
+  // (/dev/stdin, even redirected from a file; a process substitution's /dev/fd/N) has none,
+  // so they are the working folder's (not /dev's).
+  const std::string folder = fs::path(path).lexically_normal().parent_path().string();
+  const bool stream = !fs::is_regular_file(path, ec) || folder == "/dev" ||
+                      folder == "/dev/fd" || folder.rfind("/proc/", 0) == 0;
+  return ParseScene(text, path, stream ? "" : fs::path(path).parent_path().string());
 }
 
 }  // namespace raystack::render

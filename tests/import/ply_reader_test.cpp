@@ -79,6 +79,13 @@ TEST(PlyReader, TriangleStripsGiveTheirTrianglesFacingOneWay) {
       EXPECT_GT(Cross(t.p[1] - t.p[0], t.p[2] - t.p[0]).z, 0) << "turned over";
     EXPECT_EQ(r.sink.triangles[1].p[0], (Vec3f{1, 1, 0}));  // (4 0 1): the second, turned
   }
+  // With an unsigned index type, -1 is written as its largest value.
+  std::vector<TestPlyElement> unsigned_strips = StripGrid();
+  unsigned_strips[1].properties[0] = {"uint", "vertex_indices", "uint"};
+  unsigned_strips[1].rows[0][7] = 4294967295.0;
+  PlyResult r = ReadPlyText(files, TestPlyWriter::Build("binary_little_endian", unsigned_strips));
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.sink.triangles.size(), 4u);
 }
 
 TEST(PlyReader, ReadsAnyLayoutInEveryFormatAlike) {

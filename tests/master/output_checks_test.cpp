@@ -133,6 +133,22 @@ TEST(OutputChecks, QuietKeepsOnlyWarningsAndErrors) {
   }
 }
 
+// A scene redirected into /dev/stdin from a file: its relative paths are the working
+// folder's (they were resolved against /dev: "/dev/no-such-store/index.bin").
+TEST(OutputChecks, ASceneOnStdinResolvesPathsInTheWorkingFolder) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  std::ofstream(dir->File("scene.json")) << R"({ "store": "no-such-store",
+    "camera": { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 40, "height": 30 } })";
+  const ProcessResult r = RunProcess(
+      {"/bin/sh", "-c", "cd \"$1\" && exec \"$0\" render /dev/stdin -q < scene.json",
+       kRaystackBinary, dir->path()},
+      dir->path());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("no-such-store/index.bin"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("/dev/no-such-store"), std::string::npos) << r.err;
+}
+
 // A frame whose film cannot fit in the memory available is refused before anything is read
 // (running out midway ended in an uncaught std::bad_alloc), naming the camera and the sizes.
 TEST(OutputChecks, AnImageLargerThanTheMemoryIsRefusedBeforeRendering) {

@@ -242,7 +242,7 @@ Status PlyReader::ReadStrip(const PlyProperty& list) {
   for (int64_t k = 0; k < count; ++k) {
     int64_t index = 0;
     RAYSTACK_RETURN_IF_ERROR(values_->ReadInteger(list.type, &index));
-    if (index == -1) {  // the next strip starts
+    if (index == -1 || index == 0xffffffffll) {  // the next strip starts (-1, as uint too)
       in_strip = 0;
       continue;
     }
