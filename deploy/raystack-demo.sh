@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # raystack-demo [DIR]: the built-in default scene with the installed programs. Generates the
 # 2 M-triangle scene into a block store in DIR (default ./raystack-demo), checks every block,
-# and renders it under mpirun on this machine (1 master + 2 slaves, 32 MB block cache each,
+# and renders it under mpirun on this machine (1 master + 2 slaves, 16 MiB block cache each,
 # smaller than the store): DIR/default.exr and DIR/default.png.
 set -euo pipefail
 if [ "${1:-}" = "-h" ] || [ "${1:-}" = "--help" ]; then
@@ -20,5 +20,5 @@ sed -e 's#"../build/default-store"#"default-store"#' -e 's#"../build/default.exr
 as_root=()
 if [ "$(id -u)" = 0 ]; then as_root=(--allow-run-as-root); fi
 mpirun "${as_root[@]}" --oversubscribe -np 3 \
-    "$bin/raystack" render "$dir/default-scene.json" --threads 1 --cache-mb 32
+    "$bin/raystack" render "$dir/default-scene.json" --threads 1 --cache-mb 16
 echo "raystack-demo: wrote $dir/default.exr"
