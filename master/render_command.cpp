@@ -102,7 +102,10 @@ render::FramePlan PlanOf(const RenderArgs& args, const render::Scene& scene, con
 // when the blocks stay in the cache and reloads them on every sweep when they do not (the
 // dragon x36 with a 72 MB cache: 4.5 loads per block used instead of 1.1). `store` may be null
 // (a master that cannot open it): then the rounds stay on, as for an in-core scene.
-bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, std::string* why) {
+// `rem_slaves`: the slaves sharing the store's blocks under --blocks rem (0 otherwise); each
+// keeps its share in its cache for its peers, so less of the cache is left for the rest.
+bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, int rem_slaves,
+                  std::string* why) {
   if (args.coarse_rounds != "auto") {
     *why = "--coarse-rounds " + args.coarse_rounds;
     return args.coarse_rounds == "on";
@@ -112,9 +115,13 @@ bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, std::
     return true;
   }
   const uint64_t decoded = store->summary().raw_bytes;
-  const bool fits = decoded <= args.engine.cache_bytes;
+  const uint64_t share = rem_slaves > 0 ? decoded / static_cast<uint64_t>(rem_slaves) : 0;
+  const uint64_t room = args.engine.cache_bytes > share ? args.engine.cache_bytes - share : 0;
+  const bool fits = decoded <= room;
   *why = StrFormat("decoded blocks %.1f MB %s the %.1f MiB cache", static_cast<double>(decoded) / 1e6,
                    fits ? "fit in" : "exceed", static_cast<double>(args.engine.cache_bytes) / kMiB);
+  if (share > 0)
+    *why += StrFormat(" less its rem share of %.1f MiB", static_cast<double>(share) / kMiB);
   return fits;
 }
 
@@ -229,7 +236,7 @@ Status Run(const RenderArgs& args) {
   if (!preview.ok()) return preview.status();
 
   std::string why;
-  const bool coarse_rounds = CoarseRounds(args, store->get(), &why);
+  const bool coarse_rounds = CoarseRounds(args, store->get(), 0, &why);
   LogFirstPass(args, coarse_rounds, why);
   std::string stats_json = "[\n";
   FrameWriter writer(!args.quiet);
@@ -562,14 +569,17 @@ Status RunDistributed(const RenderArgs& args, transport::Transport* net) {
     // The master reads the store's index when it can (it need not: the slaves read the store),
     // to log the slaves' block mode and to plan the first pass.
     Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
-    if (store.ok() && !args.quiet) {  // which block mode the slaves use, and why
+    bool rem = false;
+    if (store.ok()) {  // which block mode the slaves use, and why
       std::string why;
-      const bool rem = UseRemoteBlocks(args, **store, net->size() - 1, &why);
-      std::printf("blocks: %s (--blocks %s; %s)\n", rem ? "rem" : "loc", args.blocks.c_str(),
-                  why.c_str());
+      rem = UseRemoteBlocks(args, **store, net->size() - 1, &why);
+      if (!args.quiet)
+        std::printf("blocks: %s (--blocks %s; %s)\n", rem ? "rem" : "loc", args.blocks.c_str(),
+                    why.c_str());
     }
     std::string why;
-    const bool coarse_rounds = CoarseRounds(args, store.ok() ? store->get() : nullptr, &why);
+    const bool coarse_rounds = CoarseRounds(args, store.ok() ? store->get() : nullptr,
+                                            rem ? net->size() - 1 : 0, &why);
     LogFirstPass(args, coarse_rounds, why);
     return RunMaster(args, *scene, net, log->get(), coarse_rounds);
   }
