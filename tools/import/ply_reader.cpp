@@ -39,6 +39,8 @@ class PlyReader {
   Status MakeVertexLayout(const PlyElement& element, VertexLayout* layout) const;
   void WarnAboutTrailingData(PlyFormat format);
   Status ReadVertices(const PlyElement& element);
+  template <typename ReadList, typename AfterRecord>
+  Status ReadIndexLists(const PlyElement& element, ReadList&& read_list, AfterRecord&& after_record);
   Status ReadFaces(const PlyElement& element);
   Status ReadFaceCorners(const PlyProperty& list);
   Status ReadTriangleStrips(const PlyElement& element);
@@ -153,27 +155,39 @@ Status PlyReader::ReadVertices(const PlyElement& element) {
   return OkStatus();
 }
 
-Status PlyReader::ReadFaces(const PlyElement& element) {
+// Each record of a face or strip element: its vertex index list read by `read_list`, its
+// other properties skipped, then `after_record` (once the record is complete).
+template <typename ReadList, typename AfterRecord>
+Status PlyReader::ReadIndexLists(const PlyElement& element, ReadList&& read_list,
+                                 AfterRecord&& after_record) {
   int list = element.Find("vertex_indices");
   if (list < 0) list = element.Find("vertex_index");
-  if (list < 0) return input_.LineError("PLY face element has no vertex_indices list");
+  if (list < 0) return input_.LineError("PLY " + element.name + " element has no vertex_indices list");
   const PlyProperty& indices = element.properties[static_cast<size_t>(list)];
   if (!indices.is_list || !IsIntegerType(indices.type))
     return input_.LineError("PLY " + indices.name + " must be a list of integers");
   for (uint64_t i = 0; i < element.count; ++i) {
     RAYSTACK_RETURN_IF_ERROR(values_->BeginRecord(element.name));
     for (size_t p = 0; p < element.properties.size(); ++p) {
-      if (p == static_cast<size_t>(list)) RAYSTACK_RETURN_IF_ERROR(ReadFaceCorners(indices));
+      if (p == static_cast<size_t>(list)) RAYSTACK_RETURN_IF_ERROR(read_list(indices));
       else RAYSTACK_RETURN_IF_ERROR(SkipProperty(element.properties[p]));
     }
     RAYSTACK_RETURN_IF_ERROR(values_->EndRecord());
-    ++info_->faces;
-    if (batcher_.WouldExceedLimit(corners_.size() - 2))
-      return values_->Error(StrFormat("more than %llu triangles",
-                                      static_cast<unsigned long long>(batcher_.max_triangles())));
-    RAYSTACK_RETURN_IF_ERROR(batcher_.AddFan(corners_, kNoMaterial));
+    RAYSTACK_RETURN_IF_ERROR(after_record());
   }
   return OkStatus();
+}
+
+Status PlyReader::ReadFaces(const PlyElement& element) {
+  return ReadIndexLists(
+      element, [this](const PlyProperty& list) { return ReadFaceCorners(list); },
+      [this] {
+        ++info_->faces;
+        if (batcher_.WouldExceedLimit(corners_.size() - 2))
+          return values_->Error(StrFormat("more than %llu triangles",
+                                          static_cast<unsigned long long>(batcher_.max_triangles())));
+        return batcher_.AddFan(corners_, kNoMaterial);
+      });
 }
 
 Status PlyReader::ReadFaceCorners(const PlyProperty& list) {
@@ -216,21 +230,9 @@ Status PlyReader::Corner(int64_t index, FanCorner* corner) {
 // strips separated by -1; each index past a strip's second makes a triangle with the two
 // before it, every other one turned over so that all face the same way.
 Status PlyReader::ReadTriangleStrips(const PlyElement& element) {
-  int list = element.Find("vertex_indices");
-  if (list < 0) list = element.Find("vertex_index");
-  if (list < 0) return input_.LineError("PLY tristrips element has no vertex_indices list");
-  const PlyProperty& indices = element.properties[static_cast<size_t>(list)];
-  if (!indices.is_list || !IsIntegerType(indices.type))
-    return input_.LineError("PLY " + indices.name + " must be a list of integers");
-  for (uint64_t i = 0; i < element.count; ++i) {
-    RAYSTACK_RETURN_IF_ERROR(values_->BeginRecord(element.name));
-    for (size_t p = 0; p < element.properties.size(); ++p) {
-      if (p == static_cast<size_t>(list)) RAYSTACK_RETURN_IF_ERROR(ReadStrip(indices));
-      else RAYSTACK_RETURN_IF_ERROR(SkipProperty(element.properties[p]));
-    }
-    RAYSTACK_RETURN_IF_ERROR(values_->EndRecord());
-  }
-  return OkStatus();
+  return ReadIndexLists(
+      element, [this](const PlyProperty& list) { return ReadStrip(list); },
+      [] { return OkStatus(); });
 }
 
 Status PlyReader::ReadStrip(const PlyProperty& list) {
