@@ -1,7 +1,5 @@
 #include "common/store/store_writer.h"
 
-#include <fcntl.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>

@@ -2,7 +2,6 @@
 // problem, statistics after a good run, and --verify catching a damaged block.
 
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
