@@ -194,24 +194,30 @@ std::string OutwardCube(double translate = 0) {
   return obj;
 }
 
+// Everything clear glass (albedo 1, ior 1.5) in a uniform background of 1, seen by a square
+// camera of `side` pixels (fov 40 degrees).
+render::Scene ClearGlassScene(Vec3f position, Vec3f look_at, int side) {
+  render::Scene scene;
+  render::CameraDesc cam;
+  cam.position = position;
+  cam.look_at = look_at;
+  cam.fov_y_deg = 40;
+  cam.width = cam.height = side;
+  scene.cameras.push_back(cam);
+  scene.background = {1, 1, 1};
+  scene.default_material.type = render::MaterialType::kGlass;
+  scene.default_material.albedo = {1, 1, 1};
+  scene.default_material.ior = 1.5f;
+  return scene;
+}
+
 // Clear glass (albedo 1) in a uniform background neither absorbs nor emits: path tracing
 // follows one lobe with weight exactly 1, so every sample is the background, or 0 when it is
 // still inside at the depth limit. Whitted splits both lobes, f + (1 - f) = 1 at each
 // interface: the radiance is the background less what the depth limit cut off.
 TEST(ExtremeRadiometry, ClearGlassInAUniformBackgroundConservesEnergy) {
   TestStore s = BuildObj(OutwardCube());
-  render::Scene scene;
-  render::CameraDesc cam;
-  cam.position = {2.5f, 1.8f, 3.1f};
-  cam.look_at = {0, 0, 0};
-  cam.fov_y_deg = 40;
-  cam.width = 40;
-  cam.height = 40;
-  scene.cameras.push_back(cam);
-  scene.background = {1, 1, 1};
-  scene.default_material.type = render::MaterialType::kGlass;
-  scene.default_material.albedo = {1, 1, 1};
-  scene.default_material.ior = 1.5f;
+  render::Scene scene = ClearGlassScene({2.5f, 1.8f, 3.1f}, {0, 0, 0}, 40);
 
   scene.integrator.type = render::IntegratorType::kPath;
   scene.integrator.max_depth = 64;
@@ -264,17 +270,7 @@ TEST(ExtremeRadiometry, WhittedGlassInGlassStaysBoundedAtAnyDepth) {
   }
   nested += outer;
   TestStore s = BuildObj(nested);
-  render::Scene scene;
-  render::CameraDesc cam;
-  cam.position = {0.1f, 0.2f, 0.3f};
-  cam.look_at = {1, 0.4f, 0.2f};
-  cam.width = 8;
-  cam.height = 8;
-  scene.cameras.push_back(cam);
-  scene.background = {1, 1, 1};
-  scene.default_material.type = render::MaterialType::kGlass;
-  scene.default_material.albedo = {1, 1, 1};
-  scene.default_material.ior = 1.5f;
+  render::Scene scene = ClearGlassScene({0.1f, 0.2f, 0.3f}, {1, 0.4f, 0.2f}, 8);
   scene.integrator.type = render::IntegratorType::kWhitted;
   for (const int depth : {20, 64}) {
     scene.integrator.max_depth = depth;
