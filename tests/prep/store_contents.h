@@ -23,6 +23,7 @@ struct StoreContents {
   std::unique_ptr<store::StoreReader> reader;
   std::vector<std::vector<StoredTriangle>> blocks;  // parallel to reader->blocks()
   std::vector<std::vector<uint32_t>> block_ids;     // sorted ids per block
+  uint32_t blocks_with_normals = 0;
 };
 
 // Opens `dir` and decodes every block; fails the test on any error.
@@ -39,6 +40,7 @@ inline void ReadStore(const std::string& dir, StoreContents* out) {
     Expected<store::BlockView> v = s.Load(b, &stored, &scratch, &raw);
     ASSERT_TRUE(v.ok()) << v.status().message();
     ASSERT_EQ(v->triangle_count(), s.blocks()[b].triangle_count);
+    out->blocks_with_normals += v->has_normals();
     for (uint32_t t = 0; t < v->triangle_count(); ++t) {
       StoredTriangle st;
       st.id = v->TriangleId(t);

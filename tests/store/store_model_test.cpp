@@ -316,6 +316,23 @@ TEST_P(SharedModelTest, HitsEqualBruteForce) {
   CheckRays(*b.store, tris, 100000);
 }
 
+// A real model with normals through the partition pass (--mem-limit 64), which once failed on
+// the conference room ("records of different sizes cannot be read by range").
+TEST(StoreModel, SharedModelWithNormalsPartitionedOnDisk) {
+  const std::string dir = testing::SharedModels();
+  if (dir.empty())
+    GTEST_SKIP() << "no shared models folder (../shared/models): the real-model layer is skipped";
+  const std::string path = dir + "/conference.obj";
+  prep::ConvertOptions o;
+  o.inputs = {path};
+  o.memory_limit_bytes = 64ull << 20;
+  Built b = ConvertToStore(o);
+  ASSERT_TRUE(b.store);
+  const std::vector<Tri> tris = testing::LoadTriangles(path);
+  CheckPlacement(*b.store, tris);
+  CheckRays(*b.store, tris, 20000);
+}
+
 INSTANTIATE_TEST_SUITE_P(Models, SharedModelTest,
                          ::testing::Values("CornellBox-Original.obj", "bun_zipper.ply",
                                            "dragon_vrip.ply", "conference.obj", "motorBike.obj"),

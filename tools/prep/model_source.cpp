@@ -67,6 +67,8 @@ Status ReplicatedSource::ForEachPart(int part, int parts, const TriangleSpool::V
     *first = total * static_cast<uint64_t>(part) / static_cast<uint64_t>(parts);
     *end = total * static_cast<uint64_t>(part + 1) / static_cast<uint64_t>(parts);
   };
+  // One piece is the whole model, read in order whatever its records' sizes.
+  if (parts == 1) return ForEach(visit);
   uint64_t first, end;
   if (copies() > 1) {
     piece(copies(), &first, &end);
