@@ -19,6 +19,7 @@ class ProgressReporter {
   void Update(uint64_t done_delta);
   void SetTotal(uint64_t total);
   void Done();
+  uint64_t done() const { return done_.load(); }
 
  private:
   void Draw(bool final);

@@ -18,7 +18,10 @@
 #include "common/store/octree.h"
 #include "tests/prep/run_process.h"
 #include "tests/prep/store_contents.h"
+#include "common/base/progress.h"
 #include "tools/prep/convert.h"
+#include "tools/prep/generator.h"
+#include "tools/prep/model_source.h"
 #include "tests/support/test_dir.h"
 
 namespace raystack::prep {
@@ -429,6 +432,35 @@ TEST_F(OctreeBuilderTest, ModelWithNormalsIsPartitioned) {
     ExpectEveryIdPresent(stores[run], r->triangles);
     ExpectBlocksMatchTheirCells(stores[run]);
     EXPECT_EQ(stores[run].blocks_with_normals, stores[run].blocks.size());
+  }
+}
+
+// The blocks' progress ends at the model's triangle count, however many leaves each
+// triangle is stored in, in memory and through the partition pass.
+TEST_F(OctreeBuilderTest, ProgressCountsEachTriangleOnce) {
+  TriangleSpool spool(dir_->File("model.tmp"), 1ull << 30);
+  SpoolSink sink(&spool);
+  import::ModelInfo info;
+  ASSERT_TRUE(GenerateModel("soup:60000", sink, &info).ok());
+  ASSERT_TRUE(spool.Close().ok());
+  const ReplicatedSource source(spool, sink.bounds(), false, {1, 1, 1});
+  for (const uint64_t memory : {1024ull << 20, 4ull << 20}) {
+    SCOPED_TRACE(memory > (64ull << 20) ? "in memory" : "partitioned");
+    Expected<std::unique_ptr<store::StoreWriter>> writer =
+        store::StoreWriter::Create(dir_->File(StrFormat("progress-%llu", memory)));
+    ASSERT_TRUE(writer.ok()) << writer.status().message();
+    ProgressReporter progress("building blocks", source.triangles(), "tri", /*quiet=*/true);
+    BuildOptions o;
+    o.max_block_bytes = 16 * 1024;
+    o.target_block_bytes = 4 * 1024;
+    o.memory_bytes = memory;
+    o.temp_dir = dir_->path();
+    o.progress = &progress;
+    Expected<BuildResult> built = BuildOctree(source, o, writer->get());
+    ASSERT_TRUE(built.ok()) << built.status().message();
+    EXPECT_EQ(built->partition_passes > 0, memory < (64ull << 20));
+    ASSERT_GT(built->references, source.triangles() * 5 / 4) << "too few copies to prove much";
+    EXPECT_EQ(progress.done(), source.triangles());
   }
 }
 

@@ -46,7 +46,7 @@ struct BuildOptions {
   bool shuffle = true;
   BvhBuildOptions bvh;
   float vertices_per_triangle = 0.6f;  // for size estimates (closed meshes ~0.5, soups 3)
-  ProgressReporter* progress = nullptr;  // fed with references placed in blocks
+  ProgressReporter* progress = nullptr;  // fed with triangles, each once, as blocks are made
   bool quiet = true;  // no progress of its own (the partition pass's)
 };
 
