@@ -26,11 +26,7 @@ struct RayRecord {
   uint8_t depth;      // bounces so far
   uint16_t priority;  // the pixel's priority, inherited by every child
   uint8_t flags;      // kHitBackFace, kOccluded
-  // The closest hit's distance beyond tmax (PreciseDistance, offset_ray.h): its point is
-  // rebuilt in double, so a far camera does not push secondary origins off by its own ulps.
-  // (No walk state: the queue a ray waits in names its block.)
-  int8_t t_error_log2;
-  float t_rest;
+  uint8_t reserved[5];  // (no walk state: the queue a ray waits in names its block)
 };
 static_assert(sizeof(RayRecord) == 64, "a waiting ray costs 64 bytes; keep it so");
 

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 
-#include "common/geometry/offset_ray.h"
 #include "common/base/log.h"
 #include "common/base/thread_cpu.h"
 #include "common/render/pixel_priority.h"
@@ -222,10 +221,6 @@ void RecordHit(const store::BlockView& view, const Hit& hit, RayRecord* ray) {
     if (IsFinite(n) && Dot(n, n) > 0) ns = Dot(n, ng_facing) < 0 ? -n : n;
   }
   ray->tmax = hit.t;
-  const PreciseDistance precise =
-      PreciseHitDistance(ray->origin, ray->direction, hit.t, p0, p1, p2);
-  ray->t_rest = precise.rest;
-  ray->t_error_log2 = precise.error_log2;
   ray->hit_id = hit.triangle_id;
   ray->normal = EncodeNormal(Normalize(ScaledToUnitRange(ns)));
   ray->flags = back ? kHitBackFace : 0;

@@ -123,11 +123,10 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
   const Material& m = materials_.Get(ray.material == store::kNoMaterial16 ? store::kNoMaterial
                                                                           : ray.material);
   const Vec3f n = DecodeNormal(ray.normal);  // faces the side the ray came from
-  // Rebuilt in double from the hit's precise distance: its error is ulps of the point, not of
-  // a far camera's position (offset_ray.h).
-  Vec3f p_error;
-  const Vec3f p = PreciseHitPoint(ray.origin, ray.direction, ray.tmax,
-                                  {ray.t_rest, ray.t_error_log2}, &p_error);
+  const Vec3f p = ray.origin + ray.direction * ray.tmax;
+  // Rebuilt from the ray, p carries the rounding of the ray's origin: a far camera's hit
+  // points need a larger offset than their own magnitude suggests (offset_ray.h).
+  const Vec3f p_error = HitPointError(ray.origin, ray.direction, ray.tmax);
   if (out->primary) {
     out->z = ray.tmax;
     out->normal = n;

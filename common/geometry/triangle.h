@@ -64,17 +64,6 @@ struct TrianglePlane {
   }
 };
 
-// The distance along the ray to the triangle's plane, in double: numerator over denominator
-// (either may be zero). FinishTriangleHit rounds it to float; PreciseHitDistance
-// (offset_ray.h) keeps the rest.
-inline void PlaneDistanceTerms(Vec3f origin, Vec3f direction, const TrianglePlane& plane,
-                               double* numerator, double* denominator) {
-  using D = double;
-  *denominator = plane.nx * D{direction.x} + plane.ny * D{direction.y} + plane.nz * D{direction.z};
-  *numerator = plane.nx * (plane.x0 - D{origin.x}) + plane.ny * (plane.y0 - D{origin.y}) +
-               plane.nz * (plane.z0 - D{origin.z});
-}
-
 // IntersectTriangle once the ray is known to pass inside (EdgesAccept on its final edge values
 // u, v, w): the distance, its range check, and the barycentrics.
 //
@@ -88,9 +77,12 @@ inline bool FinishTriangleHit(Vec3f origin, Vec3f direction, const TrianglePlane
                               float* u_out, float* v_out) {
   const float det = u + v + w;
   if (det == 0.0f) return false;
-  double numerator, denominator;
-  PlaneDistanceTerms(origin, direction, plane, &numerator, &denominator);
+  using D = double;
+  const D denominator =
+      plane.nx * D{direction.x} + plane.ny * D{direction.y} + plane.nz * D{direction.z};
   if (denominator == 0.0) return false;
+  const D numerator = plane.nx * (plane.x0 - D{origin.x}) + plane.ny * (plane.y0 - D{origin.y}) +
+                      plane.nz * (plane.z0 - D{origin.z});
   const float t = static_cast<float>(numerator / denominator);
   if (!(t > tmin && t < tmax)) return false;  // also rejects NaN
   const float inv_det = 1.0f / det;

@@ -2,9 +2,8 @@
 // object (a cube, a latitude-longitude sphere), a shadow ray from a visible point towards a
 // light in front of its face can only be blocked by the object itself, which lies behind the
 // face. So every occluded shadow ray is a false one (self-intersection: "acne"). The rays
-// are the ones the real shader spawns (Shader::Finish: hit point rebuilt from the ray and its
-// precise distance, octahedral normal, OffsetRayOrigin), traced against the mesh through the
-// BVH.
+// are the ones the real shader spawns (Shader::Finish: hit point from the ray, octahedral
+// normal, OffsetRayOrigin), traced against the mesh through the BVH.
 
 #include <gtest/gtest.h>
 
@@ -14,7 +13,6 @@
 #include <string>
 #include <vector>
 
-#include "common/geometry/offset_ray.h"
 #include "common/render/material_table.h"
 #include "common/render/scene.h"
 #include "slave/ray_record.h"
@@ -122,10 +120,6 @@ OcclusionCount LightTheObject(const ClosedMesh& mesh, double camera_radii, int p
     record.origin = primary.origin;
     record.direction = primary.direction;
     record.tmax = hit.t;
-    const PreciseDistance precise =  // as the ray threads' RecordHit keeps it
-        PreciseHitDistance(primary.origin, primary.direction, hit.t, tri.p[0], tri.p[1], tri.p[2]);
-    record.t_rest = precise.rest;
-    record.t_error_log2 = precise.error_log2;
     record.hit_id = hit.triangle_id;
     record.weight = {1, 1, 1};
     record.normal = EncodeNormal(facing);
