@@ -26,7 +26,11 @@ struct RayRecord {
   uint8_t depth;      // bounces so far
   uint16_t priority;  // the pixel's priority, inherited by every child
   uint8_t flags;      // kHitBackFace, kOccluded
-  uint8_t reserved[5];  // (no walk state: the queue a ray waits in names its block)
+  uint8_t reserved;   // (no walk state: the queue a ray waits in names its block)
+  // The hit triangle's own normal, octahedral, on the side `normal` faces: secondary rays start
+  // off the surface along it (the hit point's error is measured against the surface's plane,
+  // which a shading normal leaning from it does not see).
+  uint32_t geometric_normal;
 };
 static_assert(sizeof(RayRecord) == 64, "a waiting ray costs 64 bytes; keep it so");
 

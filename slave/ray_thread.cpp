@@ -223,6 +223,8 @@ void RecordHit(const store::BlockView& view, const Hit& hit, RayRecord* ray) {
   ray->tmax = hit.t;
   ray->hit_id = hit.triangle_id;
   ray->normal = EncodeNormal(Normalize(ScaledToUnitRange(ns)));
+  ray->geometric_normal =
+      view.has_normals() ? EncodeNormal(Normalize(ScaledToUnitRange(ng_facing))) : ray->normal;
   ray->flags = back ? kHitBackFace : 0;
   const uint32_t m = view.Material(hit.local_triangle);
   ray->material = m == store::kNoMaterial ? store::kNoMaterial16 : static_cast<uint16_t>(m);

@@ -64,8 +64,10 @@ struct OcclusionCount {
 // Shoots primary rays from a camera `camera_radii` radii from the centre at random points of
 // the object, shades each hit with one light in front of the hit face, and traces the
 // shadow ray the shader spawned.
+// `lean_deg`: the shading normal leans that far from the face's own, towards a random
+// direction (as vertex normals interpolated across a coarse mesh do).
 OcclusionCount LightTheObject(const ClosedMesh& mesh, double camera_radii, int primaries,
-                              uint32_t seed) {
+                              uint32_t seed, double lean_deg = 0) {
   const MeshBvh bvh(mesh.triangles);
   render::Scene scene;
   scene.lights.push_back({{0, 0, 0}, {1, 1, 1}});
@@ -122,7 +124,17 @@ OcclusionCount LightTheObject(const ClosedMesh& mesh, double camera_radii, int p
     record.tmax = hit.t;
     record.hit_id = hit.triangle_id;
     record.weight = {1, 1, 1};
-    record.normal = EncodeNormal(facing);
+    record.geometric_normal = EncodeNormal(facing);
+    Vec3f shading = facing;
+    if (lean_deg > 0) {
+      const std::vector<double> r = random_direction();
+      const Vec3f towards{static_cast<float>(r[0]), static_cast<float>(r[1]),
+                          static_cast<float>(r[2])};
+      const Vec3f along = Normalize(towards - facing * Dot(towards, facing));
+      const auto lean = static_cast<float>(lean_deg * std::numbers::pi / 180);
+      shading = Normalize(facing * std::cos(lean) + along * std::sin(lean));
+    }
+    record.normal = EncodeNormal(shading);
     record.material = store::kNoMaterial16;
     record.type = static_cast<uint8_t>(RayType::kPrimary);
     shader.Finish(record, 0, 0, &out);
@@ -159,6 +171,23 @@ TEST_P(ShadowOrigin, NoShadowRayIsFalselyOccludedOnAConvexObject) {
   const OcclusionCount count = LightTheObject(mesh, c.camera_radii, 10000, 5);
   EXPECT_GT(count.shadow_rays, 5000);
   EXPECT_EQ(count.falsely_occluded, 0) << "of " << count.shadow_rays << "; first " << count.first;
+}
+
+// A shading normal leaning 70 degrees from the face: new rays still start on the face's side
+// (they are offset along the face's own normal; offset along the shading normal, the origin
+// stayed on the surface for some rays and the face shadowed itself).
+TEST(ShadowOriginLeaning, NoShadowRayIsFalselyOccludedWithALeaningShadingNormal) {
+  for (const OriginCase c : {OriginCase{false, 1.0, 1e3, 100}, OriginCase{false, 1.0, 0, 1e4},
+                             OriginCase{true, 1e2, 1e6, 3}, OriginCase{true, 1e-2, 0, 100}}) {
+    SCOPED_TRACE(std::string(c.cube ? "cube" : "sphere") + " at " + std::to_string(c.translate) +
+                 ", camera " + std::to_string(c.camera_radii) + " radii");
+    const ClosedMesh mesh = c.cube ? geometry_test::MakeClosedMesh(geometry_test::MeshShape::kCube,
+                                                                   10, c.scale, c.translate)
+                                   : UvSphere(24, 48, c.scale, c.translate);
+    const OcclusionCount count = LightTheObject(mesh, c.camera_radii, 20000, 9, 70);
+    EXPECT_GT(count.shadow_rays, 4000);
+    EXPECT_EQ(count.falsely_occluded, 0) << "of " << count.shadow_rays << "; first " << count.first;
+  }
 }
 
 std::string Sci(double x) {
