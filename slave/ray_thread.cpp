@@ -77,7 +77,8 @@ RayRecord RayThread::PrimaryRay(int x, int y, uint32_t sample, uint32_t slot,
     jx = rng.Uniform(0, render::RandomUse::kPixelJitterX);
     jy = rng.Uniform(0, render::RandomUse::kPixelJitterY);
   }
-  const Ray r = shared_->camera->Generate(static_cast<float>(x) + jx, static_cast<float>(y) + jy);
+  Ray r = shared_->camera->Generate(static_cast<float>(x) + jx, static_cast<float>(y) + jy);
+  shared_->approach.Approach(&r);
   RayRecord rec{};
   rec.origin = r.origin;
   rec.direction = r.direction;
@@ -160,7 +161,12 @@ void RayThread::Finish(const RayRecord& ray) {
   }
   shared_->shader->Finish(ray, slots_.pixel(slot), slots_.sample(slot), &shade_);
   slots_.AddRadiance(slot, shade_.radiance);
-  if (shade_.primary) slots_.SetPrimary(slot, shade_.hit, shade_.z, shade_.normal, shade_.albedo);
+  if (shade_.primary) {
+    // A far camera's ray started nearer the model (primary_approach.h): depth from the camera.
+    const double skipped = shade_.hit ? shared_->approach.Skipped(ray.origin) : 0;
+    const float z = skipped > 0 ? static_cast<float>(double{shade_.z} + skipped) : shade_.z;
+    slots_.SetPrimary(slot, shade_.hit, z, shade_.normal, shade_.albedo);
+  }
   slots_.AddRays(slot, static_cast<uint32_t>(shade_.children.size()));
   for (const RayRecord& child : shade_.children) {
     ++counters_.rays[static_cast<int>(TypeOf(child))];

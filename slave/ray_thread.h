@@ -27,6 +27,7 @@
 #include "slave/render_stats.h"
 #include "slave/sample_slots.h"
 #include "slave/shading.h"
+#include "slave/primary_approach.h"
 #include "slave/tile_source.h"
 
 namespace raystack::slave {
@@ -42,6 +43,7 @@ struct FrameShared {
   bool stack = true;              // which driver routes rays
   const Shader* shader = nullptr;
   const render::Camera* camera = nullptr;
+  PrimaryApproach approach;  // where a far camera's primary rays start
   TileSource* tiles = nullptr;
   render::SampleSink* sink = nullptr;
   int spp = 1;  // samples of a tile whose sample_end is 0

@@ -136,6 +136,11 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   shared.source = source_;
   shared.shader = &shader;
   shared.camera = &camera;
+  const store::StoreSummary& summary = store_.summary();
+  shared.approach = PrimaryApproach(
+      Bounds3f{{summary.model_lower[0], summary.model_lower[1], summary.model_lower[2]},
+               {summary.model_upper[0], summary.model_upper[1], summary.model_upper[2]}},
+      camera.position());
   shared.tiles = &tiles;
   shared.sink = &sink;
   shared.spp = scene.integrator.spp;

@@ -101,6 +101,50 @@ TEST(ExtremeRadiometry, LightIntensitiesFrom1em6To1e6FollowTheClosedForm) {
   }
 }
 
+// A light 0.2 above the plane, seen from 5e6 away (a narrow field of view). Primary rays used to
+// start at the camera, so the hit points were off by ulps of the camera's position and the
+// shadow rays' offset bound was ~2.9 units: every origin landed above the light and the plane
+// came out black. They now start near the model (primary_approach.h). The closed form is
+// evaluated at the exact intersection of the camera's ray with the plane (in double), and the
+// depth against that distance. The tolerance is the octahedral normal's tilt (1.5e-5 rad)
+// against light 40x closer to grazing.
+TEST(ExtremeRadiometry, ALightJustAboveASurfaceLightsItSeenFromFarAway) {
+  TestStore s = BuildObj(kPlane);
+  render::Scene scene;
+  render::CameraDesc cam = PlaneCamera(16, 12);
+  cam.position = {0, 3e6f, 4e6f};
+  cam.fov_y_deg = 2e-4f;  // ~17 units tall at 5e6
+  scene.cameras.push_back(cam);
+  const render::PointLight light{{0.3f, 0.2f, -0.2f}, {1, 1, 1}};
+  scene.lights.push_back(light);
+  scene.default_material.albedo = {0.5f, 0.5f, 0.5f};
+  const RenderOutcome r = Render(*s.reader, scene, Stack());
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(NonFinitePixels(r.image), 0);
+  const render::Camera camera(cam);
+  int checked = 0;
+  double worst = 0;
+  for (int y = 0; y < cam.height; ++y) {
+    for (int x = 0; x < cam.width; ++x) {
+      const size_t i = static_cast<size_t>(y) * cam.width + x;
+      if (!std::isfinite(r.image.z[i])) continue;
+      const Ray ray = camera.Generate(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
+      const double t = -double{ray.origin.y} / double{ray.direction.y};
+      const double px = double{ray.origin.x} + double{ray.direction.x} * t;
+      const double pz = double{ray.origin.z} + double{ray.direction.z} * t;
+      const double dx = double{light.position.x} - px, dy = double{light.position.y},
+                   dz = double{light.position.z} - pz;
+      const double d2 = dx * dx + dy * dy + dz * dz;
+      const double expected = 0.5 / std::numbers::pi * dy / std::sqrt(d2) / d2;
+      worst = std::max(worst, std::fabs(r.image.rgba[4 * i] - expected) / expected);
+      EXPECT_NEAR(r.image.z[i] / t, 1.0, 1e-6) << "pixel " << x << ", " << y;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 16 * 12 / 2);
+  EXPECT_LT(worst, 2e-3);
+}
+
 // 1024 lights, intensities log-uniform over 1e-6 .. 1e6, above the plane: Whitted sums them
 // all (each shadow ray unoccluded), path tracing picks one per bounce.
 TEST(ExtremeRadiometry, AThousandPointLightsSumToTheClosedForm) {
