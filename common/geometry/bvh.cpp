@@ -17,6 +17,7 @@
 #endif
 
 #include "common/base/check.h"
+#include "common/base/huge_page_allocator.h"
 
 namespace raystack {
 namespace {
@@ -155,8 +156,8 @@ struct BuildInput {
   BuildInput(std::span<const BvhBuildPrimitive> prims, const BvhBuildOptions& build_options,
              std::vector<uint32_t>* build_order)
       : options(build_options), order(*build_order) {
-    boxes.reserve(prims.size());
-    centroids.reserve(prims.size());
+    ReserveForWrite(&boxes, prims.size());
+    ReserveForWrite(&centroids, prims.size());
     for (const BvhBuildPrimitive& p : prims) {
       boxes.push_back(Box4::Load(p.bounds));
       centroids.push_back(Centroid(boxes.back()));
@@ -399,6 +400,16 @@ class BvhBuilder {
   std::array<std::array<uint32_t, kBvhMaxBins>, 3> bin_counts_;
 };
 
+// Room for a tree over n > 0 primitives, reserved before it is built: at most 2n - 1 nodes, so
+// they are never copied as the tree grows. No leaf holds more than max_leaf_size primitives, so
+// there are at least 2 * ceil(n / max_leaf_size) - 1: those are mapped in one call
+// (ReserveForWrite), the rest one page at a time as the tree reaches them.
+void ReserveNodes(std::vector<BvhNode>* nodes, size_t n, const BvhBuildOptions& options) {
+  nodes->reserve(2 * n - 1);
+  const auto max_leaf = static_cast<size_t>(options.max_leaf_size);
+  ReserveForWrite(nodes, 2 * ((n + max_leaf - 1) / max_leaf) - 1);
+}
+
 // Below this many primitives a tree is built on one thread: the converter's block trees, and
 // anything that builds in a few milliseconds.
 constexpr size_t kParallelBuildMin = 1 << 16;
@@ -435,6 +446,7 @@ void BuildInParallel(BuildInput& input, const BuildTask& root, uint32_t threads,
       Deferred& d = deferred[largest_first[k]];
       BuildTask task = d.task;
       task.patch = kNoParent;
+      ReserveNodes(&d.nodes, task.end - task.begin, input.options);
       BvhBuilder(input, &d.nodes).Build(task, [](const BuildTask&) { return false; });
     }
   };
@@ -452,6 +464,7 @@ void BuildInParallel(BuildInput& input, const BuildTask& root, uint32_t threads,
     if (d < deferred.size() && deferred[d].slot == i)
       shift += static_cast<uint32_t>(deferred[d++].nodes.size()) - 1;
   }
+  ReserveForWrite(nodes, top.size() + shift);  // the whole tree, now that its size is known
   d = 0;
   for (uint32_t i = 0; i < top.size(); ++i) {
     if (d < deferred.size() && deferred[d].slot == i) {
@@ -476,6 +489,7 @@ std::vector<BvhNode> BuildBvh(std::span<const BvhBuildPrimitive> prims,
   CHECK(options.max_leaf_size >= 1 && options.max_leaf_size <= 65535);
   CHECK(options.bins >= 2 && options.bins <= kBvhMaxBins);
   CHECK(prims.size() < std::numeric_limits<uint32_t>::max());
+  ReserveForWrite(order, prims.size());
   order->resize(prims.size());
   for (uint32_t i = 0; i < order->size(); ++i) {
     const Bounds3f& b = prims[i].bounds;
@@ -484,7 +498,7 @@ std::vector<BvhNode> BuildBvh(std::span<const BvhBuildPrimitive> prims,
   }
   std::vector<BvhNode> nodes;
   if (prims.empty()) return nodes;
-  nodes.reserve(2 * prims.size() - 1);
+  ReserveNodes(&nodes, prims.size(), options);
   BuildInput input(prims, options, order);
   BvhBuilder builder(input, &nodes);
   const BuildTask root = builder.Root();

@@ -37,7 +37,9 @@ class WideBvhBuilder {
       const Vec3f e = model.Extent();
       out_.extent_ = std::max({e.x, e.y, e.z});
     }
-    std::vector<BvhBuildPrimitive> prims(ids_.size());
+    std::vector<BvhBuildPrimitive> prims;
+    ReserveForWrite(&prims, ids_.size());
+    prims.resize(ids_.size());
     for (size_t i = 0; i < prims.size(); ++i)
       for (int c = 0; c < 3; ++c) prims[i].bounds.Extend(vertices_[3 * i + static_cast<size_t>(c)]);
     // Leaves of up to 4 triangles: one leaf test covers 4 as cheaply as 1.

@@ -108,5 +108,22 @@ TEST(HugePageAllocator, PopulateForWriteMapsTheWholePagesOfARange) {
   munmap(mapped, pages * page);
 }
 
+// ReserveForWrite (a BVH build's arrays over a whole model): room for n, the size unchanged,
+// and a large array's whole pages in memory before any write.
+TEST(HugePageAllocator, ReserveForWriteMapsALargeVectorBeforeItIsFilled) {
+  if (!testing::KernelPopulatesOnRequest())
+    GTEST_SKIP() << "this kernel cannot map pages in on request (MADV_POPULATE_WRITE, Linux 5.14)";
+  std::vector<char> large;
+  ReserveForWrite(&large, 3 * kHugePage);
+  EXPECT_EQ(large.size(), 0u);
+  ASSERT_GE(large.capacity(), 3 * kHugePage);
+  const size_t page = 4096;
+  const auto first = (reinterpret_cast<uintptr_t>(large.data()) + page - 1) / page * page;
+  EXPECT_EQ(testing::ResidentShare(reinterpret_cast<const void*>(first), 2 * kHugePage), 1.0);
+  std::vector<char> small;
+  ReserveForWrite(&small, 100);
+  EXPECT_GE(small.capacity(), 100u);
+}
+
 }  // namespace
 }  // namespace raystack
