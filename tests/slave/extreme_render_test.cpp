@@ -136,8 +136,8 @@ TEST(ExtremeRadiometry, ALightJustAboveASurfaceLightsItSeenFromFarAway) {
                    dz = double{light.position.z} - pz;
       const double d2 = dx * dx + dy * dy + dz * dz;
       const double expected = 0.5 / std::numbers::pi * dy / std::sqrt(d2) / d2;
-      worst = std::max(worst, std::fabs(r.image.rgba[4 * i] - expected) / expected);
-      EXPECT_NEAR(r.image.z[i] / t, 1.0, 1e-6) << "pixel " << x << ", " << y;
+      worst = std::max(worst, std::fabs(double{r.image.rgba[4 * i]} - expected) / expected);
+      EXPECT_NEAR(double{r.image.z[i]} / t, 1.0, 1e-6) << "pixel " << x << ", " << y;
       ++checked;
     }
   }

@@ -159,7 +159,7 @@ TEST(RenderEngine, AFarCameraCostsWhatANearOneDoes) {
     for (size_t i = 0; i < image.z.size(); ++i) {
       if (!std::isfinite(image.z[i])) continue;
       ++hits[k];
-      lit[k] += image.rgba[4 * i];
+      lit[k] += double{image.rgba[4 * i]};
     }
   }
   ASSERT_GT(hits[0], 0);
