@@ -102,6 +102,12 @@ render::FramePlan PlanOf(const RenderArgs& args, const render::Scene& scene, con
 // when the blocks stay in the cache and reloads them on every sweep when they do not (the
 // dragon x36 with a 72 MB cache: 4.5 loads per block used instead of 1.1). `store` may be null
 // (a master that cannot open it): then the rounds stay on, as for an in-core scene.
+uint64_t StoredBytes(const store::StoreReader& store) {
+  uint64_t stored = 0;
+  for (const store::BlockEntry& e : store.blocks()) stored += e.stored_bytes;
+  return stored;
+}
+
 // `rem_slaves`: the slaves sharing the store's blocks under --blocks rem (0 otherwise); each
 // keeps its share in its cache for its peers, so less of the cache is left for the rest.
 bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, int rem_slaves,
@@ -115,7 +121,8 @@ bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, int r
     return true;
   }
   const uint64_t decoded = store->summary().raw_bytes;
-  const uint64_t share = rem_slaves > 0 ? decoded / static_cast<uint64_t>(rem_slaves) : 0;
+  // Each slave's budget loses its share as the slaves count it: stored bytes (RunSlave).
+  const uint64_t share = rem_slaves > 0 ? StoredBytes(*store) / static_cast<uint64_t>(rem_slaves) : 0;
   const uint64_t room = args.engine.cache_bytes > share ? args.engine.cache_bytes - share : 0;
   const bool fits = decoded <= room;
   *why = StrFormat("decoded blocks %.1f MB %s the %.1f MiB cache", static_cast<double>(decoded) / 1e6,
@@ -476,8 +483,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
 // the same from the same inputs.
 bool UseRemoteBlocks(const RenderArgs& args, const store::StoreReader& store, int slaves,
                      std::string* why) {
-  uint64_t stored = 0;
-  for (const store::BlockEntry& e : store.blocks()) stored += e.stored_bytes;
+  const uint64_t stored = StoredBytes(store);
   const uint64_t share = stored / static_cast<uint64_t>(slaves);
   const bool fits = share <= args.engine.cache_bytes / 2;
   *why = StrFormat("store %.1f MB on disk, %.1f MB per slave's share, %.1f MiB cache per slave",
@@ -576,6 +582,16 @@ Status RunDistributed(const RenderArgs& args, transport::Transport* net) {
       if (!args.quiet)
         std::printf("blocks: %s (--blocks %s; %s)\n", rem ? "rem" : "loc", args.blocks.c_str(),
                     why.c_str());
+      // Every slave would refuse its share (RunSlave) once started: say so once, before.
+      const uint64_t share = StoredBytes(**store) / static_cast<uint64_t>(net->size() - 1);
+      if (rem && share >= args.engine.cache_bytes) {
+        MasterNode(net).Shutdown(1);
+        return Status::Error(StrFormat(
+            "--blocks rem: a slave's share of the store (%.1f MiB on average over %d slaves) "
+            "does not fit its --cache-mb (%.1f MiB); use --blocks loc, more slaves or a larger "
+            "--cache-mb", static_cast<double>(share) / kMiB, net->size() - 1,
+            static_cast<double>(args.engine.cache_bytes) / kMiB));
+      }
     }
     std::string why;
     const bool coarse_rounds = CoarseRounds(args, store.ok() ? store->get() : nullptr,

@@ -234,6 +234,19 @@ TEST_F(DistributedCli, ABadSceneEndsTheJobWithOneError) {
   }
 }
 
+// --blocks rem with a cache smaller than a slave's share of the store: the master says so once,
+// before any slave starts (each slave used to fail on its own, after the job had begun).
+TEST_F(DistributedCli, ARemShareTooLargeForTheCacheEndsTheJobBeforeItStarts) {
+  const std::string scene = Scene(R"({ "type": "whitted" })");
+  std::vector<std::string> argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe",
+                                   "-np", "3", kRaystack, "render", scene, "--cache-mb", "0.05",
+                                   "--blocks", "rem", "--no-png", "--output", dir_->File("rem.exr")};
+  const ProcessResult r = RunProcess(argv, dir_->path());
+  EXPECT_NE(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("a slave's share of the store"), std::string::npos) << r.err;
+  EXPECT_EQ(r.out.find("frame 1/"), std::string::npos) << r.out;
+}
+
 // With several cameras every frame's --reference is checked before the first frame renders:
 // a missing one for the last camera ends the job before any image is written.
 TEST_F(DistributedCli, AMissingReferenceOfALaterCameraIsFoundBeforeRendering) {
