@@ -166,6 +166,27 @@ TEST_F(PrepCliTest, IgnoredOrClampedInputIsReportedWithItsPlace) {
             std::string::npos) << r.err;
 }
 
+// Found by a real-model user test, 2026-11-26: the store keeps 63 bytes of a material name,
+// so two names equal that far merged without a word (and a scene override hit both).
+TEST_F(PrepCliTest, MaterialNamesTheStoreCutsAreReported) {
+  const std::string red = std::string(63, 'a') + "XRED", green = std::string(63, 'a') + "YGREEN";
+  const std::string obj = dir_->File("long.obj");
+  std::ofstream(obj) << "mtllib long.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nusemtl " << red
+                     << "\nf 1 2 3\nusemtl " << green << "\nf 2 4 3\nusemtl short\nf 1 2 4\n";
+  std::ofstream(dir_->File("long.mtl")) << "newmtl " << red << "\nKd 1 0 0\nnewmtl " << green
+                                        << "\nKd 0 1 0\nnewmtl short\n";
+  const ProcessResult r = Prep({obj, "-o", dir_->File("s"), "-q"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  const std::string mtl = dir_->File("long.mtl");
+  EXPECT_NE(r.err.find(mtl + ":1: material '" + red + "' is 67 bytes long; the store keeps 63"),
+            std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(mtl + ":3: material '" + green + "' is 69 bytes long"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("materials '" + green + "' and '" + red + "' become one name"),
+            std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("'short'"), std::string::npos) << r.err;
+}
+
 // Float ray tracing multiplies coordinates: a model whose copies reach past +-1e18, or one
 // smaller than 1e-15 across, would render wrong (overflow, underflow), so prep refuses it and
 // says which way to scale. Models just inside both limits are accepted.
