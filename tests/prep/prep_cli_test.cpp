@@ -222,6 +222,38 @@ TEST_F(PrepCliTest, TwoWritersOfOneStoreAreRefused) {
   EXPECT_EQ(Info({out, "--verify"}).exit_code, 0);
 }
 
+// Found by a real-model user test, 2026-11-26: a prep failing on a full disk said so, but left
+// OUT/blocks.bin.tmp (all the free space) and OUT/.lock behind. RLIMIT_FSIZE stands in for the
+// full disk (SIGXFSZ ignored, a write past it fails with EFBIG as on ENOSPC).
+TEST_F(PrepCliTest, AFailedWriteRemovesThePartialStore) {
+  namespace fs = std::filesystem;
+  auto small_files = [] {
+    std::signal(SIGXFSZ, SIG_IGN);
+    const rlimit limit{256 << 10, 256 << 10};
+    setrlimit(RLIMIT_FSIZE, &limit);
+  };
+  auto prep = [&](const std::string& out) {
+    return RunProcess({kPrepBinary, "--generate", "sphere:400000", "-o", out, "--temp-dir",
+                       dir_->path(), "-q"}, dir_->path(), small_files);
+  };
+  const std::string fresh = dir_->File("fresh");  // made by the failing prep: all of it goes
+  ProcessResult r = prep(fresh);
+  ExpectFailsNaming(r, {"write failed (disk full?)"});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_FALSE(fs::exists(fresh)) << r.err;
+
+  // A store that was there before keeps its lock file (another prep may have it open) and
+  // its other files; only the temporaries go.
+  const std::string old = dir_->File("old");
+  ASSERT_EQ(Prep({"--generate", "sphere:1000", "-o", old, "-q"}).exit_code, 0);
+  r = prep(old);
+  ExpectFailsNaming(r, {"write failed (disk full?)"});
+  for (const fs::directory_entry& e : fs::directory_iterator(old))
+    EXPECT_NE(e.path().extension(), ".tmp") << e.path();
+  EXPECT_TRUE(fs::exists(old + "/" + store::kLockFile));
+  EXPECT_TRUE(fs::exists(old + "/" + store::kOctreeFile));
+}
+
 // A killed prep leaves its work folder (bucket files: up to gigabytes); the next prep with the
 // same temporary folder removes those whose owner lock no process holds, and nothing else: not
 // a live prep's (whatever its process id says: it may run in another PID namespace), not a
