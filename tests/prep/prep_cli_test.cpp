@@ -316,6 +316,22 @@ TEST_F(PrepCliTest, GoodRunPrintsStatisticsAndVerifies) {
   EXPECT_TRUE(std::regex_search(info.out, std::regex("KB +[0-9]+ #"))) << "no histogram bars";
 }
 
+// Found by a real-model user test, 2026-11-26: -q kept the information lines of the octree
+// builder ("[raystack info prep] partitioning ..."); render -q silences them, and so does prep.
+TEST_F(PrepCliTest, QuietPrintsNoInformationLines) {
+  const std::vector<std::string> args = {"--generate", "spheres:200000", "-o", dir_->File("s"),
+                                         "--mem-limit", "64", "--temp-dir", dir_->path()};
+  ProcessResult r = Prep(args);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_NE(r.err.find("[raystack info prep] partitioning"), std::string::npos)
+      << "the model no longer makes prep partition on disk; make it larger: " << r.err;
+  std::vector<std::string> quiet = args;
+  quiet.push_back("-q");
+  r = Prep(quiet);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find("[raystack info"), std::string::npos) << r.err;
+}
+
 TEST_F(PrepCliTest, VerifyNamesADamagedBlock) {
   const std::string store = dir_->File("store");
   ASSERT_EQ(Prep({"--generate", "sphere:20000", "-o", store, "--target-block-kb", "8", "-q"})

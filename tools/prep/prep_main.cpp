@@ -40,7 +40,7 @@ options:
   --bvh-leaf N            most triangles per leaf of a block's BVH (default 8)
   --bvh-traversal-cost X  SAH cost of a BVH node relative to a triangle test (default 4)
   --stats-json FILE       also write the run's figures as JSON
-  -q, --quiet             no progress output
+  -q, --quiet             no progress or information lines (warnings and errors stay)
   -h, --help              this text
 )";
 
@@ -154,6 +154,7 @@ void WarnIfBudgetAboveMemory(uint64_t budget) {
 }
 
 int Run(const Args& args) {
+  if (args.convert.quiet) SetLogLevel(LogLevel::kWarning);  // -q: as render's, warnings and errors
   WarnIfBudgetAboveMemory(args.convert.memory_limit_bytes);
   Expected<ConvertReport> converted = Convert(args.convert);
   if (!converted.ok()) {
