@@ -115,6 +115,12 @@ TEST_F(PrepCliTest, BadNumberFails) {
                     {"--mem-limit", "12x"});
   ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--threads"}),
                     {"--threads"});
+  // Found by a real-model user test, 2026-11-26: a number out of range was "not a number".
+  ProcessResult r = Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--mem-limit", "16"});
+  ExpectFailsNaming(r, {"--mem-limit 16: must be from 64 to 16777216 (MB)"});
+  EXPECT_EQ(r.err.find("not a number"), std::string::npos) << r.err;
+  ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--threads", "0"}),
+                    {"--threads 0: must be from 1 to 1024"});
 }
 
 TEST_F(PrepCliTest, TargetAboveCapFails) {
