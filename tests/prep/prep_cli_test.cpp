@@ -140,7 +140,11 @@ TEST_F(PrepCliTest, UnknownGeneratorFails) {
 
 TEST_F(PrepCliTest, MissingInputFails) {
   const std::string missing = dir_->File("no-such-model.obj");
-  ExpectFailsNaming(Prep({missing, "-o", dir_->File("s")}), {missing});
+  const ProcessResult r = Prep({missing, "-o", dir_->File("s")});
+  ExpectFailsNaming(r, {"cannot open " + missing});
+  // Found by a real-model user test, 2026-11-26: "reading X: 0 B in 0.0 s" came first.
+  EXPECT_EQ(r.out.find("reading"), std::string::npos) << r.out;
+  EXPECT_EQ(r.err.find("reading"), std::string::npos) << r.err;
 }
 
 TEST_F(PrepCliTest, AModelWithoutTrianglesNamesItsFile) {

@@ -1,6 +1,10 @@
 #include "tools/prep/convert.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
@@ -54,6 +58,15 @@ void WarnAboutCutNames(const std::vector<import::Material>& materials) {
                     "MTL file to tell them apart", where, m.name.c_str(), other->name.c_str(),
                     kKept);
   }
+}
+
+// The reader's own error, found before its progress line starts: a file that cannot be
+// opened printed "reading X: 0 B in 0.0 s" before saying so.
+Status CheckReadable(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Status::Error("cannot open " + path + ": " + std::strerror(errno));
+  ::close(fd);
+  return OkStatus();
 }
 
 double Since(std::chrono::steady_clock::time_point start) {
@@ -111,6 +124,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     report.zero_area_dropped += info.zero_area_dropped;
   }
   for (const std::string& input : args.inputs) {
+    RAYSTACK_RETURN_IF_ERROR(CheckReadable(input));
     std::error_code ec;
     const uint64_t size = std::filesystem::file_size(input, ec);
     ProgressReporter progress("reading " + input, ec ? 0 : size, "B", args.quiet);
