@@ -131,13 +131,20 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       *out = argv[++i];
       return OkStatus();
     };
-    auto number = [&](auto* out, double lo, double hi) -> Status {
+    // `unit` names what the number counts, for the message ("MB").
+    auto number = [&](auto* out, double lo, double hi, const char* unit = "") -> Status {
       std::string v;
       RAYSTACK_RETURN_IF_ERROR(value(&v));
-      // Written so that NaN ("nan" parses) is out of every range.
-      if (!ParseNumber(v, out) || !(static_cast<double>(*out) >= lo && static_cast<double>(*out) <= hi))
-        return Status::Error(StrFormat("%s: '%s' is not a number from %g to %g", arg.c_str(),
-                                       v.c_str(), lo, hi));
+      // %.10g: 16777216 in full, not 1.67772e+07.
+      const std::string range = StrFormat("from %.10g to %.10g%s%s%s", lo, hi, *unit ? " (" : "",
+                                          unit, *unit ? ")" : "");
+      if (!ParseNumber(v, out))
+        return Status::Error(StrFormat("%s: '%s' is not a number; give one %s", arg.c_str(),
+                                       v.c_str(), range.c_str()));
+      // Written so that NaN ("nan" parses) is out of every range. Said as out of range:
+      // "not a number" misled users giving a number too small.
+      if (!(static_cast<double>(*out) >= lo && static_cast<double>(*out) <= hi))
+        return Status::Error(StrFormat("%s %s: must be %s", arg.c_str(), v.c_str(), range.c_str()));
       return OkStatus();
     };
     if (arg == "-h" || arg == "--help") {
@@ -151,7 +158,7 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       a->engine.mode = *mode;
     } else if (arg == "--cache-mb") {
       double mb;
-      RAYSTACK_RETURN_IF_ERROR(number(&mb, 0.001, 1 << 24));
+      RAYSTACK_RETURN_IF_ERROR(number(&mb, 0.001, 1 << 24, "MB"));
       a->engine.cache_bytes = static_cast<uint64_t>(mb * 1024 * 1024);
     } else if (arg == "--threads") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.threads, 1, slave::BlockLoader::kMaxRayThreads));

@@ -1,14 +1,28 @@
 #include "common/base/file_lock.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstring>
+#include <string>
 
 namespace raystack {
 
-LockResult TryLockFile(const std::string& path, bool create, int* fd, std::string* error) {
+namespace {
+
+// Whether `f` is still the file at `path`: a holder may unlink a lock file it created (a failed
+// prep removes its store's), and a process that opened it just before then would lock a file
+// no one else can find, while the next one creates and locks a new one.
+bool StillAtPath(int f, const std::string& path) {
+  struct stat open_file {}, at_path {};
+  return ::fstat(f, &open_file) == 0 && ::stat(path.c_str(), &at_path) == 0 &&
+         open_file.st_dev == at_path.st_dev && open_file.st_ino == at_path.st_ino;
+}
+
+// One try: open (or create) and lock without waiting.
+LockResult TryLockFileOnce(const std::string& path, bool create, int* fd, std::string* error) {
   *fd = -1;
   const int f = ::open(path.c_str(), O_RDWR | O_CLOEXEC | (create ? O_CREAT : 0), 0644);
   if (f < 0) {
@@ -34,6 +48,24 @@ LockResult TryLockFile(const std::string& path, bool create, int* fd, std::strin
   }
   ::close(f);
   *error = path + ": cannot lock: " + std::strerror(e);
+  return LockResult::kError;
+}
+
+}  // namespace
+
+LockResult TryLockFile(const std::string& path, bool create, int* fd, std::string* error) {
+  // A lock won on an unlinked file is worthless; the holder that unlinked it is gone by then,
+  // so the next try meets the new file (or none). A few tries cover any such race.
+  constexpr int kTries = 8;
+  LockResult result = LockResult::kError;
+  for (int i = 0; i < kTries; ++i) {
+    result = TryLockFileOnce(path, create, fd, error);
+    if (result != LockResult::kLocked || StillAtPath(*fd, path)) return result;
+    ::close(*fd);
+    *fd = -1;
+  }
+  *error = path + ": cannot lock: it was removed and created again " + std::to_string(kTries) +
+           " times while locking";
   return LockResult::kError;
 }
 

@@ -2,7 +2,7 @@
 
 #include <cmath>
 #include <cstring>
-#include <set>
+#include <map>
 #include <string>
 
 #include "common/base/log.h"
@@ -24,6 +24,20 @@ bool NonZero(Vec3f v) { return v.x > 0 || v.y > 0 || v.z > 0; }
 
 std::string RecordName(const store::MaterialRecord& record) {
   return std::string(record.name, strnlen(record.name, sizeof record.name));
+}
+
+// The store keeps names to 63 bytes (the converter warns when it cuts one): materials whose
+// names differ only after that, or a name in two of the store's models, are one key here, and
+// an override of "one" of them silently changes all of them.
+void WarnAboutSharedOverrides(const std::map<std::string, size_t>& matched,
+                              const std::string& source) {
+  for (const auto& [name, count] : matched)
+    if (count > 1)
+      LOG_WARNING(kComponent,
+                  "%s: materials.%s matches %zu materials of the store (their names are equal "
+                  "in the store, which keeps %zu bytes of a name); the override changes all of "
+                  "them. To tell them apart, rename them in the MTL file and convert again",
+                  source.c_str(), name.c_str(), count, sizeof(store::MaterialRecord::name) - 1);
 }
 
 }  // namespace
@@ -53,7 +67,7 @@ MaterialTable MaterialTable::Build(std::span<const store::MaterialRecord> record
   MaterialTable table;
   table.default_ = scene.default_material;
   table.materials_.reserve(records.size());
-  std::set<std::string> matched;
+  std::map<std::string, size_t> matched;  // override key -> store materials it replaces
   for (const store::MaterialRecord& record : records) {
     const std::string name = RecordName(record);
     auto it = scene.overrides.find(name);
@@ -63,12 +77,13 @@ MaterialTable MaterialTable::Build(std::span<const store::MaterialRecord> record
         if (o->first.size() > name.size() && o->first.compare(0, name.size(), name) == 0) it = o;
     }
     if (it != scene.overrides.end()) {
-      matched.insert(it->first);
+      ++matched[it->first];
       table.materials_.push_back(it->second);
     } else {
       table.materials_.push_back(MaterialFromMtl(record));
     }
   }
+  WarnAboutSharedOverrides(matched, scene.source);
   constexpr size_t kNamedUnused = 8;  // then a count: a scene may list thousands
   size_t unused = 0;
   for (const auto& [name, material] : scene.overrides) {

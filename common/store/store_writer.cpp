@@ -65,11 +65,13 @@ void Append(std::vector<uint8_t>* out, const T* data, size_t count) {
 
 Expected<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& dir) {
   std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) return Status::Error(dir + ": cannot create directory: " + ec.message());
   std::unique_ptr<StoreWriter> w(new StoreWriter());
   w->dir_ = dir;
+  w->created_dir_ = std::filesystem::create_directories(dir, ec);
+  if (ec) return Status::Error(dir + ": cannot create directory: " + ec.message());
+  const bool had_lock = std::filesystem::exists(dir + "/" + kLockFile, ec);
   RAYSTACK_RETURN_IF_ERROR(LockStore(dir, &w->lock_fd_));
+  w->created_lock_ = !had_lock;
   // A half-written store must not look complete: drop the old index first.
   std::filesystem::remove(dir + "/" + kIndexFile, ec);
   const std::string path = Tmp(dir + "/" + kBlocksFile);
@@ -96,7 +98,24 @@ Status StoreWriter::CheckNotBeingWritten(const std::string& dir) {
 
 StoreWriter::~StoreWriter() {
   if (blocks_) std::fclose(blocks_);
+  if (!finished_) RemovePartialStore();
   if (lock_fd_ >= 0) ::close(lock_fd_);
+}
+
+// A failed write on a full disk left blocks.bin.tmp holding all the free space. The lock file
+// is removed while still held (TryLockFile checks that the file it locked is still there), and
+// only when this writer created it: a lock file that was there before may be opened by another
+// prep right now. The folder goes only when this writer made it and nothing else is in it.
+void StoreWriter::RemovePartialStore() {
+  if (lock_fd_ < 0) return;  // not locked: the files may be another writer's
+  std::error_code ec;
+  for (const char* file : {kBlocksFile, kOctreeFile, kIndexFile}) {
+    std::filesystem::remove(Tmp(dir_ + "/" + file), ec);
+    if (created_dir_) std::filesystem::remove(dir_ + "/" + file, ec);
+  }
+  if (created_lock_ || created_dir_)
+    std::filesystem::remove(dir_ + "/" + kLockFile, ec);
+  if (created_dir_) std::filesystem::remove(dir_, ec);  // fails, as wanted, unless empty
 }
 
 Status StoreWriter::Add(const EncodedBlock& b) {
@@ -156,7 +175,9 @@ Status StoreWriter::Finish(StoreSummary s, std::span<const OctreeNode> octree,
   Append(&body, &s, 1);
   Append(&body, materials.data(), materials.size());
   Append(&body, entries_.data(), entries_.size());
-  return WriteWhole(dir_ + "/" + kIndexFile, kIndexMagic, body);
+  RAYSTACK_RETURN_IF_ERROR(WriteWhole(dir_ + "/" + kIndexFile, kIndexMagic, body));
+  finished_ = true;
+  return OkStatus();
 }
 
 }  // namespace raystack::store

@@ -31,7 +31,9 @@ class StoreWriter {
  public:
   // Creates `dir` if needed, locks it (the file kLockFile in it: two writers of one store
   // would share its temporaries and leave it corrupt) and starts blocks.bin. Existing store
-  // files are replaced. The lock goes with the writer.
+  // files are replaced. The lock goes with the writer. A writer destroyed before Finish()
+  // succeeds (a failed conversion: a full disk) removes its temporaries, and the files,
+  // folder and lock file it created; not a store's files or lock that were there before.
   static Expected<std::unique_ptr<StoreWriter>> Create(const std::string& dir);
   // An error if another process is writing the store in `dir` now (OK when `dir` is missing):
   // for a converter to find out before it reads its model, not after.
@@ -48,7 +50,13 @@ class StoreWriter {
 
  private:
   StoreWriter() = default;
+  // What the destructor does when Finish() did not succeed.
+  void RemovePartialStore();
+
   std::string dir_;
+  bool created_dir_ = false;   // `dir` did not exist before Create
+  bool created_lock_ = false;  // nor did its kLockFile
+  bool finished_ = false;      // Finish() succeeded
   int lock_fd_ = -1;  // kLockFile, locked
   std::FILE* blocks_ = nullptr;
   uint64_t offset_ = 0;

@@ -115,6 +115,12 @@ TEST_F(PrepCliTest, BadNumberFails) {
                     {"--mem-limit", "12x"});
   ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--threads"}),
                     {"--threads"});
+  // Found by a real-model user test, 2026-11-26: a number out of range was "not a number".
+  ProcessResult r = Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--mem-limit", "16"});
+  ExpectFailsNaming(r, {"--mem-limit 16: must be from 64 to 16777216 (MB)"});
+  EXPECT_EQ(r.err.find("not a number"), std::string::npos) << r.err;
+  ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--threads", "0"}),
+                    {"--threads 0: must be from 1 to 1024"});
 }
 
 TEST_F(PrepCliTest, TargetAboveCapFails) {
@@ -134,7 +140,11 @@ TEST_F(PrepCliTest, UnknownGeneratorFails) {
 
 TEST_F(PrepCliTest, MissingInputFails) {
   const std::string missing = dir_->File("no-such-model.obj");
-  ExpectFailsNaming(Prep({missing, "-o", dir_->File("s")}), {missing});
+  const ProcessResult r = Prep({missing, "-o", dir_->File("s")});
+  ExpectFailsNaming(r, {"cannot open " + missing});
+  // Found by a real-model user test, 2026-11-26: "reading X: 0 B in 0.0 s" came first.
+  EXPECT_EQ(r.out.find("reading"), std::string::npos) << r.out;
+  EXPECT_EQ(r.err.find("reading"), std::string::npos) << r.err;
 }
 
 TEST_F(PrepCliTest, AModelWithoutTrianglesNamesItsFile) {
@@ -164,6 +174,27 @@ TEST_F(PrepCliTest, IgnoredOrClampedInputIsReportedWithItsPlace) {
       << r.err;
   EXPECT_NE(r.err.find("tri.mtl:1: 'Ka' before any newmtl belongs to no material; ignored"),
             std::string::npos) << r.err;
+}
+
+// Found by a real-model user test, 2026-11-26: the store keeps 63 bytes of a material name,
+// so two names equal that far merged without a word (and a scene override hit both).
+TEST_F(PrepCliTest, MaterialNamesTheStoreCutsAreReported) {
+  const std::string red = std::string(63, 'a') + "XRED", green = std::string(63, 'a') + "YGREEN";
+  const std::string obj = dir_->File("long.obj");
+  std::ofstream(obj) << "mtllib long.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nusemtl " << red
+                     << "\nf 1 2 3\nusemtl " << green << "\nf 2 4 3\nusemtl short\nf 1 2 4\n";
+  std::ofstream(dir_->File("long.mtl")) << "newmtl " << red << "\nKd 1 0 0\nnewmtl " << green
+                                        << "\nKd 0 1 0\nnewmtl short\n";
+  const ProcessResult r = Prep({obj, "-o", dir_->File("s"), "-q"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  const std::string mtl = dir_->File("long.mtl");
+  EXPECT_NE(r.err.find(mtl + ":1: material '" + red + "' is 67 bytes long; the store keeps 63"),
+            std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(mtl + ":3: material '" + green + "' is 69 bytes long"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("materials '" + green + "' and '" + red + "' become one name"),
+            std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("'short'"), std::string::npos) << r.err;
 }
 
 // Float ray tracing multiplies coordinates: a model whose copies reach past +-1e18, or one
@@ -199,6 +230,38 @@ TEST_F(PrepCliTest, TwoWritersOfOneStoreAreRefused) {
   const ProcessResult r = Prep({"--generate", "sphere:1000", "-o", out, "-q"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(Info({out, "--verify"}).exit_code, 0);
+}
+
+// Found by a real-model user test, 2026-11-26: a prep failing on a full disk said so, but left
+// OUT/blocks.bin.tmp (all the free space) and OUT/.lock behind. RLIMIT_FSIZE stands in for the
+// full disk (SIGXFSZ ignored, a write past it fails with EFBIG as on ENOSPC).
+TEST_F(PrepCliTest, AFailedWriteRemovesThePartialStore) {
+  namespace fs = std::filesystem;
+  auto small_files = [] {
+    std::signal(SIGXFSZ, SIG_IGN);
+    const rlimit limit{256 << 10, 256 << 10};
+    setrlimit(RLIMIT_FSIZE, &limit);
+  };
+  auto prep = [&](const std::string& out) {
+    return RunProcess({kPrepBinary, "--generate", "sphere:400000", "-o", out, "--temp-dir",
+                       dir_->path(), "-q"}, dir_->path(), small_files);
+  };
+  const std::string fresh = dir_->File("fresh");  // made by the failing prep: all of it goes
+  ProcessResult r = prep(fresh);
+  ExpectFailsNaming(r, {"write failed (disk full?)"});
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_FALSE(fs::exists(fresh)) << r.err;
+
+  // A store that was there before keeps its lock file (another prep may have it open) and
+  // its other files; only the temporaries go.
+  const std::string old = dir_->File("old");
+  ASSERT_EQ(Prep({"--generate", "sphere:1000", "-o", old, "-q"}).exit_code, 0);
+  r = prep(old);
+  ExpectFailsNaming(r, {"write failed (disk full?)"});
+  for (const fs::directory_entry& e : fs::directory_iterator(old))
+    EXPECT_NE(e.path().extension(), ".tmp") << e.path();
+  EXPECT_TRUE(fs::exists(old + "/" + store::kLockFile));
+  EXPECT_TRUE(fs::exists(old + "/" + store::kOctreeFile));
 }
 
 // A killed prep leaves its work folder (bucket files: up to gigabytes); the next prep with the
@@ -261,6 +324,22 @@ TEST_F(PrepCliTest, GoodRunPrintsStatisticsAndVerifies) {
                            "histogram", "all "})
     EXPECT_NE(info.out.find(word), std::string::npos) << "no '" << word << "' in: " << info.out;
   EXPECT_TRUE(std::regex_search(info.out, std::regex("KB +[0-9]+ #"))) << "no histogram bars";
+}
+
+// Found by a real-model user test, 2026-11-26: -q kept the information lines of the octree
+// builder ("[raystack info prep] partitioning ..."); render -q silences them, and so does prep.
+TEST_F(PrepCliTest, QuietPrintsNoInformationLines) {
+  const std::vector<std::string> args = {"--generate", "spheres:200000", "-o", dir_->File("s"),
+                                         "--mem-limit", "64", "--temp-dir", dir_->path()};
+  ProcessResult r = Prep(args);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  ASSERT_NE(r.err.find("[raystack info prep] partitioning"), std::string::npos)
+      << "the model no longer makes prep partition on disk; make it larger: " << r.err;
+  std::vector<std::string> quiet = args;
+  quiet.push_back("-q");
+  r = Prep(quiet);
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find("[raystack info"), std::string::npos) << r.err;
 }
 
 TEST_F(PrepCliTest, VerifyNamesADamagedBlock) {

@@ -176,5 +176,23 @@ TEST(MaterialTable, LongNamesMatchTheStoresTruncation) {
   EXPECT_EQ(table.Get(0).type, MaterialType::kMirror);
 }
 
+// Found by a real-model user test, 2026-11-26: two MTL names equal in their first 63 bytes are
+// one name in the store, and an override of one silently changed both.
+TEST(MaterialTable, AnOverrideMatchingSeveralStoreMaterialsIsAWarning) {
+  const std::string red = std::string(63, 'a') + "XRED", green = std::string(63, 'a') + "YGREEN";
+  const std::vector<store::MaterialRecord> records = {Record(red), Record(green), Record("x")};
+  Scene scene;
+  scene.source = "scene.json";
+  scene.overrides[red].type = MaterialType::kMirror;
+  scene.overrides["x"].type = MaterialType::kMirror;
+  testing::internal::CaptureStderr();
+  const MaterialTable table = MaterialTable::Build(records, scene);
+  const std::string log = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(table.Get(1).type, MaterialType::kMirror);  // the store cannot tell them apart
+  EXPECT_NE(log.find("scene.json: materials." + red + " matches 2 materials of the store"),
+            std::string::npos) << log;
+  EXPECT_EQ(log.find("materials.x "), std::string::npos) << log;
+}
+
 }  // namespace
 }  // namespace raystack::render

@@ -170,6 +170,9 @@ TEST_F(RenderCli, BadInputIsAClearError) {
   const std::vector<Case> cases = {
       {{kRaystack, "render", good, "--cache-mb", "0.001"}, "smaller than the largest block", 1},
       {{kRaystack, "render", good, "--mode", "fast"}, "--mode must be", 2},
+      // Found by a real-model user test, 2026-11-26: out of range was "not a number".
+      {{kRaystack, "render", good, "--cache-mb", "0"}, "--cache-mb 0: must be from 0.001 to 16777216 (MB)", 2},
+      {{kRaystack, "render", good, "--threads", "x"}, "--threads: 'x' is not a number; give one from 1", 2},
       {{kRaystack, "render", good, "--frobnicate"}, "unknown option", 2},
       {{kRaystack, "render"}, "scene file is required", 2},
       {{kRaystack, "render", dir_->File("absent.json")}, "absent.json", 1},

@@ -45,6 +45,8 @@ struct Material {
   float ni = 1.0f;             // index of refraction
   float d = 1.0f;              // opacity
   int illum = 2;
+  // Where its `newmtl` is ("file.mtl:12"), for messages; empty when no MTL defined it.
+  std::string defined_at;
 };
 
 struct SourceTriangle {

@@ -113,6 +113,8 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
       std::string_view name = Trim(rest);
       if (name.empty()) return input.LineError("newmtl without a name");
       current = table->Define(name);
+      if (current)
+        current->defined_at = input.path() + ":" + std::to_string(input.line_number());
       if (!current) {
         LOG_WARNING("import", "%s:%llu: material '%.*s' defined again; keeping the first",
                     input.path().c_str(), static_cast<unsigned long long>(input.line_number()),

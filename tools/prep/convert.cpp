@@ -1,9 +1,16 @@
 #include "tools/prep/convert.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
 
 #include "common/base/log.h"
 #include "common/base/progress.h"
@@ -29,6 +36,37 @@ store::MaterialRecord ToRecord(const import::Material& m) {
   r.d = m.d;
   r.illum = m.illum;
   return r;
+}
+
+// The store keeps a material name to sizeof(MaterialRecord::name) - 1 bytes: a longer one is
+// cut, and scene overrides then match the cut name, so two names equal after the cut become
+// one for the renderer. Say so at conversion, where the MTL file can still be changed.
+void WarnAboutCutNames(const std::vector<import::Material>& materials) {
+  constexpr size_t kKept = sizeof(store::MaterialRecord::name) - 1;
+  std::map<std::string, std::vector<const import::Material*>> by_cut;
+  for (const import::Material& m : materials) by_cut[m.name.substr(0, kKept)].push_back(&m);
+  for (const import::Material& m : materials) {
+    if (m.name.size() <= kKept) continue;
+    const char* where = m.defined_at.empty() ? "(no MTL defines it)" : m.defined_at.c_str();
+    LOG_WARNING("prep", "%s: material '%s' is %zu bytes long; the store keeps %zu, so it is "
+                "stored (and matched by scene overrides) as '%s'", where, m.name.c_str(),
+                m.name.size(), kKept, m.name.substr(0, kKept).c_str());
+    for (const import::Material* other : by_cut[m.name.substr(0, kKept)])
+      if (other != &m && other->name != m.name && (other < &m || other->name.size() <= kKept))
+        LOG_WARNING("prep", "%s: materials '%s' and '%s' become one name in the store after the "
+                    "cut to %zu bytes (a scene override of one changes both); rename one in the "
+                    "MTL file to tell them apart", where, m.name.c_str(), other->name.c_str(),
+                    kKept);
+  }
+}
+
+// The reader's own error, found before its progress line starts: a file that cannot be
+// opened printed "reading X: 0 B in 0.0 s" before saying so.
+Status CheckReadable(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return Status::Error("cannot open " + path + ": " + std::strerror(errno));
+  ::close(fd);
+  return OkStatus();
 }
 
 double Since(std::chrono::steady_clock::time_point start) {
@@ -77,6 +115,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   TriangleSpool spool(temp->File("model.tmp"), budget / 5);
   SpoolSink sink(&spool);
   std::vector<store::MaterialRecord> materials;
+  std::vector<import::Material> sources;  // the full names, for WarnAboutCutNames
   uint64_t vertices = 0;
   if (!args.generate.empty()) {
     import::ModelInfo info;
@@ -85,6 +124,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     report.zero_area_dropped += info.zero_area_dropped;
   }
   for (const std::string& input : args.inputs) {
+    RAYSTACK_RETURN_IF_ERROR(CheckReadable(input));
     std::error_code ec;
     const uint64_t size = std::filesystem::file_size(input, ec);
     ProgressReporter progress("reading " + input, ec ? 0 : size, "B", args.quiet);
@@ -97,11 +137,13 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     RAYSTACK_RETURN_IF_ERROR(import::ReadModel(input, options, sink, &info));
     progress.Done();
     for (const import::Material& m : info.materials) materials.push_back(ToRecord(m));
+    sources.insert(sources.end(), info.materials.begin(), info.materials.end());
     report.source_triangles += info.triangles;
     report.zero_area_dropped += info.zero_area_dropped;
     vertices += info.vertices;
   }
   RAYSTACK_RETURN_IF_ERROR(spool.Close());
+  WarnAboutCutNames(sources);
   if (materials.size() > store::kMaxMaterials)
     return Status::Error(StrFormat("%zu materials: format v1 stores at most %u", materials.size(),
                                    store::kMaxMaterials));

@@ -40,7 +40,7 @@ options:
   --bvh-leaf N            most triangles per leaf of a block's BVH (default 8)
   --bvh-traversal-cost X  SAH cost of a BVH node relative to a triangle test (default 4)
   --stats-json FILE       also write the run's figures as JSON
-  -q, --quiet             no progress output
+  -q, --quiet             no progress or information lines (warnings and errors stay)
   -h, --help              this text
 )";
 
@@ -63,13 +63,19 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       *out = argv[++i];
       return OkStatus();
     };
-    auto number = [&](auto* out, auto lo, auto hi) -> Status {
+    // `unit` names what the number counts, for the message ("MB").
+    auto number = [&](auto* out, auto lo, auto hi, const char* unit = "") -> Status {
       std::string v;
       RAYSTACK_RETURN_IF_ERROR(value(&v));
-      if (!ParseNumber(v, out) || *out < lo || *out > hi)
-        return Status::Error(StrFormat("%s: '%s' is not a number from %lld to %lld", arg.c_str(),
-                                       v.c_str(), static_cast<long long>(lo),
-                                       static_cast<long long>(hi)));
+      const std::string range = StrFormat("from %lld to %lld%s%s%s", static_cast<long long>(lo),
+                                          static_cast<long long>(hi), *unit ? " (" : "", unit,
+                                          *unit ? ")" : "");
+      if (!ParseNumber(v, out))
+        return Status::Error(StrFormat("%s: '%s' is not a whole number; give one %s",
+                                       arg.c_str(), v.c_str(), range.c_str()));
+      // A number out of range is said as such: "not a number" misled users giving 16 MB.
+      if (*out < lo || *out > hi)
+        return Status::Error(StrFormat("%s %s: must be %s", arg.c_str(), v.c_str(), range.c_str()));
       return OkStatus();
     };
     if (arg == "-h" || arg == "--help") {
@@ -87,15 +93,15 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(value(&a->stats_json));
     } else if (arg == "--target-block-kb") {
       uint32_t kb = 0;
-      RAYSTACK_RETURN_IF_ERROR(number(&kb, 1u, 65536u));
+      RAYSTACK_RETURN_IF_ERROR(number(&kb, 1u, 65536u, "KB"));
       a->convert.target_block_bytes = kb * 1024;
     } else if (arg == "--max-block-kb") {
       uint32_t kb = 0;
-      RAYSTACK_RETURN_IF_ERROR(number(&kb, 1u, store::kMaxBlockBytesCap / 1024));
+      RAYSTACK_RETURN_IF_ERROR(number(&kb, 1u, store::kMaxBlockBytesCap / 1024, "KB"));
       a->convert.max_block_bytes = kb * 1024;
     } else if (arg == "--mem-limit") {
       uint64_t mb = 0;
-      RAYSTACK_RETURN_IF_ERROR(number(&mb, uint64_t{64}, uint64_t{1} << 24));
+      RAYSTACK_RETURN_IF_ERROR(number(&mb, uint64_t{64}, uint64_t{1} << 24, "MB"));
       a->convert.memory_limit_bytes = mb << 20;
     } else if (arg == "--threads") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->convert.threads, 1, 1024));
@@ -154,6 +160,7 @@ void WarnIfBudgetAboveMemory(uint64_t budget) {
 }
 
 int Run(const Args& args) {
+  if (args.convert.quiet) SetLogLevel(LogLevel::kWarning);  // -q: as render's, warnings and errors
   WarnIfBudgetAboveMemory(args.convert.memory_limit_bytes);
   Expected<ConvertReport> converted = Convert(args.convert);
   if (!converted.ok()) {
