@@ -447,7 +447,7 @@ TEST_F(OctreeBuilderTest, ProgressCountsEachTriangleOnce) {
   for (const uint64_t memory : {1024ull << 20, 4ull << 20}) {
     SCOPED_TRACE(memory > (64ull << 20) ? "in memory" : "partitioned");
     Expected<std::unique_ptr<store::StoreWriter>> writer =
-        store::StoreWriter::Create(dir_->File(StrFormat("progress-%llu", memory)));
+        store::StoreWriter::Create(dir_->File(StrFormat("progress-%llu", static_cast<unsigned long long>(memory))));
     ASSERT_TRUE(writer.ok()) << writer.status().message();
     ProgressReporter progress("building blocks", source.triangles(), "tri", /*quiet=*/true);
     BuildOptions o;
