@@ -1,6 +1,7 @@
 #include "slave/block_cache.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include "common/base/check.h"
 #include "common/base/log.h"
@@ -31,10 +32,10 @@ Expected<std::unique_ptr<BlockCache>> BlockCache::Create(const store::StoreReade
   if (budget_bytes < largest)
     return Status::Error(StrFormat(
         "cache budget of %llu bytes is smaller than the largest block of %s (%llu bytes); "
-        "give --cache-mb at least %llu",
+        "give --cache-mb at least %.2f",
         static_cast<unsigned long long>(budget_bytes), store.dir().c_str(),
         static_cast<unsigned long long>(largest),
-        static_cast<unsigned long long>((largest + (1 << 20) - 1) >> 20)));
+        std::ceil(static_cast<double>(largest) * 100 / (1 << 20)) / 100));  // MiB, fractions too
   return std::unique_ptr<BlockCache>(new BlockCache(store, budget_bytes));
 }
 

@@ -293,7 +293,8 @@ Status StoreReader::OpenBlocks() {
       std::memcmp(h.magic, kBlocksMagic, 8) != 0)
     return Status::Error(path + ": not a raystack block file");
   if (h.version != kFormatVersion)
-    return Status::Error(StrFormat("%s: format version %u, this build reads version %u",
+    return Status::Error(StrFormat("%s: format version %u, this build reads version %u "
+                                   "(convert the model again with raystack-prep)",
                                    path.c_str(), h.version, kFormatVersion));
   if (h.body_bytes != blocks_file_bytes_ - sizeof h)
     return Status::Error(path + ": size does not match its header (truncated?)");

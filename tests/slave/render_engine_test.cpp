@@ -217,6 +217,17 @@ TEST(RenderEngine, BudgetSmallerThanABlockIsAClearError) {
   ASSERT_FALSE(e.ok());
   EXPECT_NE(e.status().message().find("smaller than the largest block"), std::string::npos)
       << e.status().message();
+  // The least --cache-mb it names (in MiB, with its fraction: this store's blocks are far
+  // under 1 MiB) is enough.
+  const std::string& m = e.status().message();
+  const size_t at = m.find("give --cache-mb at least ");
+  ASSERT_NE(at, std::string::npos) << m;
+  const double mb = std::stod(m.substr(at + 25));
+  EXPECT_LT(mb, 1.0) << m;
+  EXPECT_TRUE(slave::RenderEngine::Create(
+                  *s.reader, Mode(TraceMode::kStack, static_cast<uint64_t>(mb * 1024 * 1024)))
+                  .ok())
+      << m;
 }
 
 TEST(RenderEngine, CacheBudgetHoldsFromAFewBlocksUp) {
