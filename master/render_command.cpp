@@ -102,6 +102,17 @@ render::FramePlan PlanOf(const RenderArgs& args, const render::Scene& scene, con
 // when the blocks stay in the cache and reloads them on every sweep when they do not (the
 // dragon x36 with a 72 MB cache: 4.5 loads per block used instead of 1.1). `store` may be null
 // (a master that cannot open it): then the rounds stay on, as for an in-core scene.
+// A scene that can only come out black (no point light, nothing emissive in the store's
+// materials or the scene's, a black background) is most likely a mistake: say so up front.
+void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materials) {
+  const Vec3f b = scene.background;
+  if (!scene.lights.empty() || materials.any_emissive() || b.x > 0 || b.y > 0 || b.z > 0) return;
+  LOG_WARNING("render",
+              "%s: the scene has no light (no point lights, no emissive material in the store "
+              "or the scene, a black background): the image will be black",
+              scene.source.c_str());
+}
+
 uint64_t StoredBytes(const store::StoreReader& store) {
   uint64_t stored = 0;
   for (const store::BlockEntry& e : store.blocks()) stored += e.stored_bytes;
@@ -239,6 +250,7 @@ Status Run(const RenderArgs& args) {
   if (!engine.ok()) return engine.status();
   const render::MaterialTable materials =
       render::MaterialTable::Build((*store)->materials(), *scene);
+  WarnIfUnlit(*scene, materials);
   Expected<preview::LivePreview> preview = preview::LivePreview::Start(args.preview);
   if (!preview.ok()) return preview.status();
 
@@ -529,6 +541,7 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
     return waiting.WaitForShutdown().ok() ? OkStatus() : s;
   }
   const render::MaterialTable materials = render::MaterialTable::Build((*store)->materials(), scene);
+  if (net->rank() == 1) WarnIfUnlit(scene, materials);  // once for the job
   slave::NodeFaults faults;
   if (faulty) faults = {args.kill_after_tiles, args.stall_after_tiles, args.stall_s};
   slave::SlaveNode node(net, engine->get(), peers.get(), faults);

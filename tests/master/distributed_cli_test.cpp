@@ -247,6 +247,28 @@ TEST_F(DistributedCli, ARemShareTooLargeForTheCacheEndsTheJobBeforeItStarts) {
   EXPECT_EQ(r.out.find("frame 1/"), std::string::npos) << r.out;
 }
 
+// A scene with nothing to light it (found by a real-model user: the documented minimal scene
+// on a store without emissive materials) renders black, and says so before it starts; one
+// process or under mpirun, once.
+TEST_F(DistributedCli, AnUnlitSceneIsAWarning) {
+  const std::string unlit = dir_->File("unlit.json");
+  std::ofstream(unlit) << R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 32, "height": 20 },
+      "output": "out.exr" })";
+  const std::string warning = "the scene has no light";
+  for (const int np : {0, 3}) {
+    SCOPED_TRACE(np);
+    const ProcessResult r = Render(unlit, np, dir_->File("unlit.exr"));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const size_t at = r.err.find(warning);
+    EXPECT_NE(at, std::string::npos) << r.err;
+    if (at != std::string::npos) EXPECT_EQ(r.err.find(warning, at + 1), std::string::npos) << r.err;
+  }
+  const ProcessResult lit = Render(Scene(R"({ "type": "whitted" })"), 0, dir_->File("lit.exr"));
+  ASSERT_EQ(lit.exit_code, 0) << lit.err;
+  EXPECT_EQ(lit.err.find(warning), std::string::npos) << lit.err;
+}
+
 // With several cameras every frame's --reference is checked before the first frame renders:
 // a missing one for the last camera ends the job before any image is written.
 TEST_F(DistributedCli, AMissingReferenceOfALaterCameraIsFoundBeforeRendering) {
