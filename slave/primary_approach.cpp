@@ -25,17 +25,25 @@ PrimaryApproach::PrimaryApproach(const Bounds3f& model, Vec3f camera) : camera_(
 
 void PrimaryApproach::Approach(Ray* ray) const {
   if (!far_) return;
-  // To two model sizes before the point of the ray nearest the box's centre: the box (half a
-  // diagonal, under a size, around the centre) lies wholly ahead, so what the ray meets is
-  // unchanged, and a ray that misses the model starts near it too (from the camera, its walk's
-  // margins, ulps of the camera's coordinates, took in a hundred blocks it passes by).
-  double along = 0;
+  // Along the direction's dominant axis k, to the plane two model sizes before the box's centre
+  // on the camera's side: the box (at most a size across) lies wholly ahead of that plane,
+  // and the ray moves monotonically along k, so what it meets is unchanged. The plane is set
+  // directly, not reached by a long sum: from 1e17 away a distance along the ray, in double,
+  // is off by tens of units, which moved the origin past a small model (review, 2026-11-26).
+  // The other coordinates follow the ray there; their rounding moves the ray sideways by far
+  // less than its float direction can tell apart at that distance, the same in every mode.
+  int k = 0;
+  for (int a = 1; a < 3; ++a)
+    if (std::fabs(ray->direction[a]) > std::fabs(ray->direction[k])) k = a;
+  const double dk = ray->direction[k];
+  if (dk == 0) return;
+  const double centre = 0.5 * (lower_[k] + upper_[k]);
+  const double plane = centre - (dk > 0 ? 2 : -2) * size_;
+  const double t = (plane - double{ray->origin[k]}) / dk;
+  if (!(t > 0)) return;  // the camera is past that plane: the model is not ahead
   for (int a = 0; a < 3; ++a)
-    along += (0.5 * (lower_[a] + upper_[a]) - double{ray->origin[a]}) * double{ray->direction[a]};
-  const double skip = along - 2 * size_;
-  if (!(skip > 0)) return;
-  for (int a = 0; a < 3; ++a)
-    ray->origin[a] = static_cast<float>(double{ray->origin[a]} + double{ray->direction[a]} * skip);
+    ray->origin[a] = static_cast<float>(
+        a == k ? plane : double{ray->origin[a]} + double{ray->direction[a]} * t);
 }
 
 double PrimaryApproach::Skipped(Vec3f origin) const {

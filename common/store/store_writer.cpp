@@ -67,7 +67,12 @@ Expected<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& di
   std::error_code ec;
   std::unique_ptr<StoreWriter> w(new StoreWriter());
   w->dir_ = dir;
-  w->created_dir_ = std::filesystem::create_directories(dir, ec);
+  // Whether the folder the path names existed, not whether creating made some folder: for
+  // "old/x/.." create_directories makes old/x, yet the store is old, a user's (review, 2026-11-26).
+  const std::filesystem::path target = std::filesystem::weakly_canonical(dir, ec);
+  if (ec) return Status::Error(dir + ": cannot resolve the path: " + ec.message());
+  w->created_dir_ = !std::filesystem::exists(target, ec);
+  std::filesystem::create_directories(dir, ec);
   if (ec) return Status::Error(dir + ": cannot create directory: " + ec.message());
   const bool had_lock = std::filesystem::exists(dir + "/" + kLockFile, ec);
   RAYSTACK_RETURN_IF_ERROR(LockStore(dir, &w->lock_fd_));

@@ -262,6 +262,14 @@ TEST_F(PrepCliTest, AFailedWriteRemovesThePartialStore) {
     EXPECT_NE(e.path().extension(), ".tmp") << e.path();
   EXPECT_TRUE(fs::exists(old + "/" + store::kLockFile));
   EXPECT_TRUE(fs::exists(old + "/" + store::kOctreeFile));
+
+  // Named through a folder the prep makes on the way ("old/x/.."), it is still the old store
+  // (a review found its files deleted).
+  r = prep(old + "/x/..");
+  ExpectFailsNaming(r, {"write failed (disk full?)"});
+  EXPECT_TRUE(fs::exists(old + "/" + store::kLockFile)) << r.err;
+  EXPECT_TRUE(fs::exists(old + "/" + store::kOctreeFile)) << r.err;
+  EXPECT_TRUE(fs::exists(old + "/" + store::kBlocksFile)) << r.err;
 }
 
 // A killed prep leaves its work folder (bucket files: up to gigabytes); the next prep with the
