@@ -8,9 +8,10 @@
 // the dragon from 1e5 away took 13-22 s against 0.3 s from 1e3), and hit points are off by
 // more than a light's height above a surface, whose shadow rays then start beyond the light
 // (the model renders unlit). So a primary ray from such a camera starts where it crosses a
-// plane two model sizes before the model's box, across its direction's dominant axis: what the
-// ray meets is unchanged, and every error is ulps of the model's coordinates. The distance
-// skipped is added back to the hit's depth (Z).
+// plane two model sizes before the box's centre, across its direction's dominant axis (the
+// box, at most a size across, lies wholly ahead): what the ray meets is unchanged, and every
+// error is ulps of the model's coordinates. The distance skipped is added back to the hit's
+// depth (Z).
 //
 // Cameras nearer than kFarSizes model sizes keep their origin, bit for bit.
 
@@ -29,7 +30,7 @@ class PrimaryApproach {
   PrimaryApproach(const Bounds3f& model, Vec3f camera);
 
   // Moves a far camera's `ray` (origin at the camera) to where it crosses the plane two model
-  // sizes before the model's box across its dominant axis; leaves it be otherwise.
+  // sizes before the box's centre across its dominant axis; leaves it be otherwise.
   void Approach(Ray* ray) const;
 
   // The distance from the camera to a primary ray's origin (0 when it was not moved), for the
