@@ -98,10 +98,6 @@ render::FramePlan PlanOf(const RenderArgs& args, const render::Scene& scene, con
                                args.engine.pixel_order, coarse_rounds);
 }
 
-// --coarse-rounds auto: the first pass's rounds sweep the frame five times, which costs nothing
-// when the blocks stay in the cache and reloads them on every sweep when they do not (the
-// dragon x36 with a 72 MB cache: 4.5 loads per block used instead of 1.1). `store` may be null
-// (a master that cannot open it): then the rounds stay on, as for an in-core scene.
 // A scene that can only come out black (no point light, nothing emissive in the store's
 // materials or the scene's, a black background) is most likely a mistake: say so up front.
 void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materials) {
@@ -119,6 +115,10 @@ uint64_t StoredBytes(const store::StoreReader& store) {
   return stored;
 }
 
+// --coarse-rounds auto: the first pass's rounds sweep the frame five times, which costs nothing
+// when the blocks stay in the cache and reloads them on every sweep when they do not (the
+// dragon x36 with a 72 MB cache: 4.5 loads per block used instead of 1.1). `store` may be null
+// (a master that cannot open it): then the rounds stay on, as for an in-core scene.
 // `rem_slaves`: the slaves sharing the store's blocks under --blocks rem (0 otherwise); each
 // keeps its share in its cache for its peers, so less of the cache is left for the rest.
 bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, int rem_slaves,
@@ -596,8 +596,9 @@ Status RunDistributed(const RenderArgs& args, transport::Transport* net) {
         std::printf("blocks: %s (--blocks %s; %s)\n", rem ? "rem" : "loc", args.blocks.c_str(),
                     why.c_str());
       // Every slave would refuse its share (RunSlave) once started: say so once, before.
-      const uint64_t share = StoredBytes(**store) / static_cast<uint64_t>(net->size() - 1);
-      if (rem && share >= args.engine.cache_bytes) {
+      const uint64_t share =
+          rem ? StoredBytes(**store) / static_cast<uint64_t>(net->size() - 1) : 0;
+      if (share > 0 && share >= args.engine.cache_bytes) {
         MasterNode(net).Shutdown(1);
         return Status::Error(StrFormat(
             "--blocks rem: a slave's share of the store (%.1f MiB on average over %d slaves) "
