@@ -12,6 +12,7 @@
 #include "common/base/check.h"
 #include "common/base/log.h"
 #include "common/base/progress.h"
+#include "common/geometry/next_float.h"
 #include "common/store/block_layout.h"
 #include "common/store/octree.h"
 #include "tools/prep/block_pipeline.h"
@@ -78,14 +79,26 @@ double RunGrowthAfter(double run_growth, uint64_t parent, uint64_t largest, uint
 }
 
 // The cube the octree starts from: the model's box grown to its largest side, plus a margin
-// so no triangle sits on the outer faces.
+// so no triangle sits on the outer faces. Its centre is moved off the box's by kCentreShift of
+// its half side along each axis: a triangle touching a split plane goes to the cells on both
+// sides, and a flat model (or a model's planar part at its box's centre: a floor plan, a
+// mirrored part's seam) lies on the root's split planes when the cube is centred: every such
+// triangle was stored twice (a flat grid: 2.15 references per triangle). The shift has no short
+// binary expansion, so no deeper split plane comes back onto the box's centre either.
+constexpr float kCentreShift = 1.0f / 93.0f;
+
 Bounds3f RootCell(const Bounds3f& model) {
   if (model.Empty()) return {{0, 0, 0}, {1, 1, 1}};
-  const Vec3f c = model.Center();
   const Vec3f e = model.Extent();
   float half = 0.5f * std::max({e.x, e.y, e.z});
+  Vec3f c = model.Center();
+  for (int a = 0; a < 3; ++a) {
+    // Far from the origin a small model's shift may be under an ulp: then at least one ulp.
+    const float shifted = c[a] + half * kCentreShift;
+    c[a] = shifted > c[a] ? shifted : NextUp(c[a]);
+  }
   const float magnitude = std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z), half});
-  half = half * 1.001f + magnitude * 1e-6f + 1e-30f;
+  half = half * (1.001f + kCentreShift) + magnitude * 1e-6f + 1e-30f;
   return {{c.x - half, c.y - half, c.z - half}, {c.x + half, c.y + half, c.z + half}};
 }
 
