@@ -74,8 +74,11 @@ void LivePreview::Finish() {
   server_->Stop();
   const ServerCounters c = server_->counters();
   std::printf("preview: %llu frames sent to viewers, %llu skipped for slow viewers, %llu requests "
-              "refused\n", static_cast<unsigned long long>(c.frames_sent),
+              "refused", static_cast<unsigned long long>(c.frames_sent),
               static_cast<unsigned long long>(c.frames_skipped), static_cast<unsigned long long>(c.refused));
+  if (c.evicted > 0)
+    std::printf(", %llu idle connections closed to make room", static_cast<unsigned long long>(c.evicted));
+  std::printf("\n");
 }
 
 }  // namespace raystack::master::preview

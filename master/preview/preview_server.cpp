@@ -229,7 +229,7 @@ class PreviewServer::Impl {
 
   ServerCounters counters() const {
     return {snapshots_.load(), frames_sent_.load(), frames_skipped_.load(), refused_.load(),
-            accept_failures_.load(), viewers_.load(), connections_->load()};
+            evicted_.load(), accept_failures_.load(), viewers_.load(), connections_->load()};
   }
 
   uint16_t port() const { return port_; }
@@ -268,6 +268,9 @@ class PreviewServer::Impl {
  private:
   void Accept();
   void Accepted(tcp::socket socket);
+  // The place of the connection that has waited longest without sending its request, which
+  // is closed; none (false) when every connection has sent one (16 streams and answers).
+  Slot EvictOldestIdle();
   void AcceptFailed(const error_code& ec);
   void ArmTick() {
     // Copying the film holds its lock (a merge waits meanwhile): on a large film, refresh
@@ -306,7 +309,7 @@ class PreviewServer::Impl {
   PreviewStatus status_;
   bool status_dirty_ = false;
   std::atomic<uint64_t> snapshots_{0}, frames_sent_{0}, frames_skipped_{0}, refused_{0};
-  std::atomic<uint64_t> accept_failures_{0};
+  std::atomic<uint64_t> accept_failures_{0}, evicted_{0};
   std::atomic<int> viewers_{0};
   const Slot::Count connections_ = std::make_shared<std::atomic<int>>(0);
   const Slot::Count viewer_slots_ = std::make_shared<std::atomic<int>>(0);  // open or opening
@@ -317,7 +320,10 @@ class PreviewServer::Impl {
   std::vector<std::shared_ptr<Viewer>> viewers_list_;
   std::shared_ptr<const FilmSnapshot> latest_;
   std::shared_ptr<const std::string> latest_status_;
-  bool said_full_ = false, said_accept_failed_ = false;  // each warned of once
+  bool said_full_ = false, said_accept_failed_ = false, said_evicting_ = false;  // each warned of once
+  // Connections in the order they came, for EvictOldestIdle: those that ended or sent their
+  // request are expired or no longer reading, and pruned as the list grows (Accepted).
+  std::vector<std::weak_ptr<Request>> arrivals_;
 };
 
 // One WebSocket viewer. Sends the newest status and frame, one message at a time; a message
@@ -442,6 +448,15 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
   Request(tcp::socket socket, Slot connection, Impl* server)
       : connection_(std::move(connection)), stream_(std::move(socket)), server_(server) {}
 
+  bool reading() const { return reading_; }
+
+  // Closes the connection while it waits for its request, and hands over its place.
+  Slot Evict() {
+    reading_ = false;
+    beast::close_socket(stream_);  // the pending read ends with operation_aborted
+    return std::move(connection_);
+  }
+
   void Start() {
     parser_.header_limit(kMaxRequestBytes);
     parser_.body_limit(0);  // GET only: a body is refused
@@ -453,6 +468,7 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
 
  private:
   void Read(const error_code& ec) {
+    reading_ = false;
     if (ec == http::error::header_limit || ec == http::error::buffer_overflow)
       return Respond(http::status::request_header_fields_too_large, "request too large\n");
     if (ec == http::error::end_of_stream || ec == beast::error::timeout ||
@@ -510,6 +526,7 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
   Slot connection_;  // before stream_: given back once its socket is closed
   beast::tcp_stream stream_;
   Impl* server_;
+  bool reading_ = true;  // its request not read yet (nor evicted)
   beast::flat_buffer buffer_{kMaxRequestBytes};
   http::request_parser<http::empty_body> parser_;
   http::response<http::string_body> response_;
@@ -524,21 +541,47 @@ void PreviewServer::Impl::Accept() {
   });
 }
 
-// Every connection takes a file descriptor until it closes, in whatever state it is: past
-// kMaxConnections a new one is closed at once, so that clients (idle ones are kept up to
-// kRequestTimeout) never take the descriptors the render needs to write its image.
+// Every connection takes a file descriptor until it closes, in whatever state it is, so the
+// server holds at most kMaxConnections, and clients never take the descriptors the render
+// needs to write its image. Past them, a new connection takes the place of the one that has
+// waited longest without sending its request (idle ones are otherwise kept up to
+// kRequestTimeout): clients that connect and send nothing cannot keep viewers out. Only when
+// every connection held has sent its request is a new one closed at once.
 void PreviewServer::Impl::Accepted(tcp::socket socket) {
   Slot slot = Slot::Take(connections_, kMaxConnections);
+  if (!slot) slot = EvictOldestIdle();
   if (!slot) {
     CountRefused();
     if (!std::exchange(said_full_, true))
-      LOG_WARNING("preview", "%d connections open, the most the preview holds: further ones are "
-                  "closed at once (counted as refused)", kMaxConnections);
+      LOG_WARNING("preview", "%d connections open, the most the preview holds, all of them served: "
+                  "further ones are closed at once (counted as refused)", kMaxConnections);
     error_code ignored;
     socket.close(ignored);
     return;
   }
-  std::make_shared<Request>(std::move(socket), std::move(slot), this)->Start();
+  auto request = std::make_shared<Request>(std::move(socket), std::move(slot), this);
+  if (arrivals_.size() >= 2 * static_cast<size_t>(kMaxConnections)) {
+    std::erase_if(arrivals_, [](const std::weak_ptr<Request>& w) {
+      const auto r = w.lock();
+      return !r || !r->reading();
+    });
+  }
+  arrivals_.push_back(request);
+  request->Start();
+}
+
+Slot PreviewServer::Impl::EvictOldestIdle() {
+  for (std::weak_ptr<Request>& w : arrivals_) {
+    const auto r = w.lock();
+    if (!r || !r->reading()) continue;
+    w.reset();
+    evicted_.fetch_add(1);
+    if (!std::exchange(said_evicting_, true))
+      LOG_WARNING("preview", "%d connections open, the most the preview holds: the one idle longest "
+                  "is closed to make room for each new one", kMaxConnections);
+    return r->Evict();
+  }
+  return Slot();
 }
 
 // The connection that failed (out of file descriptors, most likely) is still waiting, so

@@ -12,8 +12,9 @@
 // Served: exactly "/" (the page) and "/ws" (the stream); everything else is 404, requests over
 // kMaxRequestBytes are refused (431), viewer messages over kMaxViewerMessageBytes close the
 // stream. The server holds at most kMaxConnections connections at a time, whatever their state
-// (a request being read or answered, a stream): beyond them a new one is closed at once, so
-// that idle clients cannot take the file descriptors the render needs to write its image.
+// (a request being read or answered, a stream), so that clients cannot take the file
+// descriptors the render needs to write its image: beyond them a new one takes the place of
+// the one idle longest (connected, its request not sent), or is closed at once if none is.
 // Bound to a loopback address, a request must name a loopback host (no DNS
 // rebinding); on any other address a random token printed at start is required on both
 // (?token=...), and a request without it gets 403.
@@ -50,6 +51,7 @@ struct ServerCounters {
   uint64_t frames_skipped = 0;  // replaced while waiting for a slow viewer
   uint64_t refused = 0;         // requests answered 403, 404, 405, 431 or 503, and
                                 // connections closed at once beyond kMaxConnections
+  uint64_t evicted = 0;         // idle connections closed to make room for new ones
   uint64_t accept_failures = 0;  // accepts that failed (each followed by kAcceptRetryMs)
   int viewers = 0;              // open streams now
   int connections = 0;          // connections held now (streams included)
