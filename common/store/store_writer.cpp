@@ -52,6 +52,10 @@ Status LockStore(const std::string& dir, int* fd) {
     case LockResult::kError:
       break;
   }
+  std::error_code ec;
+  if (!std::filesystem::exists(dir, ec))  // between its creation and the lock's
+    return Status::Error(dir + ": the folder was removed as this raystack-prep opened it (one "
+                         "that failed removes the store it created); run it again");
   return Status::Error(error);
 }
 
