@@ -70,10 +70,12 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
   bool died = false;
   for (const SlaveState& s : slaves_) died = died || s.lost;
   for (int r = 1; r < net_->size(); ++r) {
+    const SlaveState& slave = slaves_[static_cast<size_t>(r)];
     const Status s = net_->Send(
         r, wire::Encode(0, wire::Shutdown{reason, died ? wire::kShutdownRankDied : 0u}));
-    // A lost slave may be dead: it is told, but nothing waits for its answer.
-    if (s.ok() && !slaves_[static_cast<size_t>(r)].lost) {
+    // A lost slave may be dead: it is told, but nothing waits for its answer; nor for one
+    // that cannot read this build's messages.
+    if (s.ok() && !slave.lost && !slave.deaf) {
       ++waiting;
     } else if (!s.ok()) {
       LOG_WARNING("master", "%s", s.message().c_str());
@@ -94,7 +96,17 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
     }
   }
   early_.clear();
-  return waiting == 0;
+  // Ranks that will not end with this one (MPI_Finalize would wait for them forever).
+  bool all = true;
+  for (int r = 1; r < net_->size(); ++r) {
+    const SlaveState& slave = slaves_[static_cast<size_t>(r)];
+    if (acknowledged[static_cast<size_t>(r)] || slave.lost) continue;
+    all = false;
+    LOG_WARNING("master", "rank %d %s: the job is ended by force", r,
+                slave.deaf ? "cannot read this build's messages" : "did not acknowledge the end of the job");
+    net_->NoteRankWillNotEnd(r);
+  }
+  return all;
 }
 
 std::vector<std::vector<render::Tile>> MasterNode::TilesAssigned() const {
@@ -236,6 +248,41 @@ Status MasterNode::CheckHeartbeats(Frame* f) {
   return OkStatus();
 }
 
+Status MasterNode::CheckHello(int rank, const wire::Hello& hello) {
+  if (!options_.identity) return OkStatus();
+  JobIdentity& job = *options_.identity;
+  const std::string host = wire::HelloText(hello.host);
+  const std::string who = StrFormat("rank %d (on %s)", rank, host.empty() ? "an unnamed host" : host.c_str());
+  const std::string build = wire::HelloText(hello.build);
+  // The field holds 39 bytes: a longer id is compared as far as it goes.
+  if (build != job.build.substr(0, sizeof hello.build - 1))
+    return Status::Error(StrFormat("%s runs raystack %s, the master %s: run the same build on "
+                                   "every rank", who.c_str(), build.c_str(), job.build.c_str()));
+  if (!job.store) {
+    job.store = hello.store_checksum;  // the master cannot read the store: the first slave's
+    store_from_ = rank;
+  }
+  if (hello.store_checksum != *job.store)
+    return Status::Error(StrFormat(
+        "%s reads another store than %s: its index checksum is %016llx, not %016llx (a copy of "
+        "another model, or of an older conversion); every rank must read a copy of the same "
+        "store", who.c_str(), store_from_ ? StrFormat("rank %d", store_from_).c_str() : "the master",
+        static_cast<unsigned long long>(hello.store_checksum),
+        static_cast<unsigned long long>(*job.store)));
+  if (hello.scene_checksum != job.scene)
+    return Status::Error(StrFormat("%s read another scene than the master: its cameras, lights, "
+                                   "materials, background or integrator differ; every rank must "
+                                   "read the same scene file", who.c_str()));
+  const bool remote = (hello.flags & wire::kHelloRemoteBlocks) != 0;
+  if (!job.remote_blocks) job.remote_blocks = remote;
+  if (remote != *job.remote_blocks)
+    return Status::Error(StrFormat(
+        "%s reads blocks %s, the rest of the job %s: --blocks auto decides on each rank from its own "
+        "--cache-mb; give every rank the same --cache-mb, or --blocks loc or rem", who.c_str(),
+        remote ? "from peers (rem)" : "from disk (loc)", remote ? "from disk (loc)" : "from peers (rem)"));
+  return OkStatus();
+}
+
 Status MasterNode::Handle(Frame* f, transport::Envelope e) {
   const int slaves = net_->size() - 1;
   if (e.from < 1 || e.from > slaves)
@@ -247,7 +294,10 @@ Status MasterNode::Handle(Frame* f, transport::Envelope e) {
   SlaveFigures& from = f->figures->slaves[static_cast<size_t>(e.from - 1)];
   from.bytes_received += e.bytes.size();
   const Expected<wire::Message> m = wire::Decode(e.bytes, e.from);
-  if (!m.ok()) return m.status();
+  if (!m.ok()) {
+    state.deaf = true;  // another build or a broken rank: it cannot be told to stop either
+    return m.status();
+  }
   switch (m->type()) {
     case wire::MessageType::kTileRequest: {
       const wire::TileRequest r = m->tile_request();
@@ -290,6 +340,7 @@ Status MasterNode::Handle(Frame* f, transport::Envelope e) {
       // The frame goes on with the others; the slave waits for the end of the job.
       return Drop(f, e.from, false, m->error_text());
     case wire::MessageType::kHello:
+      return CheckHello(e.from, m->hello());
     case wire::MessageType::kHeartbeat:
       return OkStatus();
     case wire::MessageType::kTileAssign:

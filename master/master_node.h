@@ -15,6 +15,7 @@
 #include <deque>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,16 @@ struct FrameFigures {
   double utilisation() const;
 };
 
+// What every slave must render alike (its wire::Hello says what it renders): a slave of
+// another build, store or scene would merge pixels of another image into this one.
+struct JobIdentity {
+  std::string build;                  // BuildId()
+  std::optional<uint64_t> store;      // StoreChecksum; none where the master cannot read the
+                                      // store: then the first slave's is the one
+  uint64_t scene = 0;                 // SceneChecksum
+  std::optional<bool> remote_blocks;  // --blocks rem; none where the master cannot tell
+};
+
 struct MasterOptions {
   // A slave not heard from for this long is lost (it sends a heartbeat every
   // wire::kHeartbeatInterval, whatever it is doing).
@@ -57,6 +68,8 @@ struct MasterOptions {
   // Before its first word, a slave has this much more (it opens the store, perhaps on a slow
   // network filesystem, before it starts its heartbeat).
   std::chrono::milliseconds first_word_grace{60000};
+  // Checked against each slave's hello; none: not checked (tests of the node alone).
+  std::optional<JobIdentity> identity;
 };
 
 class MasterNode {
@@ -78,7 +91,9 @@ class MasterNode {
                   FrameFigures* figures);
   // Tells every slave the job is over (reason 0) or failed (1), then reads (and drops) what
   // they still send until each has acknowledged: a slave blocked sending a pixel batch must be
-  // able to finish before every rank ends. False if some slave did not answer within `timeout`.
+  // able to finish before every rank ends. False if some slave did not answer within `timeout`
+  // (or cannot: it spoke another protocol); the transport is then told it will not end with
+  // the job (NoteRankWillNotEnd), which must then be ended by force.
   bool Shutdown(uint32_t reason, std::chrono::milliseconds timeout = std::chrono::seconds(30));
   // The tiles handed out so far in the current (or last) frame, per slave (index = rank - 1),
   // in the order given. Thread-safe: the live preview reads it while RunFrame runs.
@@ -89,6 +104,7 @@ class MasterNode {
     bool dropped = false;
     bool lost = false;  // dropped for silence: it may be dead, so nothing waits for it
     bool heard = false;  // it has said something since the job began
+    bool deaf = false;   // it sent what this build cannot read: it cannot read this build either
     std::string failure;
     std::chrono::steady_clock::time_point last_heard;
   };
@@ -102,10 +118,12 @@ class MasterNode {
   // Drops `rank` for the rest of the job: its unfinished tiles go back to the others.
   Status Drop(Frame* f, int rank, bool lost, const std::string& why);
   Status CheckHeartbeats(Frame* f);
+  Status CheckHello(int rank, const wire::Hello& hello);
 
   transport::Transport* net_;
   MasterOptions options_;
   std::vector<SlaveState> slaves_;  // by rank (0: unused)
+  int store_from_ = 0;  // the slave whose store the others must match (0: the master's)
   // When CheckHeartbeats last looked (or the master last listened): a longer gap is time the
   // master itself was busy, not the slaves' silence.
   std::chrono::steady_clock::time_point last_check_;

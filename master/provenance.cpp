@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "common/base/build_id.h"
 #include "common/base/log.h"
 #include "common/store/block_codec.h"
 #include "common/store/format.h"
@@ -18,18 +19,16 @@ std::string StoreIdentity(const std::string& store) {
   std::error_code ec;
   const std::filesystem::path canonical = std::filesystem::weakly_canonical(store, ec);
   std::string text = ec ? store : canonical.string();
-  store::FileHeader header{};
-  std::ifstream index(store + "/" + store::kIndexFile, std::ios::binary);
-  if (index.read(reinterpret_cast<char*>(&header), sizeof header))
-    text += StrFormat(" index %016llx", static_cast<unsigned long long>(header.body_checksum));
+  if (const std::optional<uint64_t> sum = StoreChecksum(store))
+    text += StrFormat(" index %016llx", static_cast<unsigned long long>(*sum));
   else
     text += " (index unreadable)";
   return text;
 }
 
-}  // namespace
-
-std::string Provenance(const render::Scene& scene, size_t camera) {
+// The scene's part of the record: camera `camera`, the lights, the materials, the background
+// and the integrator.
+std::string SceneRecord(const render::Scene& scene, size_t camera) {
   auto vec = [](const Vec3f& v) {
     return StrFormat("%.9g %.9g %.9g", double{v.x}, double{v.y}, double{v.z});
   };
@@ -38,9 +37,7 @@ std::string Provenance(const render::Scene& scene, size_t camera) {
                      vec(m.albedo).c_str(), double{m.ior}, vec(m.emission).c_str());
   };
   const render::CameraDesc& c = scene.cameras[camera];
-  // (Not the frame's index: a camera repeated gives the same image, byte for byte.)
-  std::string text = StrFormat("raystack render 1\nstore %s\ncamera: position %s look_at %s "
-                               "up %s fov_y_deg %.9g size %dx%d\n", StoreIdentity(scene.store).c_str(),
+  std::string text = StrFormat("camera: position %s look_at %s up %s fov_y_deg %.9g size %dx%d\n",
                                vec(c.position).c_str(), vec(c.look_at).c_str(), vec(c.up).c_str(),
                                double{c.fov_y_deg}, c.width, c.height);
   for (const render::PointLight& l : scene.lights)
@@ -51,6 +48,29 @@ std::string Provenance(const render::Scene& scene, size_t camera) {
   const render::IntegratorDesc& i = scene.integrator;
   text += StrFormat("integrator type %d max_depth %d spp %d seed %llu\n", static_cast<int>(i.type),
                     i.max_depth, i.spp, static_cast<unsigned long long>(i.seed));
+  return text;
+}
+
+}  // namespace
+
+std::optional<uint64_t> StoreChecksum(const std::string& store) {
+  store::FileHeader header{};
+  std::ifstream index(store + "/" + store::kIndexFile, std::ios::binary);
+  if (!index.read(reinterpret_cast<char*>(&header), sizeof header)) return std::nullopt;
+  return header.body_checksum;
+}
+
+uint64_t SceneChecksum(const render::Scene& scene) {
+  std::string text;
+  for (size_t c = 0; c < scene.cameras.size(); ++c) text += SceneRecord(scene, c);
+  return store::Checksum({reinterpret_cast<const uint8_t*>(text.data()), text.size()});
+}
+
+std::string Provenance(const render::Scene& scene, size_t camera) {
+  // (Not the frame's index: a camera repeated gives the same image, byte for byte.)
+  std::string text = StrFormat("raystack render 1\nbuild %s\nstore %s\n", BuildId(),
+                               StoreIdentity(scene.store).c_str()) +
+                     SceneRecord(scene, camera);
   // The record rides in every image's header: a scene of thousands of lights or materials
   // keeps its first lines and a checksum of the whole, which tells scenes apart as well.
   constexpr size_t kMaxBytes = 16 << 10;

@@ -7,10 +7,13 @@
 #include <fstream>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <thread>
 
+#include "common/base/build_id.h"
 #include "common/base/log.h"
+#include "common/base/process_names.h"
 #include "common/base/progress.h"
 #include "common/image/exr_io.h"
 #include "common/image/png_writer.h"
@@ -367,12 +370,15 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
   return s + "\n  ]\n}";
 }
 
+// `remote_blocks`: whether the slaves read blocks from peers, where the master can tell.
 Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::Transport* net,
-                 ConvergenceLog* log, bool coarse_rounds) {
+                 ConvergenceLog* log, bool coarse_rounds, std::optional<bool> remote_blocks) {
   const std::string output = OutputOf(args, scene);
   const size_t frames = scene.cameras.size();
   MasterOptions options;
   options.lost_after = std::chrono::milliseconds(static_cast<int64_t>(args.lost_after_s * 1000));
+  options.identity = JobIdentity{BuildId(), StoreChecksum(scene.store), SceneChecksum(scene),
+                                 remote_blocks};
   MasterNode master(net, options);
   Expected<preview::LivePreview> preview = preview::LivePreview::Start(args.preview);
   if (!preview.ok()) {
@@ -540,6 +546,16 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
     slave::SlaveNode waiting(net, nullptr);
     return waiting.WaitForShutdown().ok() ? OkStatus() : s;
   }
+  // What this slave renders, for the master to check against the others before its pixels.
+  wire::Hello hello{};
+  hello.ray_threads = static_cast<uint32_t>(options.threads);
+  hello.flags = peers ? wire::kHelloRemoteBlocks : 0u;
+  hello.store_checksum = StoreChecksum(scene.store).value_or(0);
+  hello.scene_checksum = SceneChecksum(scene);
+  wire::SetHelloText(hello.build, BuildId());
+  wire::SetHelloText(hello.host, HostName());
+  if (Status s = net->Send(0, wire::Encode(static_cast<uint32_t>(net->rank()), hello)); !s.ok())
+    return s;
   const render::MaterialTable materials = render::MaterialTable::Build((*store)->materials(), scene);
   if (net->rank() == 1) WarnIfUnlit(scene, materials);  // once for the job
   slave::NodeFaults faults;
@@ -611,7 +627,8 @@ Status RunDistributed(const RenderArgs& args, transport::Transport* net) {
     const bool coarse_rounds = CoarseRounds(args, store.ok() ? store->get() : nullptr,
                                             rem ? net->size() - 1 : 0, &why);
     LogFirstPass(args, coarse_rounds, why);
-    return RunMaster(args, *scene, net, log->get(), coarse_rounds);
+    return RunMaster(args, *scene, net, log->get(), coarse_rounds,
+                     store.ok() ? std::optional<bool>(rem) : std::nullopt);
   }
   return RunSlave(args, *scene, net);
 }
@@ -647,6 +664,9 @@ int RenderCommand(int argc, char** argv) {
         // ends it the hard way rather than leave the others waiting.
         if (rank > 0) (*net)->Abort(1);
       }
+      // A rank that will not end with the job (another build's, one that did not acknowledge
+      // the end) would keep mpirun waiting, under --enable-recovery forever.
+      if ((*net)->rank_will_not_end()) (*net)->Abort(s.ok() ? 0 : 1);
       if ((*net)->rank_died()) mpi::MpiTransport::ExitWithoutFinalize(s.ok() ? 0 : 1);
       return s.ok() ? 0 : 1;
     }

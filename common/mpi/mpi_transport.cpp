@@ -198,6 +198,11 @@ Status MpiTransport::ProgressPosted() {
   return error;
 }
 
+void MpiTransport::NoteRankWillNotEnd(int rank) {
+  NoteRankDied(rank);  // nothing waits for it either
+  rank_will_not_end_ = true;
+}
+
 void MpiTransport::NoteRankDied(int rank) {
   rank_died_ = true;
   if (rank >= 0 && rank < size_) dead_[static_cast<size_t>(rank)] = true;

@@ -53,12 +53,16 @@ class MpiTransport final : public transport::Transport {
   // Then the process must end without MPI_Finalize (ExitWithoutFinalize), which would wait
   // for the dead rank; mpirun --enable-recovery accepts that.
   bool rank_died() const { return rank_died_.load(); }
+  void NoteRankWillNotEnd(int rank) override;
+  // Then the job must end by force (Abort): mpirun would wait for that rank, under
+  // --enable-recovery forever.
+  bool rank_will_not_end() const { return rank_will_not_end_.load(); }
   [[noreturn]] static void ExitWithoutFinalize(int code);
 
  private:
   MpiTransport(int rank, int size);
   int rank_, size_;
-  std::atomic<bool> rank_died_{false};
+  std::atomic<bool> rank_died_{false}, rank_will_not_end_{false};
   std::unique_ptr<std::atomic<bool>[]> dead_;  // by rank
   // Receives in progress, by sender (Receive; defined where mpi.h is).
   struct Incoming;

@@ -80,6 +80,20 @@ const char* MessageTypeName(MessageType type) {
   return "unknown";
 }
 
+std::string HelloText(const char (&field)[40]) {
+  std::string text;
+  for (const char c : field) {
+    if (c == '\0') break;
+    text += c >= 0x20 && c < 0x7f ? c : '?';
+  }
+  return text;
+}
+
+void SetHelloText(char (&field)[40], const std::string& text) {
+  std::memset(field, 0, sizeof field);
+  std::memcpy(field, text.data(), std::min(text.size(), sizeof field - 1));
+}
+
 std::vector<uint8_t> Encode(uint32_t sender, const Hello& m) {
   return Build(sender, MessageType::kHello, m);
 }

@@ -29,8 +29,9 @@ inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
 // the owner's blocks (the fetches that queued for the same owner), its answer their bytes;
 // frame figures count the runs fetched. 6: frame figures carry the slave's CPU time.
 // 8: pixel batches carry the primary-hit layers of sample 0 only, the hit flag in the sample.
-// 9: frame figures carry where the ray threads waited (for tiles, for blocks).
-inline constexpr uint16_t kProtocolVersion = 9;
+// 9: frame figures carry where the ray threads waited (for tiles, for blocks). 10: a slave's
+// hello carries what it renders (store, scene, build, block mode), which the master checks.
+inline constexpr uint16_t kProtocolVersion = 10;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
 // How often a slave says it is alive (the master drops one it has not heard from for
@@ -38,7 +39,7 @@ inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
 inline constexpr std::chrono::milliseconds kHeartbeatInterval{500};
 
 enum class MessageType : uint16_t {
-  kHello = 1,    // a rank announces itself (and its protocol version) to the master
+  kHello = 1,    // a slave announces what it renders to the master, before anything else
   kTileRequest,  // a slave thread asks for its next tile
   kTileAssign,   // the master hands out a tile, or says there are no more
   kPixelBatch,   // finished samples
@@ -63,10 +64,23 @@ struct MessageHeader {
 };
 static_assert(sizeof(MessageHeader) == 16);
 
+// What a slave renders, so that the master can refuse a slave whose image would differ from
+// the others' (another copy of the store, another scene file, another build) rather than
+// merge its pixels into the image.
 struct Hello {
   uint32_t ray_threads;
-  uint32_t reserved;
+  uint32_t flags;           // kHelloRemoteBlocks
+  uint64_t store_checksum;  // its store's index checksum, which holds every block's
+  uint64_t scene_checksum;  // what its samples depend on besides the store (cameras, lights...)
+  char build[40];           // its BuildId(), nul-padded (cut if longer)
+  char host[40];            // its host's name, for messages, nul-padded (cut if longer)
 };
+inline constexpr uint32_t kHelloRemoteBlocks = 1;  // it fetches blocks from peers (--blocks rem)
+// A Hello text field as printable text: up to its first nul, other bytes than printable ASCII
+// replaced by '?' (a hostile sender's bytes go into messages).
+std::string HelloText(const char (&field)[40]);
+// Copies `text` into a Hello text field, cut to 39 bytes, nul-padded.
+void SetHelloText(char (&field)[40], const std::string& text);
 struct TileRequest {
   uint32_t frame;
   uint32_t thread;  // the slave's ray thread that asks
@@ -165,7 +179,7 @@ struct PrimaryRecord {
   float normal[3];
   float albedo[3];
 };
-static_assert(sizeof(Hello) == 8 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
+static_assert(sizeof(Hello) == 104 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
               sizeof(FrameDone) == 168 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 24 &&
               sizeof(SampleRecord) == 20 && sizeof(PrimaryRecord) == 28 &&
               sizeof(BlockRequest) == 16 && sizeof(BlockRun) == 8 && sizeof(BlockDataHeader) == 16 &&

@@ -129,7 +129,7 @@ int main(int argc, char** argv) {
   Write(dir + "/store/sphere-300", StoreSeed(dir, "sphere:300", 2048));
   Write(dir + "/store/sphere-40", StoreSeed(dir, "sphere:40", 32768));
 
-  Write(dir + "/wire/hello", wire::Encode(1, wire::Hello{4, 0}));
+  Write(dir + "/wire/hello", wire::Encode(1, wire::Hello{4, 0, 0, 0, {}, {}}));
   Write(dir + "/wire/tile_request", wire::Encode(1, wire::TileRequest{0, 2}));
   wire::TileAssign assign{};
   assign.thread = 1;

@@ -429,6 +429,58 @@ TEST(Distributed, HostileMessagesEndTheFrameNamingTheSender) {
   EXPECT_NE(s.message().find("outside the 16x16 image"), std::string::npos) << s.message();
 }
 
+// Forwards to another transport, and notes which ranks it was told will not end with the job.
+class EndNotingTransport : public transport::Transport {
+ public:
+  explicit EndNotingTransport(transport::Transport* inner) : inner_(inner) {}
+  int rank() const override { return inner_->rank(); }
+  int size() const override { return inner_->size(); }
+  Status Send(int to, std::span<const uint8_t> bytes) override { return inner_->Send(to, bytes); }
+  Expected<std::optional<transport::Envelope>> Receive(std::chrono::milliseconds timeout) override {
+    return inner_->Receive(timeout);
+  }
+  void NoteRankWillNotEnd(int rank) override { died.push_back(rank); }
+  std::vector<int> died;
+
+ private:
+  transport::Transport* inner_;
+};
+
+// A slave of another build (another protocol version) cannot read the master's shutdown
+// either: the master does not wait for its acknowledgement (it waited 30 s, then hung in
+// MPI_Finalize with the job), and marks it as gone so that this process ends without it.
+TEST(Distributed, ASlaveOfAnotherProtocolIsNotWaitedForAtTheEnd) {
+  transport::InProcessHub hub(3);
+  auto master_end = hub.Endpoint(0);
+  EndNotingTransport noting(master_end.get());
+  auto deaf = hub.Endpoint(1);
+  auto good = hub.Endpoint(2);
+  std::vector<uint8_t> other_version = wire::Encode(1, wire::TileRequest{0, 0});
+  other_version[4] = static_cast<uint8_t>(wire::kProtocolVersion - 1);
+  ASSERT_TRUE(deaf->Send(0, other_version).ok());
+  master::MasterNode node(&noting);
+  render::Film film(16, 16);
+  master::FrameFigures figures;
+  const Status s = node.RunFrame(0, render::HilbertTiles(16, 16, 8), 1, &film, [] {}, &figures);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.message().find("rank 1: protocol version"), std::string::npos) << s.message();
+  // Rank 2 acknowledges the end as a slave of this build does; rank 1 never can.
+  std::thread acknowledge([&] {
+    for (;;) {
+      Expected<std::optional<transport::Envelope>> got = good->Receive(std::chrono::milliseconds(50));
+      ASSERT_TRUE(got.ok());
+      if (!got->has_value()) continue;
+      const Expected<wire::Message> m = wire::Decode((*got)->bytes, 0);
+      if (m.ok() && m->type() == wire::MessageType::kShutdown) break;
+    }
+    ASSERT_TRUE(good->Send(0, wire::Encode(2, wire::Shutdown{0, 0})).ok());
+  });
+  // Without the fix this waits the whole hour for rank 1 (ctest's timeout ends it).
+  EXPECT_FALSE(node.Shutdown(1, std::chrono::hours(1)));
+  acknowledge.join();
+  EXPECT_EQ(noting.died, std::vector<int>{1});
+}
+
 // Rank 1 of `hub` as a real slave rendering frame 0 of `scene` while the test plays the
 // master, then waiting for the end of the job; `frame_ok`: whether its frame should succeed.
 std::thread SlaveAlone(transport::InProcessHub* hub, const store::StoreReader& store,

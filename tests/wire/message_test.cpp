@@ -86,9 +86,22 @@ TEST(Message, EveryTypeRoundTrips) {
               sizeof(MessageHeader) + kMaxErrorText);
   }
   {
-    const Expected<Message> m = Decode(Encode(1, Hello{8, 0}), 1);
+    Hello hello{8, kHelloRemoteBlocks, 0x1234, 0x5678, {}, {}};
+    SetHelloText(hello.build, "0.1.0 (" + std::string(60, 'c') + ")");  // cut to 39 bytes
+    SetHelloText(hello.host, "node7");
+    const Expected<Message> m = Decode(Encode(1, hello), 1);
     ASSERT_TRUE(m.ok());
-    EXPECT_EQ(m->hello().ray_threads, 8u);
+    const Hello got = m->hello();
+    EXPECT_EQ(got.ray_threads, 8u);
+    EXPECT_EQ(got.flags, kHelloRemoteBlocks);
+    EXPECT_EQ(got.store_checksum, 0x1234u);
+    EXPECT_EQ(got.scene_checksum, 0x5678u);
+    EXPECT_EQ(HelloText(got.build), "0.1.0 (" + std::string(32, 'c'));
+    EXPECT_EQ(HelloText(got.host), "node7");
+    // A sender's bytes: no terminating nul, control characters.
+    Hello hostile{};
+    std::memset(hostile.host, '\x1b', sizeof hostile.host);
+    EXPECT_EQ(HelloText(hostile.host), std::string(40, '?'));
   }
   ASSERT_TRUE(Decode(Encode(0, Shutdown{0, 0}), 0).ok());
   {
