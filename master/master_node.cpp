@@ -57,6 +57,28 @@ MasterNode::MasterNode(transport::Transport* net, MasterOptions options)
     : net_(net), options_(options), slaves_(static_cast<size_t>(net->size())) {
   last_check_ = Clock::now();
   for (SlaveState& s : slaves_) s.last_heard = last_check_;
+  if (!options_.beat) return;
+  beating_ = true;
+  beater_ = std::thread([this] {
+    std::unique_lock lock(beat_mu_);
+    for (uint32_t beat = 0; beating_; ++beat) {
+      // Posted, never waited for: a dead or stopped slave must not hold the beat back.
+      for (int r = 1; r < net_->size(); ++r)
+        (void)net_->Post(r, wire::Encode(0, wire::Heartbeat{beat, 0}));
+      beat_stop_.wait_for(lock, wire::kHeartbeatInterval, [this] { return !beating_; });
+    }
+  });
+}
+
+MasterNode::~MasterNode() { StopBeating(); }
+
+void MasterNode::StopBeating() {
+  {
+    std::lock_guard lock(beat_mu_);
+    beating_ = false;
+  }
+  beat_stop_.notify_all();
+  if (beater_.joinable()) beater_.join();
 }
 
 Status MasterNode::Send(int to, const std::vector<uint8_t>& bytes, FrameFigures* figures) {
@@ -65,6 +87,7 @@ Status MasterNode::Send(int to, const std::vector<uint8_t>& bytes, FrameFigures*
 }
 
 bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
+  StopBeating();  // the slaves wait for the shutdown now, not for the master's word
   std::vector<bool> acknowledged(static_cast<size_t>(net_->size()), false);
   int waiting = 0;
   bool died = false;

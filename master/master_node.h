@@ -11,12 +11,14 @@
 // tile is finished: a tile that comes back then still finds a slave to render it.
 
 #include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <functional>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "common/base/status.h"
@@ -70,11 +72,18 @@ struct MasterOptions {
   std::chrono::milliseconds first_word_grace{60000};
   // Checked against each slave's hello; none: not checked (tests of the node alone).
   std::optional<JobIdentity> identity;
+  // Tell every slave the master is alive every wire::kHeartbeatInterval (from a thread of its
+  // own, whatever the master is doing), until Shutdown: a slave whose master has gone silent
+  // ends rather than wait for it forever (SlaveNode's master_lost_after).
+  bool beat = false;
 };
 
 class MasterNode {
  public:
   explicit MasterNode(transport::Transport* net, MasterOptions options = {});
+  ~MasterNode();
+  MasterNode(const MasterNode&) = delete;
+  MasterNode& operator=(const MasterNode&) = delete;
 
   // Runs frame `frame` until every slave has reported it done: the plan's sweeps one after the
   // other (each sweep's tiles scheduled as TileScheduler does), samples merged into `film`.
@@ -119,6 +128,7 @@ class MasterNode {
   Status Drop(Frame* f, int rank, bool lost, const std::string& why);
   Status CheckHeartbeats(Frame* f);
   Status CheckHello(int rank, const wire::Hello& hello);
+  void StopBeating();
 
   transport::Transport* net_;
   MasterOptions options_;
@@ -131,6 +141,10 @@ class MasterNode {
   std::deque<transport::Envelope> early_;
   mutable std::mutex assigned_mu_;
   std::vector<std::vector<render::Tile>> assigned_;  // guarded by assigned_mu_
+  std::mutex beat_mu_;
+  std::condition_variable beat_stop_;
+  bool beating_ = false;  // guarded by beat_mu_
+  std::thread beater_;
 };
 
 }  // namespace raystack::master

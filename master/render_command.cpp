@@ -377,6 +377,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
   const size_t frames = scene.cameras.size();
   MasterOptions options;
   options.lost_after = std::chrono::milliseconds(static_cast<int64_t>(args.lost_after_s * 1000));
+  options.beat = true;
   options.identity = JobIdentity{BuildId(), StoreChecksum(scene.store), SceneChecksum(scene),
                                  remote_blocks};
   MasterNode master(net, options);
@@ -496,6 +497,13 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
   return OkStatus();
 }
 
+// How long a slave waits without a word from the master before it takes it for gone: a lost
+// master loses the job, a lost slave only time, so a slave is six times as patient as the
+// master is with it (--lost-after).
+std::chrono::milliseconds MasterLostAfter(const RenderArgs& args) {
+  return std::chrono::milliseconds(static_cast<int64_t>(6 * args.lost_after_s * 1000));
+}
+
 // --blocks auto: rem when each slave's share of the store (stored bytes) fits in half of its
 // cache budget, leaving the other half for decoded blocks; otherwise loc. Every rank decides
 // the same from the same inputs.
@@ -543,7 +551,7 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
     const Status s = engine.status();
     (void)net->Send(0, wire::EncodeError(static_cast<uint32_t>(net->rank()), s.message()));
     // The others go on without it: wait for the end of the job (and acknowledge it).
-    slave::SlaveNode waiting(net, nullptr);
+    slave::SlaveNode waiting(net, nullptr, nullptr, {}, MasterLostAfter(args));
     return waiting.WaitForShutdown().ok() ? OkStatus() : s;
   }
   // What this slave renders, for the master to check against the others before its pixels.
@@ -560,7 +568,7 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
   if (net->rank() == 1) WarnIfUnlit(scene, materials);  // once for the job
   slave::NodeFaults faults;
   if (faulty) faults = {args.kill_after_tiles, args.stall_after_tiles, args.stall_s};
-  slave::SlaveNode node(net, engine->get(), peers.get(), faults);
+  slave::SlaveNode node(net, engine->get(), peers.get(), faults, MasterLostAfter(args));
   for (size_t f = 0; f < scene.cameras.size(); ++f) {
     const render::Camera camera(scene.cameras[f]);
     slave::RenderStats stats;
@@ -589,7 +597,7 @@ Status RunDistributed(const RenderArgs& args, transport::Transport* net) {
     }
     (void)net->Send(0, wire::EncodeError(static_cast<uint32_t>(net->rank()),
                                          scene.status().message()));
-    slave::SlaveNode waiting(net, nullptr);
+    slave::SlaveNode waiting(net, nullptr, nullptr, {}, MasterLostAfter(args));
     return waiting.WaitForShutdown().ok() ? OkStatus() : scene.status();
   }
   if (net->rank() == 0) {
@@ -660,6 +668,9 @@ int RenderCommand(int argc, char** argv) {
       s = RunDistributed(args, net->get());
       if (!s.ok()) {
         std::fprintf(stderr, "raystack render (rank %d): %s\n", rank, s.message().c_str());
+        // A slave whose master is gone ends alone (MPI_Abort could end a master that is only
+        // cut off from this host, with its image nearly done).
+        if (rank > 0 && (*net)->dead(0)) mpi::MpiTransport::ExitWithoutFinalize(1);
         // The master has ended the job on every rank; a slave whose master did not answer
         // ends it the hard way rather than leave the others waiting.
         if (rank > 0) (*net)->Abort(1);

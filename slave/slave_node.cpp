@@ -229,8 +229,9 @@ class RemoteSink final : public render::SampleSink {
 }  // namespace
 
 SlaveNode::SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers,
-                     NodeFaults faults)
-    : net_(net), engine_(engine), peers_(peers), faults_(faults) {
+                     NodeFaults faults, std::chrono::milliseconds master_lost_after)
+    : net_(net), engine_(engine), peers_(peers), faults_(faults),
+      master_lost_after_(master_lost_after), last_from_master_(std::chrono::steady_clock::now()) {
   // The receiving thread looks for messages at its quickest only while a thread here waits
   // for one (a tile, a block from a peer, the last pixels out); otherwise every kIdlePause:
   // each look costs the capped CPU the rays need (tools/bench/RESULTS.md).
@@ -256,6 +257,24 @@ void SlaveNode::Failed(const Status& status) {  // holds mu_
   changed_.notify_all();
 }
 
+bool SlaveNode::master_lost() const {
+  std::lock_guard lock(mu_);
+  return master_lost_;
+}
+
+void SlaveNode::CheckMaster(std::chrono::steady_clock::time_point now) {
+  if (master_lost_after_.count() == 0 || master_lost_ || shut_down_) return;
+  const auto allowed = heard_master_ ? master_lost_after_ : master_lost_after_ + kMasterFirstWordGrace;
+  if (now - last_from_master_ < allowed) return;
+  master_lost_ = true;
+  net_->NoteRankDied(0);  // nothing may wait for it any more, MPI_Finalize included
+  Failed(Status::Error(StrFormat(
+      "the master (rank 0) has said nothing for %.0f s: it is gone, or this host is cut off "
+      "from it; this rank ends (its pixels are the master's to lose or keep)",
+      std::chrono::duration<double>(now - last_from_master_).count())));
+  changed_.notify_all();
+}
+
 void SlaveNode::ReceiveLoop() {
   uint32_t beats = 0;
   auto last_beat = std::chrono::steady_clock::now() - wire::kHeartbeatInterval;
@@ -274,13 +293,31 @@ void SlaveNode::ReceiveLoop() {
     }
     Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(20));
     std::lock_guard lock(mu_);
+    const auto now = std::chrono::steady_clock::now();
     if (!got.ok()) {
       Failed(got.status());
       continue;
     }
-    if (!got->has_value()) continue;
+    if (!got->has_value()) {
+      CheckMaster(now);
+      continue;
+    }
     const int from = (*got)->from;
+    if (from == 0) {
+      last_from_master_ = now;
+      heard_master_ = true;
+    } else {
+      CheckMaster(now);
+    }
     const Expected<wire::Message> m = wire::Decode((*got)->bytes, from);
+    if (!m.ok() && from == 0) {
+      // A master of another build (or a broken one): this rank cannot follow it, nor read its
+      // shutdown, so it ends now rather than wait for one.
+      master_lost_ = true;
+      net_->NoteRankDied(0);
+      Failed(m.status());
+      continue;
+    }
     if (!m.ok()) {
       Failed(m.status());
       continue;
@@ -300,6 +337,8 @@ void SlaveNode::ReceiveLoop() {
       if (tiles_) tiles_->Abort();  // ray threads waiting for a tile give up
       if (peers_) peers_->Stop();
       changed_.notify_all();
+    } else if (from == 0 && type == wire::MessageType::kHeartbeat) {
+      // The master is alive: noted above.
     } else if (from == 0 && type == wire::MessageType::kRankLost) {
       const wire::RankLost lost = m->rank_lost();
       if (lost.rank == 0 || lost.rank >= static_cast<uint32_t>(net_->size())) {
@@ -421,8 +460,9 @@ Expected<uint32_t> SlaveNode::WaitForShutdown(std::chrono::milliseconds timeout)
   // Only the shutdown ends the wait: the master drains its slaves until each acknowledges it,
   // failed ones too (a failure seen after the frame changes nothing about the end).
   std::unique_lock lock(mu_);
-  if (!changed_.wait_for(lock, timeout, [&] { return shut_down_; }))
+  if (!changed_.wait_for(lock, timeout, [&] { return shut_down_ || master_lost_; }))
     return Status::Error("the master did not end the job in time");
+  if (!shut_down_) return error_;  // the master is gone: no one to acknowledge
   const uint32_t reason = shutdown_reason_;
   lock.unlock();
   RAYSTACK_RETURN_IF_ERROR(Acknowledge());

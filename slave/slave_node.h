@@ -38,8 +38,12 @@ struct NodeFaults {
 // answers, which must be served between frames and after this slave's last frame too.
 class SlaveNode {
  public:
+  // `master_lost_after`: the master beats every wire::kHeartbeatInterval while the job runs
+  // (MasterOptions::beat); past this long without a word from it (plus kMasterFirstWordGrace
+  // before its first) it is taken for gone (killed, its node lost, this host cut off), and the
+  // node fails rather than wait for it forever. Zero: never (a master that does not beat).
   SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks* peers = nullptr,
-            NodeFaults faults = {});
+            NodeFaults faults = {}, std::chrono::milliseconds master_lost_after = {});
   ~SlaveNode();
 
   // Renders this slave's share of frame `frame`, then reports it done (with its figures) to
@@ -51,7 +55,12 @@ class SlaveNode {
   // Waits for the master's shutdown (at most `timeout`; at once if it has come), acknowledges
   // it (once per node, whoever noticed it first); returns its reason (0: done). Every slave
   // calls it before it ends, also after a failed frame: the master waits for every ack.
+  // Fails at once if the master is gone (see the constructor).
   Expected<uint32_t> WaitForShutdown(std::chrono::milliseconds timeout = std::chrono::hours(24 * 365));
+  // Whether the master was taken for gone: it cannot end the job, so this rank must end alone.
+  bool master_lost() const;
+
+  static constexpr std::chrono::seconds kMasterFirstWordGrace{60};
 
  private:
   // How long the receiving thread sleeps between looks for messages while nothing waits for
@@ -61,6 +70,8 @@ class SlaveNode {
   // Returns once the frame's posted pixel batches are out (or after a while).
   void FlushPixels();
   void Failed(const Status& status);  // holds mu_
+  // Takes the master for gone if it has been silent too long; holds mu_.
+  void CheckMaster(std::chrono::steady_clock::time_point now);
   // Tells the master, once, that this rank has stopped sending (after its shutdown).
   Status Acknowledge();
 
@@ -77,6 +88,10 @@ class SlaveNode {
   bool acknowledged_ = false;
   Status error_;                  // a failure on the receiving side
   const NodeFaults faults_;
+  const std::chrono::milliseconds master_lost_after_;
+  std::chrono::steady_clock::time_point last_from_master_;
+  bool heard_master_ = false;
+  bool master_lost_ = false;
   std::atomic<int64_t> tiles_given_{0};
 };
 

@@ -481,6 +481,58 @@ TEST(Distributed, ASlaveOfAnotherProtocolIsNotWaitedForAtTheEnd) {
   EXPECT_EQ(noting.died, std::vector<int>{1});
 }
 
+// A master killed, or a slave's host cut off from it: the slaves waited for tiles or for the
+// shutdown forever (under mpirun --enable-recovery the job never ended). The master beats
+// (MasterOptions::beat); a slave that has not heard it for master_lost_after takes it for gone
+// and ends, saying why.
+TEST(Distributed, ASlaveWhoseMasterFallsSilentEndsInsteadOfWaiting) {
+  transport::InProcessHub hub(2);
+  auto master_end = hub.Endpoint(0);
+  auto slave_end = hub.Endpoint(1);
+  ASSERT_TRUE(master_end->Send(1, wire::Encode(0, wire::Heartbeat{0, 0})).ok());  // then silence
+  slave::SlaveNode node(slave_end.get(), nullptr, nullptr, {}, std::chrono::milliseconds(300));
+  // Without the check this waits the whole hour (ctest's timeout ends it).
+  const Expected<uint32_t> r = node.WaitForShutdown(std::chrono::hours(1));
+  ASSERT_FALSE(r.ok());
+  EXPECT_NE(r.status().message().find("the master (rank 0) has said nothing"), std::string::npos)
+      << r.status().message();
+  EXPECT_TRUE(node.master_lost());
+}
+
+// The master's beat: a heartbeat to every slave from the start, until the shutdown.
+TEST(Distributed, TheMasterBeatsUntilTheShutdown) {
+  transport::InProcessHub hub(3);
+  auto master_end = hub.Endpoint(0);
+  std::vector<std::unique_ptr<transport::Transport>> slaves;
+  for (int r = 1; r <= 2; ++r) slaves.push_back(hub.Endpoint(r));
+  master::MasterOptions options;
+  options.beat = true;
+  master::MasterNode node(master_end.get(), options);
+  for (auto& slave : slaves) {
+    Expected<std::optional<transport::Envelope>> got = slave->Receive(std::chrono::hours(1));
+    ASSERT_TRUE(got.ok() && got->has_value());
+    const Expected<wire::Message> m = wire::Decode((*got)->bytes, 0);
+    ASSERT_TRUE(m.ok());
+    EXPECT_EQ(m->type(), wire::MessageType::kHeartbeat);
+    ASSERT_TRUE(slave->Send(0, wire::Encode(static_cast<uint32_t>(slave->rank()), wire::Shutdown{0, 0})).ok());
+  }
+  EXPECT_TRUE(node.Shutdown(0, std::chrono::hours(1)));
+  // After the shutdown message, nothing more from the master.
+  for (auto& slave : slaves) {
+    bool shutdown = false;
+    for (;;) {
+      Expected<std::optional<transport::Envelope>> got = slave->Receive(std::chrono::milliseconds(0));
+      ASSERT_TRUE(got.ok());
+      if (!got->has_value()) break;
+      const Expected<wire::Message> m = wire::Decode((*got)->bytes, 0);
+      ASSERT_TRUE(m.ok());
+      if (m->type() == wire::MessageType::kShutdown) shutdown = true;
+      else EXPECT_FALSE(shutdown) << "a " << wire::MessageTypeName(m->type()) << " after the shutdown";
+    }
+    EXPECT_TRUE(shutdown);
+  }
+}
+
 // Rank 1 of `hub` as a real slave rendering frame 0 of `scene` while the test plays the
 // master, then waiting for the end of the job; `frame_ok`: whether its frame should succeed.
 std::thread SlaveAlone(transport::InProcessHub* hub, const store::StoreReader& store,
