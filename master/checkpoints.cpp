@@ -44,4 +44,20 @@ void Checkpoints::Maybe(const render::Film& film) {
   (void)writer_->Write(std::move(image));
 }
 
+Expected<uint64_t> Checkpoints::Final(const render::Film& film, uint32_t spp) {
+  auto result = std::make_shared<Status>();
+  FrameWriter::Image image;
+  image.exr = path_;
+  image.layers = writer_->TakeSpare();
+  film.ResolveInto(&image.layers);
+  image.layers.provenance = provenance_;
+  uint64_t finished = 0;
+  for (const uint32_t n : image.layers.samples) finished += n >= spp;
+  image.done = [result](const Status& s) { *result = s; };
+  RAYSTACK_RETURN_IF_ERROR(writer_->Write(std::move(image)));
+  RAYSTACK_RETURN_IF_ERROR(writer_->Finish());
+  RAYSTACK_RETURN_IF_ERROR(*result);
+  return finished;
+}
+
 }  // namespace raystack::master

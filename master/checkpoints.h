@@ -31,6 +31,11 @@ class Checkpoints {
 
   // Queues a checkpoint of `film` when one is due.
   void Maybe(const render::Film& film);
+  // Writes a checkpoint of `film` now, whatever the interval (also with every_s 0), on every
+  // core, and waits until it and everything queued before it are written: the job is being
+  // interrupted, and the process ends next. Returns how many pixels have all `spp` samples
+  // (those --resume keeps).
+  Expected<uint64_t> Final(const render::Film& film, uint32_t spp);
 
  private:
   // What the writer's thread updates once a checkpoint is written: shared, so the frame (and

@@ -4,6 +4,7 @@
 #include <cstring>
 #include <new>
 
+#include "common/base/build_id.h"
 #include "master/render_command.h"
 
 namespace {
@@ -12,6 +13,7 @@ constexpr const char* kUsage = R"(usage: raystack COMMAND [options]
 
 commands:
   render SCENE.json   render a block store as the scene file says (raystack render --help)
+  --version           this build's version and git commit (every rank of a job must match)
 
 Stores are made with raystack-prep and inspected with raystack-info.
 )";
@@ -32,6 +34,10 @@ int main(int argc, char** argv) {
   }
   if (argc >= 2 && (std::strcmp(argv[1], "-h") == 0 || std::strcmp(argv[1], "--help") == 0)) {
     std::fputs(kUsage, stdout);
+    return 0;
+  }
+  if (argc >= 2 && std::strcmp(argv[1], "--version") == 0) {
+    std::printf("raystack %s\n", raystack::BuildId());
     return 0;
   }
   if (argc >= 2) std::fprintf(stderr, "raystack: unknown command '%s'\n", argv[1]);

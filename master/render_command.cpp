@@ -3,6 +3,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <fstream>
 #include <limits>
@@ -12,6 +13,7 @@
 #include <thread>
 
 #include "common/base/build_id.h"
+#include "common/base/interrupt.h"
 #include "common/base/log.h"
 #include "common/base/process_names.h"
 #include "common/base/progress.h"
@@ -149,6 +151,31 @@ bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, int r
 void LogFirstPass(const RenderArgs& args, bool rounds, const std::string& why) {
   if (args.quiet || args.engine.pixel_order != render::PixelOrder::kPriority) return;
   std::printf("first pass: %s (%s)\n", rounds ? "5 coarse rounds" : "one sweep", why.c_str());
+}
+
+// SIGINT or SIGTERM while frame `frame` renders (Ctrl-C; Slurm's time limit, through mpirun,
+// which sends SIGKILL a second later): writes the frame's samples so far where --resume finds
+// them (the frame's EXR, with its provenance), says so, and ends the process with the shell's
+// code for the signal. Without it the run left nothing, unless --checkpoint-s had written some.
+[[noreturn]] void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& film,
+                                 const std::string& path, uint32_t spp) {
+  const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
+  Expected<uint64_t> finished = checkpoints->Final(film, spp);
+  const uint64_t pixels = static_cast<uint64_t>(film.width()) * static_cast<uint64_t>(film.height());
+  if (!finished.ok())
+    std::fprintf(stderr, "raystack render: interrupted (%s); the frame's samples so far could "
+                 "not be written: %s\n", name, finished.status().message().c_str());
+  else if (*finished == 0)
+    std::fprintf(stderr, "raystack render: interrupted (%s): the frame so far is in %s, but no "
+                 "pixel has all its %u samples yet (each pass covers every pixel a little), so "
+                 "--resume would render the frame again\n", name, path.c_str(), spp);
+  else
+    std::fprintf(stderr, "raystack render: interrupted (%s): the frame so far is in %s, %llu of "
+                 "%llu pixels with all their samples; the same command with --resume keeps those "
+                 "and renders the rest\n", name, path.c_str(),
+                 static_cast<unsigned long long>(*finished), static_cast<unsigned long long>(pixels));
+  std::fflush(nullptr);
+  std::_Exit(128 + signal);
 }
 
 // What a frame is measured against, if anything: --reference (REF-f.exr with several cameras).
@@ -296,6 +323,8 @@ Status Run(const RenderArgs& args) {
           static_cast<int64_t>(std::min(0.1, args.log_interval_s) * 1e6));
       while (!finished.load()) {
         std::this_thread::sleep_for(poll);
+        if (const int signal = InterruptSignal())
+          EndInterrupted(signal, &checkpoints, film, FramePath(output, f, frames, ".exr"), plan.spp());
         const uint64_t done = film.samples_merged();
         progress.Update(done - shown);
         shown = done;
@@ -422,6 +451,9 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
                           scene.integrator.spp);
       status = master.RunFrame(static_cast<uint32_t>(f), plan, &film, [&] {
+                                 if (const int signal = InterruptSignal())
+                                   EndInterrupted(signal, &checkpoints, film,
+                                                  FramePath(output, f, frames, ".exr"), plan.spp());
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);
                                  shown = done;
@@ -664,6 +696,10 @@ int RenderCommand(int argc, char** argv) {
     }
     if ((*net)->size() > 1) {
       const int rank = (*net)->rank();
+      // mpirun forwards SIGINT and SIGTERM to every rank, and SIGKILL a second later: a slave
+      // that died of the signal at once had mpirun end the master before it wrote anything.
+      // So every rank notes it; only the master acts on it (EndInterrupted), and ends the job.
+      CatchInterrupts();
       if (rank > 0) args.quiet = true;  // the master reports
       s = RunDistributed(args, net->get());
       if (!s.ok()) {
@@ -683,6 +719,7 @@ int RenderCommand(int argc, char** argv) {
     }
     // mpirun -np 1: one process plays both roles, as without mpirun.
   }
+  CatchInterrupts();
   s = Run(args);
   if (!s.ok()) {
     std::fprintf(stderr, "raystack render: %s\n", s.message().c_str());

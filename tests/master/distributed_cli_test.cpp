@@ -342,6 +342,17 @@ TEST_F(DistributedCli, ARankWithAnotherStoreOrSceneEndsTheJobNamingIt) {
   EXPECT_FALSE(Slurp(dir_->File("same-0.exr")).empty());
 }
 
+// `raystack --version` names the build every rank must share; the images record it too.
+TEST_F(DistributedCli, TheVersionIsTheBuildTheImagesRecord) {
+  const ProcessResult v = RunProcess({kRaystack, "--version"}, dir_->path());
+  ASSERT_EQ(v.exit_code, 0) << v.err;
+  ASSERT_EQ(v.out.rfind("raystack ", 0), 0u) << v.out;
+  const std::string build = v.out.substr(9, v.out.find('\n') - 9);
+  EXPECT_NE(build.find(" ("), std::string::npos) << build;  // version (commit)
+  ASSERT_EQ(Render(Scene(R"({ "type": "whitted" })"), 0, dir_->File("v.exr")).exit_code, 0);
+  EXPECT_NE(Slurp(dir_->File("v-0.exr")).find("build " + build + "\n"), std::string::npos);
+}
+
 TEST_F(DistributedCli, ADamagedBlockEndsTheJobNamingIt) {
   // Flip a byte in the middle of the block file.
   const std::string blocks = dir_->File("store/blocks.bin");

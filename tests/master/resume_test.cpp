@@ -6,10 +6,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
+#include <thread>
 
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
+#include "tests/preview/background_process.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/store_dir_fixture.h"
 
@@ -130,6 +133,52 @@ TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
     EXPECT_NE(resumed.out.find(std::to_string(finished) + " of 6144 pixels finished"),
               std::string::npos) << resumed.out;
     EXPECT_TRUE(Slurp(out) == expected) << "np " << np;
+  }
+}
+
+// Ctrl-C (SIGINT), or SIGTERM to mpirun (Slurm at a job's time limit; mpirun passes it on to
+// every rank and sends SIGKILL a second later): the master writes the frame so far where
+// --resume finds it, says so, and ends with the signal's code; --resume then finishes the same
+// image as an uninterrupted run. Before, the run left nothing (no --checkpoint-s here).
+TEST_F(Resume, AnInterruptedRunLeavesItsFrameForResume) {
+  const std::vector<std::string> flags = {"--spp", "300", "--pass-spp", "300"};  // whole tiles
+  const ProcessResult full = Render(dir_->File("full.exr"), 0, flags);
+  ASSERT_EQ(full.exit_code, 0) << full.err;
+  const std::string expected = Slurp(dir_->File("full.exr"));
+  ASSERT_FALSE(expected.empty());
+  for (int np : {0, 3}) {
+    SCOPED_TRACE(np);
+    const std::string out = dir_->File("interrupted" + std::to_string(np) + ".exr");
+    std::vector<std::string> argv;
+    if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
+    for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("scene.json"),
+                                 std::string("--threads"), std::string("1"), std::string("--tile-size"),
+                                 std::string("16"), std::string("--output"), out, std::string("--no-png")})
+      argv.push_back(a);
+    argv.insert(argv.end(), flags.begin(), flags.end());
+    // A first checkpoint says the frame renders; the interrupt then writes a newer one.
+    argv.insert(argv.end(), {"--checkpoint-s", "0.1"});
+    master::preview::testing::BackgroundProcess run(argv, dir_->path());
+    for (int i = 0; i < 3000 && !std::filesystem::exists(out); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    ASSERT_TRUE(std::filesystem::exists(out)) << run.out() << run.err();
+    run.Signal(np > 0 ? SIGTERM : SIGINT);
+    const int code = run.Wait();
+    if (np == 0) EXPECT_EQ(code, 128 + SIGINT) << run.err();
+    else EXPECT_NE(code, 0) << run.err();
+    EXPECT_NE(run.err().find(np > 0 ? "interrupted (SIGTERM): the frame so far is in"
+                                    : "interrupted (SIGINT): the frame so far is in"),
+              std::string::npos) << run.err();
+    Expected<image::ImageLayers> left = image::ReadExr(out);
+    ASSERT_TRUE(left.ok()) << left.status().message();
+    EXPECT_FALSE(left->provenance.empty());
+    uint64_t samples = 0;
+    for (const uint32_t n : left->samples) samples += n;
+    EXPECT_GT(samples, 0u);
+    EXPECT_LT(samples, 300u * 6144) << "the render finished before the signal";
+    const ProcessResult resumed = Render(out, np, {"--spp", "300", "--pass-spp", "300", "--resume"});
+    ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+    EXPECT_TRUE(Slurp(out) == expected);
   }
 }
 
