@@ -11,7 +11,9 @@ cd "$(dirname "$0")/.."
 store=build/default-store
 build/tools/prep/raystack-prep --generate spheres:2000000 -o "$store" --mem-limit 512
 build/tools/info/raystack-info "$store" --verify
-# --allow-run-as-root: containers and CI run as root; --oversubscribe: 3 ranks on 2 cores.
-mpirun --allow-run-as-root --oversubscribe -np 3 \
+# --allow-run-as-root: containers and CI run as root; --oversubscribe: 3 ranks on 2 cores;
+# --enable-recovery: a slave that dies or stalls costs time, not the job (without it mpirun
+# ends every rank when one ends early).
+mpirun --allow-run-as-root --oversubscribe --enable-recovery -np 3 \
     build/master/raystack render deploy/default-scene.json --threads 1 --cache-mb 16 \
     --stats build/default-stats.json
