@@ -43,6 +43,13 @@ void ProgressReporter::Update(uint64_t done_delta) {
   Draw(false);
 }
 
+void ProgressReporter::Abandon() {
+  std::lock_guard<std::mutex> lock(draw_mutex_);
+  if (finished_) return;
+  finished_ = true;
+  if (!quiet_ && tty_) std::fputs("\r\033[K", stderr);
+}
+
 void ProgressReporter::Done() {
   std::lock_guard<std::mutex> lock(draw_mutex_);
   if (finished_) return;

@@ -331,6 +331,7 @@ TEST_F(DistributedCli, ARankWithAnotherStoreOrSceneEndsTheJobNamingIt) {
     EXPECT_NE(r.err.find("rank 2 (on "), std::string::npos) << r.err;
     EXPECT_NE(r.err.find(c.error), std::string::npos) << r.err;
     EXPECT_TRUE(Slurp(dir_->File("mixed-0.exr")).empty()) << "an image was written";
+    EXPECT_EQ(r.err.find("frame 1/1:"), std::string::npos) << "a progress line before the error";
   }
   // The same files on every rank, through the same MPMD form: the image as ever.
   std::vector<std::string> same = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe",
