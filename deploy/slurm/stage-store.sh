@@ -2,8 +2,24 @@
 # stage-store.sh STORE LOCAL_DIR: copies a block store to node-local disk on every node of the
 # current Slurm allocation (one task per node), for `loc` jobs whose shared filesystem is slow.
 # Then point the scene's "store" at LOCAL_DIR/<store name> (the same path on every node).
+# Each node checks that its copy has every file at its full size (a full local disk truncates
+# a copy); a copy that still differs (another store left at that path) is named by the master
+# when the job starts: it compares every slave's store index.
 set -euo pipefail
 if [ $# -ne 2 ]; then echo "usage: stage-store.sh STORE LOCAL_DIR" >&2; exit 2; fi
-store="$1"; dest="$2"
+# The paths go to the nodes as arguments, never inside the command's text (quotes in a path).
 srun --ntasks-per-node=1 --nodes="${SLURM_JOB_NUM_NODES:?run inside an allocation}" \
-  bash -c "mkdir -p '$dest' && cp -r '$store' '$dest'/ && echo \"\$(hostname): staged to $dest\""
+  bash -c '
+    set -euo pipefail
+    store=$1; dest=$2; copy="$dest/$(basename "$store")"
+    mkdir -p "$dest"
+    rm -rf "$copy"
+    cp -r "$store" "$dest"/
+    for f in blocks.bin index.bin octree.bin; do
+      if [ "$(stat -c %s "$store/$f")" != "$(stat -c %s "$copy/$f")" ]; then
+        echo "$(hostname): $copy/$f: copied short (disk full?)" >&2
+        exit 1
+      fi
+    done
+    echo "$(hostname): staged to $copy"
+  ' stage-store "$1" "$2"
