@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <memory>
 
 #include "common/base/check.h"
@@ -107,8 +108,7 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
   const auto deadline = Clock::now() + timeout;
   while (waiting > 0 && Clock::now() < deadline) {
     Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(100));
-    if (!got.ok()) break;
-    if (!got->has_value()) continue;
+    if (!got.ok() || !got->has_value()) continue;  // (until the deadline)
     const Expected<wire::Message> m = wire::Decode((*got)->bytes, (*got)->from);
     const int from = (*got)->from;
     if (m.ok() && m->type() == wire::MessageType::kShutdown && from > 0 &&
@@ -130,6 +130,12 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
     net_->NoteRankWillNotEnd(r);
   }
   return all;
+}
+
+void MasterNode::Abandon() {
+  StopBeating();
+  for (int r = 1; r < net_->size(); ++r)
+    (void)net_->Send(r, wire::Encode(0, wire::Shutdown{1, wire::kShutdownRankDied}));
 }
 
 std::vector<std::vector<render::Tile>> MasterNode::TilesAssigned() const {
@@ -285,12 +291,17 @@ Status MasterNode::CheckHello(int rank, const wire::Hello& hello) {
     job.store = hello.store_checksum;  // the master cannot read the store: the first slave's
     store_from_ = rank;
   }
-  if (hello.store_checksum != *job.store)
+  if (hello.store_checksum != *job.store && store_from_ == 0)
     return Status::Error(StrFormat(
-        "%s reads another store than %s: its index checksum is %016llx, not %016llx (a copy of "
-        "another model, or of an older conversion); every rank must read a copy of the same "
-        "store", who.c_str(), store_from_ ? StrFormat("rank %d", store_from_).c_str() : "the master",
-        static_cast<unsigned long long>(hello.store_checksum),
+        "%s reads another store than the master: its index checksum is %016llx, not %016llx (a "
+        "copy of another model, or of an older conversion); every rank must read a copy of the "
+        "same store", who.c_str(), static_cast<unsigned long long>(hello.store_checksum),
+        static_cast<unsigned long long>(*job.store)));
+  if (hello.store_checksum != *job.store)  // which one is right, the master cannot tell
+    return Status::Error(StrFormat(
+        "%s and rank %d read different stores (index checksums %016llx and %016llx; the master "
+        "cannot read the store to tell which is right); every rank must read a copy of the same "
+        "store", who.c_str(), store_from_, static_cast<unsigned long long>(hello.store_checksum),
         static_cast<unsigned long long>(*job.store)));
   if (hello.scene_checksum != job.scene)
     return Status::Error(StrFormat("%s read another scene than the master: its cameras, lights, "
@@ -318,7 +329,12 @@ Status MasterNode::Handle(Frame* f, transport::Envelope e) {
   from.bytes_received += e.bytes.size();
   const Expected<wire::Message> m = wire::Decode(e.bytes, e.from);
   if (!m.ok()) {
-    state.deaf = true;  // another build or a broken rank: it cannot be told to stop either
+    // Another protocol: it cannot read the shutdown either (a malformed message of this
+    // protocol ends the job too, but its sender can be told so).
+    wire::MessageHeader h{};
+    if (e.bytes.size() >= sizeof h) std::memcpy(&h, e.bytes.data(), sizeof h);
+    if (e.bytes.size() < sizeof h || h.magic != wire::kMagic || h.version != wire::kProtocolVersion)
+      state.deaf = true;
     return m.status();
   }
   switch (m->type()) {

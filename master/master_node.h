@@ -104,6 +104,9 @@ class MasterNode {
   // (or cannot: it spoke another protocol); the transport is then told it will not end with
   // the job (NoteRankWillNotEnd), which must then be ended by force.
   bool Shutdown(uint32_t reason, std::chrono::milliseconds timeout = std::chrono::seconds(30));
+  // Tells every slave the job failed and this rank ends now, without waiting for anything (the
+  // master was interrupted): they end at once too, rather than find the master silent later.
+  void Abandon();
   // The tiles handed out so far in the current (or last) frame, per slave (index = rank - 1),
   // in the order given. Thread-safe: the live preview reads it while RunFrame runs.
   std::vector<std::vector<render::Tile>> TilesAssigned() const;

@@ -6,6 +6,7 @@
 #include <csignal>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -153,14 +154,41 @@ void LogFirstPass(const RenderArgs& args, bool rounds, const std::string& why) {
   std::printf("first pass: %s (%s)\n", rounds ? "5 coarse rounds" : "one sweep", why.c_str());
 }
 
+// While it lives, SIGINT and SIGTERM are noted, not fatal (a frame renders: EndInterrupted
+// writes it).
+struct InterruptsHeld {
+  InterruptsHeld() { HoldInterrupts(true); }
+  ~InterruptsHeld() { HoldInterrupts(false); }
+  InterruptsHeld(const InterruptsHeld&) = delete;
+  InterruptsHeld& operator=(const InterruptsHeld&) = delete;
+};
+
+// A signal noted as frame `frame` ended (it was written): the frames after it are not rendered.
+void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,
+                                   const std::function<void()>& then = [] {}) {
+  const int signal = InterruptSignal();
+  if (signal == 0 || frame == 0) return;
+  const Status s = writer->Finish();
+  then();
+  std::fprintf(stderr, "raystack render: interrupted (%s) as frame %zu ended: %s; frames %zu to "
+               "%zu are not rendered\n", signal == SIGINT ? "SIGINT" : "SIGTERM", frame - 1,
+               s.ok() ? "it is written" : s.message().c_str(), frame, frames - 1);
+  std::fflush(nullptr);
+  std::_Exit(128 + signal);
+}
+
 // SIGINT or SIGTERM while frame `frame` renders (Ctrl-C; Slurm's time limit, through mpirun,
 // which sends SIGKILL a second later): writes the frame's samples so far where --resume finds
 // them (the frame's EXR, with its provenance), says so, and ends the process with the shell's
 // code for the signal. Without it the run left nothing, unless --checkpoint-s had written some.
+// `then`: run once the frame is written (tell the slaves: not before, since mpirun ends the
+// job, this process included, as soon as a rank ends early).
 [[noreturn]] void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& film,
-                                 const std::string& path, uint32_t spp) {
+                                 const std::string& path, uint32_t spp,
+                                 const std::function<void()>& then = [] {}) {
   const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
   Expected<uint64_t> finished = checkpoints->Final(film, spp);
+  then();
   const uint64_t pixels = static_cast<uint64_t>(film.width()) * static_cast<uint64_t>(film.height());
   if (!finished.ok())
     std::fprintf(stderr, "raystack render: interrupted (%s); the frame's samples so far could "
@@ -304,9 +332,11 @@ Status Run(const RenderArgs& args) {
     const uint64_t total = plan.total_samples();
     ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log->get(),
                                reference.get(), args.log_interval_s);
+    EndIfInterruptedBetweenFrames(f, frames, &writer);
     {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
+      const InterruptsHeld held;
       std::atomic<bool> finished{false};
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
                           scene->integrator.spp);
@@ -442,9 +472,11 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log,
                                reference.get(), args.log_interval_s);
     FrameFigures figures;
+    EndIfInterruptedBetweenFrames(f, frames, &writer, [&] { master.Abandon(); });
     {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
+      const InterruptsHeld held;
       uint64_t shown = 0;
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
                               Provenance(scene, f), &writer, args.kill_after_checkpoints,
@@ -454,7 +486,8 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
       status = master.RunFrame(static_cast<uint32_t>(f), plan, &film, [&] {
                                  if (const int signal = InterruptSignal())
                                    EndInterrupted(signal, &checkpoints, film,
-                                                  FramePath(output, f, frames, ".exr"), plan.spp());
+                                                  FramePath(output, f, frames, ".exr"), plan.spp(),
+                                                  [&] { master.Abandon(); });
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);
                                  shown = done;
@@ -708,8 +741,10 @@ int RenderCommand(int argc, char** argv) {
       const int rank = (*net)->rank();
       // mpirun forwards SIGINT and SIGTERM to every rank, and SIGKILL a second later: a slave
       // that died of the signal at once had mpirun end the master before it wrote anything.
-      // So every rank notes it; only the master acts on it (EndInterrupted), and ends the job.
-      CatchInterrupts();
+      // So a slave holds it (and ends a moment later, if the master does not end the job);
+      // the master holds it while a frame renders and writes that frame (EndInterrupted).
+      CatchInterrupts(rank == 0);
+      if (rank > 0) HoldInterrupts(true);
       if (rank > 0) args.quiet = true;  // the master reports
       s = RunDistributed(args, net->get());
       if (!s.ok()) {
@@ -729,7 +764,7 @@ int RenderCommand(int argc, char** argv) {
     }
     // mpirun -np 1: one process plays both roles, as without mpirun.
   }
-  CatchInterrupts();
+  CatchInterrupts(true);
   s = Run(args);
   if (!s.ok()) {
     std::fprintf(stderr, "raystack render: %s\n", s.message().c_str());

@@ -1,11 +1,13 @@
 #include "slave/slave_node.h"
 
 #include <atomic>
-#include <csignal>
 #include <chrono>
 #include <condition_variable>
+#include <csignal>
+#include <cstdio>
 #include <deque>
 #include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -13,6 +15,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "common/base/interrupt.h"
 #include "common/base/log.h"
 #include "common/base/thread_cpu.h"
 #include "common/base/thread_name.h"
@@ -278,6 +281,8 @@ void SlaveNode::CheckMaster(std::chrono::steady_clock::time_point now) {
 void SlaveNode::ReceiveLoop() {
   uint32_t beats = 0;
   auto last_beat = std::chrono::steady_clock::now() - wire::kHeartbeatInterval;
+  auto last_turn = std::chrono::steady_clock::now();
+  std::optional<std::chrono::steady_clock::time_point> interrupted;  // when first seen
   for (;;) {
     {
       std::lock_guard lock(mu_);
@@ -294,11 +299,28 @@ void SlaveNode::ReceiveLoop() {
     Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(20));
     std::lock_guard lock(mu_);
     const auto now = std::chrono::steady_clock::now();
+    // This thread was away (the process stopped, the job suspended, the machine paused): the
+    // master's words are still queued, so that time counts as heard, and the queue is read
+    // before the master is judged (as the master does with its slaves).
+    if (now - last_turn > master_lost_after_ / 2) last_from_master_ += now - last_turn;
+    last_turn = now;
+    // SIGINT or SIGTERM (held: common/base/interrupt.h): the master, which gets it too, writes
+    // its frame and ends the job; a signal meant for this rank alone (or a master that does not
+    // act) ends it a moment later.
+    if (const int signal = InterruptSignal(); signal != 0 && !shut_down_) {
+      if (!interrupted) interrupted = now;
+      if (now - *interrupted > kInterruptGrace) {
+        std::fprintf(stderr, "raystack render (rank %d): interrupted (%s), and the master did not "
+                     "end the job: ending\n", net_->rank(), signal == SIGINT ? "SIGINT" : "SIGTERM");
+        std::fflush(nullptr);
+        std::_Exit(128 + signal);
+      }
+    }
     if (!got.ok()) {
       Failed(got.status());
       continue;
     }
-    if (!got->has_value()) {
+    if (!got->has_value()) {  // nothing queued: the master's silence is real
       CheckMaster(now);
       continue;
     }
@@ -306,8 +328,6 @@ void SlaveNode::ReceiveLoop() {
     if (from == 0) {
       last_from_master_ = now;
       heard_master_ = true;
-    } else {
-      CheckMaster(now);
     }
     const Expected<wire::Message> m = wire::Decode((*got)->bytes, from);
     if (!m.ok() && from == 0) {

@@ -61,6 +61,8 @@ class SlaveNode {
   bool master_lost() const;
 
   static constexpr std::chrono::seconds kMasterFirstWordGrace{60};
+  // How long after SIGINT or SIGTERM a slave waits for the master to end the job.
+  static constexpr std::chrono::seconds kInterruptGrace{3};
 
  private:
   // How long the receiving thread sleeps between looks for messages while nothing waits for

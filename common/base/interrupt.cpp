@@ -1,24 +1,37 @@
 #include "common/base/interrupt.h"
 
+#include <unistd.h>
+
+#include <atomic>
 #include <csignal>
 
 namespace raystack {
 namespace {
 
-volatile std::sig_atomic_t g_signal = 0;
+// Read by other threads: atomics, lock-free so that the handler may touch them.
+std::atomic<int> g_signal{0};
+std::atomic<bool> g_hold{false};
+std::atomic<bool> g_announce{false};
+static_assert(std::atomic<int>::is_always_lock_free && std::atomic<bool>::is_always_lock_free);
 
 extern "C" void NoteInterrupt(int sig) {
-  if (g_signal != 0) {  // the second: the default action, now
+  if (g_signal.load() != 0 || !g_hold.load()) {  // the default action, now
     std::signal(sig, SIG_DFL);
     std::raise(sig);
     return;
   }
-  g_signal = sig;
+  g_signal.store(sig);
+  if (g_announce.load()) {
+    constexpr char kText[] =
+        "\nraystack render: interrupted: writing the frame so far (once more to end at once)\n";
+    (void)!write(STDERR_FILENO, kText, sizeof kText - 1);  // async-signal-safe, unlike stdio
+  }
 }
 
 }  // namespace
 
-void CatchInterrupts() {
+void CatchInterrupts(bool announce) {
+  g_announce.store(announce);
   struct sigaction action {};
   action.sa_handler = NoteInterrupt;
   sigemptyset(&action.sa_mask);
@@ -27,6 +40,8 @@ void CatchInterrupts() {
   sigaction(SIGTERM, &action, nullptr);
 }
 
-int InterruptSignal() { return g_signal; }
+void HoldInterrupts(bool hold) { g_hold.store(hold); }
+
+int InterruptSignal() { return g_signal.load(); }
 
 }  // namespace raystack

@@ -13,8 +13,15 @@ srun --ntasks-per-node=1 --nodes="${SLURM_JOB_NUM_NODES:?run inside an allocatio
     set -euo pipefail
     store=$1; dest=$2; copy="$dest/$(basename "$store")"
     mkdir -p "$dest"
+    if [ "$(realpath "$store")" = "$(realpath -m "$copy")" ]; then
+      echo "$(hostname): $copy is the store itself: give a LOCAL_DIR other than its folder" >&2
+      exit 2
+    fi
+    # Copied aside, then moved into place: an old copy is replaced whole, never mixed.
+    rm -rf "$copy.staging"
+    cp -r "$store" "$copy.staging"
     rm -rf "$copy"
-    cp -r "$store" "$dest"/
+    mv "$copy.staging" "$copy"
     for f in blocks.bin index.bin octree.bin; do
       if [ "$(stat -c %s "$store/$f")" != "$(stat -c %s "$copy/$f")" ]; then
         echo "$(hostname): $copy/$f: copied short (disk full?)" >&2
