@@ -63,9 +63,12 @@ MasterNode::MasterNode(transport::Transport* net, MasterOptions options)
   beater_ = std::thread([this] {
     std::unique_lock lock(beat_mu_);
     for (uint32_t beat = 0; beating_; ++beat) {
-      // Posted, never waited for: a dead or stopped slave must not hold the beat back.
+      // Sent, not posted: a posted send's failure would come back from the master's next
+      // Receive and end the frame, where a beat that fails (a dying slave) only drops the beat.
+      // A small send does not wait for its receiver (MPI's eager path); one to a slave taken
+      // for dead gives up at once.
       for (int r = 1; r < net_->size(); ++r)
-        (void)net_->Post(r, wire::Encode(0, wire::Heartbeat{beat, 0}));
+        (void)net_->Send(r, wire::Encode(0, wire::Heartbeat{beat, 0}));
       beat_stop_.wait_for(lock, wire::kHeartbeatInterval, [this] { return !beating_; });
     }
   });
