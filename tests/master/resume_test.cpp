@@ -6,8 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <thread>
 
 #include "common/base/log.h"
@@ -156,12 +158,27 @@ TEST_F(Resume, AnInterruptedRunLeavesItsFrameForResume) {
                                  std::string("16"), std::string("--output"), out, std::string("--no-png")})
       argv.push_back(a);
     argv.insert(argv.end(), flags.begin(), flags.end());
-    // A first checkpoint says the frame renders; the interrupt then writes a newer one.
-    argv.insert(argv.end(), {"--checkpoint-s", "0.1"});
+    // A convergence-log row with samples says the frame renders (no --checkpoint-s: a
+    // checkpoint being written at nice 19 on a loaded machine would hold the interrupt's
+    // write back past mpirun's SIGKILL).
+    const std::string log = dir_->File("interrupted" + std::to_string(np) + ".csv");
+    argv.insert(argv.end(), {"--convergence-log", log, "--log-interval", "0.05"});
     master::preview::testing::BackgroundProcess run(argv, dir_->path());
-    for (int i = 0; i < 3000 && !std::filesystem::exists(out); ++i)
+    auto rendering = [&] {  // a row "0,tick,pass,seconds,rays,samples,..." with samples
+      std::istringstream rows(Slurp(log));
+      for (std::string row; std::getline(rows, row);) {
+        if (row.rfind("0,tick,", 0) != 0) continue;
+        std::istringstream fields(row);
+        std::string field;
+        for (int i = 0; i < 6; ++i) std::getline(fields, field, ',');
+        if (std::strtoull(field.c_str(), nullptr, 10) > 0) return true;
+      }
+      return false;
+    };
+    for (int i = 0; i < 3000 && !rendering(); ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    ASSERT_TRUE(std::filesystem::exists(out)) << run.out() << run.err();
+    ASSERT_TRUE(rendering()) << run.out() << run.err();
+    ASSERT_FALSE(std::filesystem::exists(out)) << "nothing is written before the interrupt";
     run.Signal(np > 0 ? SIGTERM : SIGINT);
     const int code = run.Wait();
     if (np == 0) EXPECT_EQ(code, 128 + SIGINT) << run.err();
