@@ -292,7 +292,9 @@ void SlaveNode::ReceiveLoop() {
     // drops a slave it does not hear from.
     if (std::chrono::steady_clock::now() - last_beat >= wire::kHeartbeatInterval) {
       last_beat = std::chrono::steady_clock::now();
-      const Status s = net_->Send(0, wire::Encode(static_cast<uint32_t>(net_->rank()),
+      // Posted: a send to a master that vanished might never complete, and this thread is the
+      // one that would notice (CheckMaster). A failure comes back from the next Receive.
+      const Status s = net_->Post(0, wire::Encode(static_cast<uint32_t>(net_->rank()),
                                                   wire::Heartbeat{beats++, 0}));
       if (!s.ok()) LOG_WARNING("slave", "heartbeat: %s", s.message().c_str());
     }
