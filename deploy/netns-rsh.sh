@@ -12,6 +12,11 @@ case "$host" in
 esac
 # The "hosts" share one filesystem and hostname: each gets a temporary folder of its own, or
 # Open MPI's daemons would race for the same session folder.
-tmp="${TMPDIR:-/tmp}/raystack-netns-$RAYSTACK_NETNS-h$index"
+ns="$RAYSTACK_NETNS-h$index"
+if ! ip netns list | cut -d' ' -f1 | grep -qxF "$ns"; then
+  echo "netns-rsh: no network namespace $ns (host $host): is netns cluster $RAYSTACK_NETNS up?" >&2
+  exit 1
+fi
+tmp="${TMPDIR:-/tmp}/raystack-netns-$ns"
 mkdir -p "$tmp"
-exec ip netns exec "$RAYSTACK_NETNS-h$index" env TMPDIR="$tmp" /bin/sh -c "$*"
+exec ip netns exec "$ns" env TMPDIR="$tmp" /bin/sh -c "$*"
