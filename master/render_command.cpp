@@ -30,6 +30,7 @@
 #include "master/convergence_monitor.h"
 #include "master/frame_writer.h"
 #include "master/master_node.h"
+#include "master/output_lock.h"
 #include "master/preflight.h"
 #include "master/preview/live_preview.h"
 #include "master/provenance.h"
@@ -287,6 +288,8 @@ Status Run(const RenderArgs& args) {
   const size_t frames = scene->cameras.size();
   RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, 0));  // the film alone, before the store is read
   RAYSTACK_RETURN_IF_ERROR(CheckOutputs(*scene, output, args.png, args.checkpoint_s > 0));
+  Expected<OutputLock> output_lock = OutputLock::Take(output);  // held to the end of the job
+  if (!output_lock.ok()) return output_lock.status();
   RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
   if (!log.ok()) return log.status();
@@ -674,6 +677,9 @@ Status RunDistributed(const RenderArgs& args, transport::Transport* net) {
     Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
     Status s = log.ok() ? CheckMemory(*scene, 0) : log.status();
     if (s.ok()) s = CheckOutputs(*scene, OutputOf(args, *scene), args.png, args.checkpoint_s > 0);
+    Expected<OutputLock> output_lock =  // held to the end of the job
+        s.ok() ? OutputLock::Take(OutputOf(args, *scene)) : Expected<OutputLock>(s);
+    if (!output_lock.ok()) s = output_lock.status();
     if (s.ok()) s = CheckReferences(*scene, args.reference);
     if (!s.ok()) {  // before the slaves start a frame
       MasterNode(net).Shutdown(1);

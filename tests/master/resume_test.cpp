@@ -199,6 +199,35 @@ TEST_F(Resume, AnInterruptedRunLeavesItsFrameForResume) {
   }
 }
 
+// Two renders of one output at once (the same scene run twice): both ended with exit 0, the
+// last image written won, and each replaced the other's checkpoints. The second is refused
+// while the first holds the output's lock; the lock's file goes with the first.
+TEST_F(Resume, TwoRendersOfOneOutputAreRefused) {
+  const std::string out = dir_->File("shared.exr");
+  const std::string lock = dir_->File(".shared.exr.lock");
+  for (int np : {0, 3}) {
+    SCOPED_TRACE(np);
+    std::vector<std::string> argv;
+    if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
+    for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("scene.json"),
+                                 std::string("--threads"), std::string("1"), std::string("--output"),
+                                 out, std::string("--no-png"), std::string("--spp"), std::string("400")})
+      argv.push_back(a);
+    master::preview::testing::BackgroundProcess first(argv, dir_->path());
+    for (int i = 0; i < 3000 && !std::filesystem::exists(lock); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    ASSERT_TRUE(std::filesystem::exists(lock)) << first.out() << first.err();
+    const ProcessResult second = Render(out, np);
+    EXPECT_NE(second.exit_code, 0);
+    EXPECT_NE(second.err.find("another raystack render is writing this output now"),
+              std::string::npos) << second.err;
+    ASSERT_EQ(first.Wait(), 0) << first.err();
+    EXPECT_FALSE(std::filesystem::exists(lock));
+    const ProcessResult third = Render(out, np);
+    EXPECT_EQ(third.exit_code, 0) << third.err;
+  }
+}
+
 // A checkpoint that cannot be written (here: the first two, as on a full disk) is logged and
 // tried again at the next interval; it never ends the job and costs no pixel. Killing the job
 // right after its first checkpoint that did get written proves a later one was tried.

@@ -1,0 +1,52 @@
+#include "master/output_lock.h"
+
+#include <unistd.h>
+
+#include <filesystem>
+
+#include "common/base/file_lock.h"
+#include "common/base/log.h"
+
+namespace raystack::master {
+
+Expected<OutputLock> OutputLock::Take(const std::string& output) {
+  const std::filesystem::path out(output);
+  std::string name = ".";  // (not "." + ...: GCC 12 warns falsely of an overlapping copy)
+  name += out.filename().string();
+  name += ".lock";
+  const std::string path = (out.parent_path() / name).string();
+  int fd = -1;
+  std::string error;
+  switch (TryLockFile(path, /*create=*/true, &fd, &error)) {
+    case LockResult::kLocked:
+      return OutputLock(path, fd);
+    case LockResult::kHeldElsewhere:
+      return Status::Error(output + ": another raystack render is writing this output now (it "
+                           "holds " + path + "); wait for it, or give another --output");
+    case LockResult::kNoLocks:
+      LOG_WARNING("render", "%s: its filesystem takes no file locks: nothing keeps another "
+                  "render from writing this output at once", output.c_str());
+      ::close(fd);
+      return OutputLock(std::string(), -1);
+    case LockResult::kNoFile:
+    case LockResult::kError:
+      break;
+  }
+  return Status::Error(error);
+}
+
+OutputLock::OutputLock(OutputLock&& other) noexcept
+    : path_(std::move(other.path_)), fd_(other.fd_) {
+  other.fd_ = -1;
+}
+
+OutputLock::~OutputLock() {
+  if (fd_ < 0) return;
+  // Removed while held: a render that opened it meanwhile finds it gone and tries again
+  // (TryLockFile checks that the file it locked is still at its path).
+  std::error_code ec;
+  std::filesystem::remove(path_, ec);
+  ::close(fd_);
+}
+
+}  // namespace raystack::master

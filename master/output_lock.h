@@ -1,0 +1,30 @@
+#pragma once
+// One render writes an output at a time: two jobs given the same output (the same scene run
+// twice, two Slurm jobs) each finished with exit 0 and the last image written won, each
+// replacing the other's checkpoints meanwhile. The master holds an exclusive lock on a hidden
+// file beside the output (".NAME.lock" for "NAME", common/base/file_lock.h) for the whole job;
+// another job on that output is refused at once. The file is removed at a normal end; one left
+// by a killed job is harmless (a lock dies with its process) and taken over by the next run.
+
+#include <string>
+
+#include "common/base/status.h"
+
+namespace raystack::master {
+
+class OutputLock {
+ public:
+  // Takes the lock of `output` (the path --output or the scene gives: frames' files share it).
+  // A filesystem without locks is warned about and the job goes on unlocked.
+  static Expected<OutputLock> Take(const std::string& output);
+  OutputLock(OutputLock&& other) noexcept;
+  OutputLock& operator=(OutputLock&&) = delete;
+  ~OutputLock();  // removes the file while still holding the lock, then releases it
+
+ private:
+  OutputLock(std::string path, int fd) : path_(std::move(path)), fd_(fd) {}
+  std::string path_;
+  int fd_ = -1;
+};
+
+}  // namespace raystack::master
