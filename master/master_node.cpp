@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "common/base/check.h"
+#include "common/base/interrupt.h"
 #include "common/base/log.h"
 #include "master/tile_ledger.h"
 #include "master/tile_scheduler.h"
@@ -61,15 +62,16 @@ MasterNode::MasterNode(transport::Transport* net, MasterOptions options)
   if (!options_.beat) return;
   beating_ = true;
   beater_ = std::thread([this] {
-    std::unique_lock lock(beat_mu_);
-    for (uint32_t beat = 0; beating_; ++beat) {
+    for (uint32_t beat = 0;; ++beat) {
       // Sent, not posted: a posted send's failure would come back from the master's next
       // Receive and end the frame, where a beat that fails (a dying slave) only drops the beat.
-      // A small send does not wait for its receiver (MPI's eager path); one to a slave taken
-      // for dead gives up at once.
+      // A small send does not wait for its receiver (MPI's eager path); a slave taken for dead
+      // gets none (a send to it would wait out the transport's grace).
+      const uint32_t flags = InterruptSignal() != 0 ? wire::kHeartbeatInterrupted : 0u;
       for (int r = 1; r < net_->size(); ++r)
-        (void)net_->Send(r, wire::Encode(0, wire::Heartbeat{beat, 0}));
-      beat_stop_.wait_for(lock, wire::kHeartbeatInterval, [this] { return !beating_; });
+        if (!net_->dead(r)) (void)net_->Send(r, wire::Encode(0, wire::Heartbeat{beat, flags}));
+      std::unique_lock lock(beat_mu_);
+      if (beat_stop_.wait_for(lock, wire::kHeartbeatInterval, [this] { return !beating_; })) return;
     }
   });
 }

@@ -3,8 +3,9 @@
 // twice, two Slurm jobs) each finished with exit 0 and the last image written won, each
 // replacing the other's checkpoints meanwhile. The master holds an exclusive lock on a hidden
 // file beside the output (".NAME.lock" for "NAME", common/base/file_lock.h) for the whole job;
-// another job on that output is refused at once. The file is removed at a normal end; one left
-// by a killed job is harmless (a lock dies with its process) and taken over by the next run.
+// another job on that output is refused at once. The file is removed at the job's end; one left
+// by a killed or interrupted job (or on a filesystem without locks) is harmless (a lock dies
+// with its process) and taken over by the next run.
 
 #include <string>
 
@@ -14,7 +15,8 @@ namespace raystack::master {
 
 class OutputLock {
  public:
-  // Takes the lock of `output` (the path --output or the scene gives: frames' files share it).
+  // Takes the lock of `output` (the path --output or the scene gives, with its extension:
+  // frames' files share it).
   // A filesystem without locks is warned about and the job goes on unlocked.
   static Expected<OutputLock> Take(const std::string& output);
   OutputLock(OutputLock&& other) noexcept;

@@ -155,8 +155,9 @@ void LogFirstPass(const RenderArgs& args, bool rounds, const std::string& why) {
   std::printf("first pass: %s (%s)\n", rounds ? "5 coarse rounds" : "one sweep", why.c_str());
 }
 
-// While it lives, SIGINT and SIGTERM are noted, not fatal (a frame renders: EndInterrupted
-// writes it).
+// While it lives, SIGINT and SIGTERM are noted, not fatal: from the first frame to the last
+// image written (the frame rendering is written by EndInterrupted, one rendered and queued by
+// the writer; the default action would lose it mid-write).
 struct InterruptsHeld {
   InterruptsHeld() { HoldInterrupts(true); }
   ~InterruptsHeld() { HoldInterrupts(false); }
@@ -164,16 +165,21 @@ struct InterruptsHeld {
   InterruptsHeld& operator=(const InterruptsHeld&) = delete;
 };
 
-// A signal noted as frame `frame` ended (it was written): the frames after it are not rendered.
+// A signal noted before frame `frame` began to render: the frames before it are written (or
+// their writes finished here), the others are not rendered.
 void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,
                                    const std::function<void()>& then = [] {}) {
   const int signal = InterruptSignal();
-  if (signal == 0 || frame == 0) return;
+  if (signal == 0) return;
   const Status s = writer->Finish();
   then();
-  std::fprintf(stderr, "raystack render: interrupted (%s) as frame %zu ended: %s; frames %zu to "
-               "%zu are not rendered\n", signal == SIGINT ? "SIGINT" : "SIGTERM", frame - 1,
-               s.ok() ? "it is written" : s.message().c_str(), frame, frames - 1);
+  const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
+  if (frame == 0)
+    std::fprintf(stderr, "raystack render: interrupted (%s) before the first frame\n", name);
+  else
+    std::fprintf(stderr, "raystack render: interrupted (%s) as frame %zu ended: %s; frames %zu "
+                 "to %zu are not rendered\n", name, frame - 1,
+                 s.ok() ? "it is written" : s.message().c_str(), frame, frames - 1);
   std::fflush(nullptr);
   std::_Exit(128 + signal);
 }
@@ -288,7 +294,8 @@ Status Run(const RenderArgs& args) {
   const size_t frames = scene->cameras.size();
   RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, 0));  // the film alone, before the store is read
   RAYSTACK_RETURN_IF_ERROR(CheckOutputs(*scene, output, args.png, args.checkpoint_s > 0));
-  Expected<OutputLock> output_lock = OutputLock::Take(output);  // held to the end of the job
+  // Held to the end of the job; named from the output as written ("out" and "out.exr" are one).
+  Expected<OutputLock> output_lock = OutputLock::Take(FramePath(output, 0, 1, ".exr"));
   if (!output_lock.ok()) return output_lock.status();
   RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
@@ -319,6 +326,7 @@ Status Run(const RenderArgs& args) {
   const bool coarse_rounds = CoarseRounds(args, store->get(), 0, &why);
   LogFirstPass(args, coarse_rounds, why);
   std::string stats_json = "[\n";
+  const InterruptsHeld held;  // to the last write (declared before `writer`: outlives it)
   FrameWriter writer(!args.quiet);
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
@@ -339,7 +347,6 @@ Status Run(const RenderArgs& args) {
     {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
-      const InterruptsHeld held;
       std::atomic<bool> finished{false};
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
                           scene->integrator.spp);
@@ -457,6 +464,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
       ranks.push_back({static_cast<int>(i) + 1, std::move(by_slave[i])});
     return ranks;
   };
+  const InterruptsHeld held;  // to the last write (declared before `writer`: outlives it)
   FrameWriter writer(!args.quiet);
   std::string json = "[\n";
   std::unique_ptr<render::Film> reused_film;  // FilmFor
@@ -479,7 +487,6 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
-      const InterruptsHeld held;
       uint64_t shown = 0;
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
                               Provenance(scene, f), &writer, args.kill_after_checkpoints,
@@ -678,7 +685,8 @@ Status RunDistributed(const RenderArgs& args, transport::Transport* net) {
     Status s = log.ok() ? CheckMemory(*scene, 0) : log.status();
     if (s.ok()) s = CheckOutputs(*scene, OutputOf(args, *scene), args.png, args.checkpoint_s > 0);
     Expected<OutputLock> output_lock =  // held to the end of the job
-        s.ok() ? OutputLock::Take(OutputOf(args, *scene)) : Expected<OutputLock>(s);
+        s.ok() ? OutputLock::Take(FramePath(OutputOf(args, *scene), 0, 1, ".exr"))
+               : Expected<OutputLock>(s);
     if (!output_lock.ok()) s = output_lock.status();
     if (s.ok()) s = CheckReferences(*scene, args.reference);
     if (!s.ok()) {  // before the slaves start a frame
@@ -747,10 +755,10 @@ int RenderCommand(int argc, char** argv) {
       const int rank = (*net)->rank();
       // mpirun forwards SIGINT and SIGTERM to every rank, and SIGKILL a second later: a slave
       // that died of the signal at once had mpirun end the master before it wrote anything.
-      // So a slave holds it (and ends a moment later, if the master does not end the job);
-      // the master holds it while a frame renders and writes that frame (EndInterrupted).
+      // So a slave holds it while its node runs (SlaveNode: it waits for the master's end of
+      // the job, or ends a moment later if the master was not signalled); the master holds it
+      // from its first frame to its last write (EndInterrupted writes the frame).
       CatchInterrupts(rank == 0);
-      if (rank > 0) HoldInterrupts(true);
       if (rank > 0) args.quiet = true;  // the master reports
       s = RunDistributed(args, net->get());
       if (!s.ok()) {

@@ -235,6 +235,7 @@ SlaveNode::SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks
                      NodeFaults faults, std::chrono::milliseconds master_lost_after)
     : net_(net), engine_(engine), peers_(peers), faults_(faults),
       master_lost_after_(master_lost_after), last_from_master_(std::chrono::steady_clock::now()) {
+  HoldInterrupts(true);  // while this node runs, a signal is the master's to act on first
   // The receiving thread looks for messages at its quickest only while a thread here waits
   // for one (a tile, a block from a peer, the last pixels out); otherwise every kIdlePause:
   // each look costs the capped CPU the rays need (tools/bench/RESULTS.md).
@@ -246,6 +247,7 @@ SlaveNode::SlaveNode(transport::Transport* net, RenderEngine* engine, PeerBlocks
 }
 
 SlaveNode::~SlaveNode() {
+  HoldInterrupts(false);
   {
     std::lock_guard lock(mu_);
     stop_ = true;
@@ -296,7 +298,10 @@ void SlaveNode::ReceiveLoop() {
       // one that would notice (CheckMaster). A failure comes back from the next Receive.
       const Status s = net_->Post(0, wire::Encode(static_cast<uint32_t>(net_->rank()),
                                                   wire::Heartbeat{beats++, 0}));
-      if (!s.ok()) LOG_WARNING("slave", "heartbeat: %s", s.message().c_str());
+      if (!s.ok()) {  // (also another posted send's failure, found while posting this one)
+        std::lock_guard lock(mu_);
+        Failed(s);
+      }
     }
     Expected<std::optional<transport::Envelope>> got = net_->Receive(std::chrono::milliseconds(20));
     std::lock_guard lock(mu_);
@@ -307,9 +312,10 @@ void SlaveNode::ReceiveLoop() {
     if (now - last_turn > master_lost_after_ / 2) last_from_master_ += now - last_turn;
     last_turn = now;
     // SIGINT or SIGTERM (held: common/base/interrupt.h): the master, which gets it too, writes
-    // its frame and ends the job; a signal meant for this rank alone (or a master that does not
-    // act) ends it a moment later.
-    if (const int signal = InterruptSignal(); signal != 0 && !shut_down_) {
+    // its frame and ends the job (its beats say it is at it: this rank waits for that end,
+    // however long the write takes); a signal meant for this rank alone (the master's beats do
+    // not say so) ends it a moment later.
+    if (const int signal = InterruptSignal(); signal != 0 && !shut_down_ && !master_interrupted_) {
       if (!interrupted) interrupted = now;
       if (now - *interrupted > kInterruptGrace) {
         std::fprintf(stderr, "raystack render (rank %d): interrupted (%s), and the master did not "
@@ -360,7 +366,8 @@ void SlaveNode::ReceiveLoop() {
       if (peers_) peers_->Stop();
       changed_.notify_all();
     } else if (from == 0 && type == wire::MessageType::kHeartbeat) {
-      // The master is alive: noted above.
+      // The master is alive (noted above), and perhaps writing its frame after a signal.
+      if (m->heartbeat().flags & wire::kHeartbeatInterrupted) master_interrupted_ = true;
     } else if (from == 0 && type == wire::MessageType::kRankLost) {
       const wire::RankLost lost = m->rank_lost();
       if (lost.rank == 0 || lost.rank >= static_cast<uint32_t>(net_->size())) {

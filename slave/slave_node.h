@@ -61,7 +61,8 @@ class SlaveNode {
   bool master_lost() const;
 
   static constexpr std::chrono::seconds kMasterFirstWordGrace{60};
-  // How long after SIGINT or SIGTERM a slave waits for the master to end the job.
+  // How long after SIGINT or SIGTERM a slave waits for word that the master got it too (its
+  // beats say so) before it ends on its own.
   static constexpr std::chrono::seconds kInterruptGrace{3};
 
  private:
@@ -94,6 +95,7 @@ class SlaveNode {
   std::chrono::steady_clock::time_point last_from_master_;
   bool heard_master_ = false;
   bool master_lost_ = false;
+  bool master_interrupted_ = false;  // its beats say it was interrupted and is writing
   std::atomic<int64_t> tiles_given_{0};
 };
 

@@ -54,7 +54,9 @@ class MpiTransport final : public transport::Transport {
   // for the dead rank; mpirun --enable-recovery accepts that.
   bool rank_died() const { return rank_died_.load(); }
   // Whether rank `rank` in particular was noted dead.
-  bool dead(int rank) const { return rank >= 0 && rank < size_ && dead_[static_cast<size_t>(rank)].load(); }
+  bool dead(int rank) const override {
+    return rank >= 0 && rank < size_ && dead_[static_cast<size_t>(rank)].load();
+  }
   void NoteRankWillNotEnd(int rank) override;
   // Then the job must end by force (Abort): mpirun would wait for that rank, under
   // --enable-recovery forever.

@@ -60,6 +60,8 @@ class Transport {
   // a send to it gives up rather than wait for it forever, and the job cannot end in step
   // with it (MPI_Finalize would wait for it too).
   virtual void NoteRankDied(int /*rank*/) {}
+  // Whether rank `rank` was noted dead (sends to it give up).
+  virtual bool dead(int /*rank*/) const { return false; }
   // Rank `rank` is alive but will not end with the job (it cannot read this build's messages,
   // or did not acknowledge the end): this rank must end it by force once done.
   virtual void NoteRankWillNotEnd(int /*rank*/) {}

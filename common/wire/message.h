@@ -133,8 +133,11 @@ struct Shutdown {
 inline constexpr uint32_t kShutdownRankDied = 1;
 struct Heartbeat {
   uint32_t sequence;  // counts up from 0 (for logs)
-  uint32_t reserved;
+  uint32_t flags;     // kHeartbeatInterrupted (the master's)
 };
+// The master was interrupted (SIGINT, SIGTERM) and is writing its frame: a slave that got the
+// signal too waits for the end of the job instead of ending on its own.
+inline constexpr uint32_t kHeartbeatInterrupted = 1;
 struct RankLost {
   uint32_t rank;
   uint32_t died;  // 1: it went silent (dead: send it nothing more); 0: it failed, alive
