@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstring>
 #include <memory>
 
 #include "common/base/check.h"
@@ -336,10 +335,7 @@ Status MasterNode::Handle(Frame* f, transport::Envelope e) {
   if (!m.ok()) {
     // Another protocol: it cannot read the shutdown either (a malformed message of this
     // protocol ends the job too, but its sender can be told so).
-    wire::MessageHeader h{};
-    if (e.bytes.size() >= sizeof h) std::memcpy(&h, e.bytes.data(), sizeof h);
-    if (e.bytes.size() < sizeof h || h.magic != wire::kMagic || h.version != wire::kProtocolVersion)
-      state.deaf = true;
+    if (!wire::SpeaksThisProtocol(e.bytes)) state.deaf = true;
     return m.status();
   }
   switch (m->type()) {

@@ -173,7 +173,7 @@ void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* wri
   if (signal == 0) return;
   const Status s = writer->Finish();
   then();
-  const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
+  const char* name = InterruptName(signal);
   if (frame == 0)
     std::fprintf(stderr, "raystack render: interrupted (%s) before the first frame\n", name);
   else
@@ -193,7 +193,7 @@ void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* wri
 [[noreturn]] void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& film,
                                  const std::string& path, uint32_t spp,
                                  const std::function<void()>& then = [] {}) {
-  const char* name = signal == SIGINT ? "SIGINT" : "SIGTERM";
+  const char* name = InterruptName(signal);
   Expected<uint64_t> finished = checkpoints->Final(film, spp);
   then();
   const uint64_t pixels = static_cast<uint64_t>(film.width()) * static_cast<uint64_t>(film.height());

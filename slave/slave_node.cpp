@@ -319,7 +319,7 @@ void SlaveNode::ReceiveLoop() {
       if (!interrupted) interrupted = now;
       if (now - *interrupted > kInterruptGrace) {
         std::fprintf(stderr, "raystack render (rank %d): interrupted (%s), and the master did not "
-                     "end the job: ending\n", net_->rank(), signal == SIGINT ? "SIGINT" : "SIGTERM");
+                     "end the job: ending\n", net_->rank(), InterruptName(signal));
         std::fflush(nullptr);
         std::_Exit(128 + signal);
       }

@@ -44,4 +44,6 @@ void HoldInterrupts(bool hold) { g_hold.store(hold); }
 
 int InterruptSignal() { return g_signal.load(); }
 
+const char* InterruptName(int signal) { return signal == SIGINT ? "SIGINT" : "SIGTERM"; }
+
 }  // namespace raystack

@@ -15,5 +15,7 @@ void CatchInterrupts(bool announce);
 void HoldInterrupts(bool hold);
 // The signal noted (SIGINT or SIGTERM), or 0.
 int InterruptSignal();
+// "SIGINT" or "SIGTERM", for messages.
+const char* InterruptName(int signal);
 
 }  // namespace raystack

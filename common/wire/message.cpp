@@ -167,6 +167,13 @@ std::vector<uint8_t> EncodePixelBatch(uint32_t sender, uint32_t frame,
   return bytes;
 }
 
+bool SpeaksThisProtocol(std::span<const uint8_t> bytes) {
+  MessageHeader h{};
+  if (bytes.size() < sizeof h) return false;
+  std::memcpy(&h, bytes.data(), sizeof h);
+  return h.magic == kMagic && h.version == kProtocolVersion;
+}
+
 Expected<Message> Decode(std::span<const uint8_t> bytes, int from) {
   auto bad = [&](const std::string& what) {
     return Status::Error(StrFormat("message from rank %d: %s", from, what.c_str()));
