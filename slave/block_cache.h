@@ -8,7 +8,7 @@
 // swinging its pin count from 0 to a large negative value, which a concurrent TryAcquire sees
 // and backs off from, so a pinned block is never freed under a reader.
 //
-// Decoded blocks live in a huge-page arena (common/base/huge_page_arena.h) of an eighth more
+// Decoded blocks live in an arena mapped ahead (common/base/populated_arena.h) of an eighth more
 // than the budget, for the gaps between blocks of different sizes; a block that finds no gap
 // large enough takes the C heap. On a PVM guest, filling a 72 MB cache from the heap cost its
 // loader 0.2 s of CPU in page faults.
@@ -23,7 +23,7 @@
 #include <unordered_map>
 #include <vector>
 
-#include "common/base/huge_page_arena.h"
+#include "common/base/populated_arena.h"
 #include "common/base/status.h"
 #include "common/store/block_codec.h"
 #include "common/store/block_view.h"
@@ -108,7 +108,7 @@ class BlockCache {
 
   const store::StoreReader& store_;
   const uint64_t budget_;
-  HugePageArena arena_;  // before entries_: the blocks give their memory back to it
+  PopulatedArena arena_;  // before entries_: the blocks give their memory back to it
   std::vector<Entry> entries_;
   std::atomic<uint64_t> clock_{0};
 

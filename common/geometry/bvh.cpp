@@ -17,7 +17,7 @@
 #endif
 
 #include "common/base/check.h"
-#include "common/base/huge_page_allocator.h"
+#include "common/base/populate.h"
 
 namespace raystack {
 namespace {

@@ -12,6 +12,7 @@
 #include <limits>
 
 #include "common/base/check.h"
+#include "common/base/populate.h"
 #include "common/geometry/bounds.h"
 #include "common/geometry/bvh.h"
 #include "common/geometry/next_float.h"

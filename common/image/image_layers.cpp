@@ -3,7 +3,7 @@
 #include <limits>
 
 #include "common/base/check.h"
-#include "common/base/huge_page_allocator.h"
+#include "common/base/populate.h"
 
 namespace raystack::image {
 

@@ -10,7 +10,7 @@
 #include <span>
 #include <vector>
 
-#include "common/base/huge_page_allocator.h"
+#include "common/base/populate.h"
 #include "common/image/image_layers.h"
 #include "common/render/fixed_sum.h"
 #include "common/render/sample_result.h"
@@ -76,10 +76,10 @@ class Film {
   };
   int width_, height_;
   mutable std::mutex mu_;
-  // Written whole when made: on populated huge pages (see HugePageAllocator), a new film costs
-  // no page fault per 4 KB.
+  // Written whole when made: mapped in one call (PopulatedAllocator), a new film costs no page
+  // fault per 4 KB.
   template <typename T>
-  using Pages = std::vector<T, HugePageAllocator<T, /*kPopulate=*/true>>;
+  using Pages = std::vector<T, PopulatedAllocator<T>>;
   Pages<Pixel> pixels_;
   Pages<float> z_, normal_, albedo_;
   image::ImageLayers restored_;  // empty unless Restore was called

@@ -66,7 +66,7 @@ void AlignedBuffer::Free::operator()(uint8_t* p) const {
   }
 }
 
-bool AlignedBuffer::ReserveIn(HugePageArena* arena, uint64_t bytes) {
+bool AlignedBuffer::ReserveIn(PopulatedArena* arena, uint64_t bytes) {
   CHECK(data_ == nullptr);
   uint8_t* p = arena->Allocate(bytes);
   if (p == nullptr) return false;

@@ -10,7 +10,7 @@
 #include <span>
 #include <vector>
 
-#include "common/base/huge_page_arena.h"
+#include "common/base/populated_arena.h"
 #include "common/base/status.h"
 
 namespace raystack::store {
@@ -34,14 +34,14 @@ class AlignedBuffer {
   void Reserve(uint64_t bytes);
   // Takes `bytes` from `arena` if it has room (the buffer must be empty): later Reserves up to
   // `bytes` then keep that memory. False, and nothing changes, when the arena is full.
-  bool ReserveIn(HugePageArena* arena, uint64_t bytes);
+  bool ReserveIn(PopulatedArena* arena, uint64_t bytes);
 
  private:
   struct Free {
     Free() noexcept : arena(nullptr), bytes(0) {}  // the C heap
-    Free(HugePageArena* a, uint64_t n) noexcept : arena(a), bytes(n) {}
+    Free(PopulatedArena* a, uint64_t n) noexcept : arena(a), bytes(n) {}
     void operator()(uint8_t* p) const;
-    HugePageArena* arena;
+    PopulatedArena* arena;
     uint64_t bytes;
   };
   std::unique_ptr<uint8_t, Free> data_;

@@ -2,7 +2,7 @@
 
 #include <limits>
 
-#include "common/base/huge_page_allocator.h"
+#include "common/base/populate.h"
 
 namespace raystack::store {
 

@@ -1,14 +1,17 @@
 #pragma once
-// Whether memory is mapped in before anything touches it (MADV_POPULATE_WRITE), for the tests
-// of the huge-page allocator and arena.
+// Whether memory is mapped in before anything touches it (MADV_POPULATE_WRITE), and how the
+// kernel was advised to back it, for the tests of the allocators and the block arena.
 
 #include <sys/mman.h>
 #include <unistd.h>
 
 #include <cstdint>
+#include <fstream>
+#include <sstream>
+#include <string>
 #include <vector>
 
-#include "common/base/huge_page_allocator.h"
+#include "common/base/populate.h"
 
 namespace raystack::testing {
 
@@ -32,6 +35,25 @@ inline bool KernelPopulatesOnRequest() {
   const bool ok = madvise(p, page, kMadvPopulateWrite) == 0;
   munmap(p, page);
   return ok;
+}
+
+// The VmFlags of the mapping that holds `p` in /proc/self/smaps ("" if none is found).
+inline std::string VmFlagsOf(const void* p) {
+  const auto address = reinterpret_cast<uintptr_t>(p);
+  std::ifstream smaps("/proc/self/smaps");
+  std::string line;
+  bool inside = false;
+  while (std::getline(smaps, line)) {
+    uintptr_t begin = 0, end = 0;
+    char dash = 0;
+    std::istringstream range(line);
+    if (range >> std::hex >> begin >> dash >> end && dash == '-') {
+      inside = begin <= address && address < end;
+    } else if (inside && line.rfind("VmFlags:", 0) == 0) {
+      return line;
+    }
+  }
+  return "";
 }
 
 }  // namespace raystack::testing

@@ -1,4 +1,4 @@
-#include "common/base/huge_page_arena.h"
+#include "common/base/populated_arena.h"
 
 #include <sys/mman.h>
 
@@ -8,39 +8,33 @@
 #include <iterator>
 
 #include "common/base/check.h"
-#include "common/base/huge_page_allocator.h"
+#include "common/base/populate.h"
 #include "common/base/log.h"
 
 namespace raystack {
 
-HugePageArena::HugePageArena(uint64_t capacity) {
+PopulatedArena::PopulatedArena(uint64_t capacity) {
   capacity_ = std::max<uint64_t>((capacity + kStep - 1) / kStep * kStep, kStep);
-  // One step more than asked, so the pieces can start on a huge-page boundary.
-  void* p = mmap(nullptr, capacity_ + kStep, PROT_READ | PROT_WRITE,
+  void* p = mmap(nullptr, capacity_, PROT_READ | PROT_WRITE,
                  MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
   if (p == MAP_FAILED) {  // no address space for it (a strict overcommit policy, a ulimit -v)
-    LOG_WARNING("memory", "no %llu MB of address space for a huge-page arena (%s): its buffers "
+    LOG_WARNING("memory", "no %llu MB of address space for a block arena (%s): its buffers "
                 "come from the heap", static_cast<unsigned long long>(capacity_ >> 20),
                 std::strerror(errno));
     capacity_ = 0;
     return;
   }
-  const auto start = reinterpret_cast<uintptr_t>(p);
-  const uintptr_t aligned = (start + kStep - 1) & ~uintptr_t{kStep - 1};
-  // Give the unaligned head and tail back; the middle is exactly the capacity.
-  if (aligned > start) munmap(p, aligned - start);
-  const uintptr_t tail = aligned + capacity_;
-  const uintptr_t end = start + capacity_ + kStep;
-  if (end > tail) munmap(reinterpret_cast<void*>(tail), end - tail);
-  base_ = reinterpret_cast<uint8_t*>(aligned);
-  madvise(base_, capacity_, MADV_HUGEPAGE);  // a hint: where it fails, ordinary pages
+  base_ = static_cast<uint8_t*>(p);
+  // Ordinary pages even where the kernel gives huge pages unasked (transparent huge pages
+  // "always"): see the top of populated_arena.h.
+  madvise(base_, capacity_, MADV_NOHUGEPAGE);
 }
 
-HugePageArena::~HugePageArena() {
+PopulatedArena::~PopulatedArena() {
   if (base_ != nullptr) munmap(base_, capacity_);
 }
 
-uint8_t* HugePageArena::Allocate(uint64_t bytes) {
+uint8_t* PopulatedArena::Allocate(uint64_t bytes) {
   CHECK(bytes > 0);
   const uint64_t size = Rounded(bytes);
   std::lock_guard lock(mu_);
@@ -62,7 +56,7 @@ uint8_t* HugePageArena::Allocate(uint64_t bytes) {
   return base_ + offset;
 }
 
-void HugePageArena::Free(uint8_t* p, uint64_t bytes) {
+void PopulatedArena::Free(uint8_t* p, uint64_t bytes) {
   CHECK(Owns(p));
   uint64_t offset = static_cast<uint64_t>(p - base_);
   uint64_t size = Rounded(bytes);
@@ -91,17 +85,17 @@ void HugePageArena::Free(uint8_t* p, uint64_t bytes) {
   }
 }
 
-uint64_t HugePageArena::allocated_bytes() const {
+uint64_t PopulatedArena::allocated_bytes() const {
   std::lock_guard lock(mu_);
   return allocated_;
 }
 
-uint64_t HugePageArena::populated_bytes() const {
+uint64_t PopulatedArena::populated_bytes() const {
   std::lock_guard lock(mu_);
   return populated_;
 }
 
-void HugePageArena::PopulateTo(uint64_t end) {
+void PopulatedArena::PopulateTo(uint64_t end) {
   if (end <= populated_) return;
   const uint64_t target = std::min(capacity_, (end + kStep - 1) / kStep * kStep);
   // Fails before Linux 5.14 (EINVAL) and without memory (ENOMEM): the pages then come one
@@ -110,12 +104,12 @@ void HugePageArena::PopulateTo(uint64_t end) {
   populated_ = target;
 }
 
-void HugePageArena::AddFree(uint64_t offset, uint64_t size) {
+void PopulatedArena::AddFree(uint64_t offset, uint64_t size) {
   free_by_offset_.emplace(offset, size);
   free_by_size_.emplace(size, offset);
 }
 
-void HugePageArena::RemoveFree(uint64_t offset, uint64_t size) {
+void PopulatedArena::RemoveFree(uint64_t offset, uint64_t size) {
   free_by_offset_.erase(offset);
   free_by_size_.erase({size, offset});
 }

@@ -1,13 +1,15 @@
-// HugePageArena (a block cache's decoded blocks): aligned pieces that never overlap, free room
+// PopulatedArena (a block cache's decoded blocks): aligned pieces that never overlap, free room
 // merged and reused, null when nothing fits, memory asked for only as the pieces reach it.
 
-#include "common/base/huge_page_arena.h"
+#include "common/base/populated_arena.h"
 #include "tests/support/resident_pages.h"
 
 #include <gtest/gtest.h>
 
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
+#include <string>
 #include <map>
 #include <random>
 #include <vector>
@@ -17,15 +19,15 @@ namespace {
 
 constexpr uint64_t kMB = uint64_t{1} << 20;
 
-TEST(HugePageArena, PiecesAreAlignedInsideAndUsable) {
-  HugePageArena arena(4 * kMB);
+TEST(PopulatedArena, PiecesAreAlignedInsideAndUsable) {
+  PopulatedArena arena(4 * kMB);
   EXPECT_EQ(arena.capacity(), 4 * kMB);
   uint8_t* a = arena.Allocate(100);
   uint8_t* b = arena.Allocate(33 * 1024);
   ASSERT_NE(a, nullptr);
   ASSERT_NE(b, nullptr);
-  EXPECT_EQ(reinterpret_cast<uintptr_t>(a) % HugePageArena::kAlignment, 0u);
-  EXPECT_EQ(reinterpret_cast<uintptr_t>(b) % HugePageArena::kAlignment, 0u);
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(a) % PopulatedArena::kAlignment, 0u);
+  EXPECT_EQ(reinterpret_cast<uintptr_t>(b) % PopulatedArena::kAlignment, 0u);
   EXPECT_TRUE(arena.Owns(a));
   EXPECT_TRUE(arena.Owns(b + 33 * 1024 - 1));
   EXPECT_GE(b, a + 128);  // 100 bytes take 128: the next piece starts after them
@@ -38,8 +40,8 @@ TEST(HugePageArena, PiecesAreAlignedInsideAndUsable) {
   EXPECT_EQ(arena.allocated_bytes(), 0u);
 }
 
-TEST(HugePageArena, NullWhenNothingFitsThenRoomAgainAfterFree) {
-  HugePageArena arena(2 * kMB);
+TEST(PopulatedArena, NullWhenNothingFitsThenRoomAgainAfterFree) {
+  PopulatedArena arena(2 * kMB);
   std::vector<uint8_t*> pieces;
   for (int i = 0; i < 16; ++i) pieces.push_back(arena.Allocate(128 * 1024));
   for (uint8_t* p : pieces) ASSERT_NE(p, nullptr);
@@ -49,8 +51,8 @@ TEST(HugePageArena, NullWhenNothingFitsThenRoomAgainAfterFree) {
   EXPECT_EQ(arena.Allocate(128 * 1024), pieces[5]);     // reused where it was
 }
 
-TEST(HugePageArena, FreedNeighboursMergeIntoOneLargerPiece) {
-  HugePageArena arena(2 * kMB);
+TEST(PopulatedArena, FreedNeighboursMergeIntoOneLargerPiece) {
+  PopulatedArena arena(2 * kMB);
   std::vector<uint8_t*> pieces;
   for (int i = 0; i < 16; ++i) pieces.push_back(arena.Allocate(128 * 1024));
   // Free 3, 5, then 4 between them: one gap of 384 KB, found whatever the order of frees.
@@ -61,8 +63,8 @@ TEST(HugePageArena, FreedNeighboursMergeIntoOneLargerPiece) {
   EXPECT_EQ(arena.Allocate(384 * 1024), pieces[3]);
 }
 
-TEST(HugePageArena, BestFitLeavesLargeGapsForLargePieces) {
-  HugePageArena arena(2 * kMB);
+TEST(PopulatedArena, BestFitLeavesLargeGapsForLargePieces) {
+  PopulatedArena arena(2 * kMB);
   std::vector<uint8_t*> pieces;
   for (int i = 0; i < 16; ++i) pieces.push_back(arena.Allocate(128 * 1024));
   arena.Free(pieces[2], 128 * 1024);  // two gaps of 128 KB
@@ -77,29 +79,44 @@ TEST(HugePageArena, BestFitLeavesLargeGapsForLargePieces) {
   EXPECT_NE(arena.Allocate(128 * 1024), nullptr);  // so the 128 KB gap at 9 is still whole
 }
 
-TEST(HugePageArena, MemoryIsAskedForOnlyAsPiecesReachIt) {
-  HugePageArena arena(64 * kMB);
+TEST(PopulatedArena, MemoryIsAskedForOnlyAsPiecesReachIt) {
+  PopulatedArena arena(64 * kMB);
   EXPECT_EQ(arena.populated_bytes(), 0u);
   uint8_t* p = arena.Allocate(1000);
-  EXPECT_EQ(arena.populated_bytes(), HugePageArena::kStep);
+  EXPECT_EQ(arena.populated_bytes(), PopulatedArena::kStep);
   if (testing::KernelPopulatesOnRequest()) {  // in memory before the first write, one step only
-    EXPECT_EQ(testing::ResidentShare(p, HugePageArena::kStep), 1.0);
-    EXPECT_EQ(testing::ResidentShare(p + HugePageArena::kStep, HugePageArena::kStep), 0.0);
+    EXPECT_EQ(testing::ResidentShare(p, PopulatedArena::kStep), 1.0);
+    EXPECT_EQ(testing::ResidentShare(p + PopulatedArena::kStep, PopulatedArena::kStep), 0.0);
   }
   std::vector<uint8_t*> more;
   for (int i = 0; i < 40; ++i) more.push_back(arena.Allocate(100 * 1024));  // ~4 MB in all
-  EXPECT_EQ(arena.populated_bytes(), 2 * HugePageArena::kStep);
+  EXPECT_EQ(arena.populated_bytes(), 2 * PopulatedArena::kStep);
   // Freed room at the top is used again before any new memory.
   for (uint8_t* q : more) arena.Free(q, 100 * 1024);
   for (int i = 0; i < 40; ++i) ASSERT_NE(arena.Allocate(100 * 1024), nullptr);
-  EXPECT_EQ(arena.populated_bytes(), 2 * HugePageArena::kStep);
+  EXPECT_EQ(arena.populated_bytes(), 2 * PopulatedArena::kStep);
+  arena.Free(p, 1000);
+}
+
+// 4 KB pages, even where the kernel gives huge pages unasked: memory new to a VM's guest is
+// mapped several times faster so (the top of populated_arena.h).
+TEST(PopulatedArena, ItsMemoryIsAdvisedAsOrdinaryPages) {
+  if (!std::filesystem::exists("/sys/kernel/mm/transparent_hugepage/enabled"))
+    GTEST_SKIP() << "this kernel has no transparent huge pages";
+  PopulatedArena arena(8 * kMB);
+  uint8_t* p = arena.Allocate(1000);
+  ASSERT_NE(p, nullptr);
+  const std::string flags = testing::VmFlagsOf(p);
+  ASSERT_FALSE(flags.empty()) << "no mapping in /proc/self/smaps holds the arena";
+  EXPECT_NE(flags.find(" nh"), std::string::npos) << flags;
+  EXPECT_EQ(flags.find(" hg"), std::string::npos) << flags;
   arena.Free(p, 1000);
 }
 
 // Address space the system cannot give (more than x86-64's 47 bits): a warning, no crash, and
 // an arena without room, so its users take the heap.
-TEST(HugePageArena, AnArenaTheSystemRefusesHasNoRoom) {
-  HugePageArena arena(uint64_t{1} << 62);
+TEST(PopulatedArena, AnArenaTheSystemRefusesHasNoRoom) {
+  PopulatedArena arena(uint64_t{1} << 62);
   EXPECT_EQ(arena.capacity(), 0u);
   EXPECT_EQ(arena.Allocate(64), nullptr);
   EXPECT_EQ(arena.populated_bytes(), 0u);
@@ -108,9 +125,9 @@ TEST(HugePageArena, AnArenaTheSystemRefusesHasNoRoom) {
 // Random sizes allocated and freed in random order, against a model of which bytes are taken:
 // no two live pieces overlap, each keeps the bytes written into it, and once everything is
 // freed one piece of the whole capacity fits again (every gap merged back).
-TEST(HugePageArena, RandomUseNeverOverlapsAndMergesBackToWhole) {
+TEST(PopulatedArena, RandomUseNeverOverlapsAndMergesBackToWhole) {
   const uint64_t capacity = 8 * kMB;
-  HugePageArena arena(capacity);
+  PopulatedArena arena(capacity);
   std::mt19937 rng(7);
   std::uniform_int_distribution<uint64_t> size_of(1, 130 * 1024);
   struct Piece {

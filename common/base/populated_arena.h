@@ -1,21 +1,25 @@
 #pragma once
 // Memory for many mid-sized buffers that live and die in no particular order (a block cache's
-// decoded blocks): one reservation of address space on huge pages, handed out in 64-byte
-// aligned pieces, with freed pieces merged with their free neighbours and reused best fit.
+// decoded blocks): one reservation of address space, handed out in 64-byte aligned pieces,
+// with freed pieces merged with their free neighbours and reused best fit.
 //
 // Why not the C heap: every 4 KB page it gives out for the first time is a page fault, and in
 // a virtual machine that keeps the guest's page tables itself (a PVM guest, as on the
 // 2026-11-25 machines) each fault leaves the guest: ~11 us a page, 0.2 s of CPU to fill a
-// 72 MB cache. Here the pages are asked for 2 MB at a time, as huge pages, and mapped in one
-// call before anything touches them (madvise MADV_POPULATE_WRITE): 72 MB in 7-18 ms where the
-// host already backs the memory; memory new to the guest still costs its zeroing (~400 MB/s
-// there), but no fault per page.
+// 72 MB cache. Here the pages are mapped 2 MB at a time in one call, before anything touches
+// them (madvise MADV_POPULATE_WRITE).
+//
+// Ordinary 4 KB pages, not huge pages (advised so): where a VM's host takes freed memory back
+// (Linux free page reporting), memory new to the guest populated as huge pages came at ~500
+// MB/s against ~3 GB/s as 4 KB pages, and 8 slaves filling their caches paid it in their first
+// frame; the ray threads trace a block's queue within its ~32 KB, so the TLB's reach cost
+// nothing measurable (tools/bench/RESULTS.md, "The block cache on 4 KB pages").
 //
 // Address space only becomes memory as the high-water mark of the pieces grows, a 2 MB step
 // at a time, so a large capacity costs nothing until it is used. Allocate returns null when no
 // piece fits (full, or free room too fragmented); callers then take the C heap. Where the
-// kernel has no huge pages or no MADV_POPULATE_WRITE (before Linux 5.14) the advice fails
-// and pages come one fault at a time, as from the heap.
+// kernel has no MADV_POPULATE_WRITE (before Linux 5.14) the advice fails and pages come one
+// fault at a time, as from the heap.
 //
 // Thread-safe: one mutex, held for a few map operations per call.
 
@@ -27,17 +31,17 @@
 
 namespace raystack {
 
-class HugePageArena {
+class PopulatedArena {
  public:
   static constexpr uint64_t kAlignment = 64;
-  static constexpr uint64_t kStep = uint64_t{2} << 20;  // populated at a time (a huge page)
+  static constexpr uint64_t kStep = uint64_t{2} << 20;  // populated at a time
 
   // Reserves `capacity` bytes of address space (rounded up to kStep). Where the system refuses
   // even that, logs it, and the arena has no room: every Allocate returns null.
-  explicit HugePageArena(uint64_t capacity);
-  ~HugePageArena();
-  HugePageArena(const HugePageArena&) = delete;
-  HugePageArena& operator=(const HugePageArena&) = delete;
+  explicit PopulatedArena(uint64_t capacity);
+  ~PopulatedArena();
+  PopulatedArena(const PopulatedArena&) = delete;
+  PopulatedArena& operator=(const PopulatedArena&) = delete;
 
   // `bytes` (> 0) of kAlignment-aligned memory, or null when no free piece is large enough.
   uint8_t* Allocate(uint64_t bytes);
