@@ -3,7 +3,7 @@
 // mpirun, and mpirun sends SIGKILL about a second later), once CatchInterrupts has run:
 // - while interrupts are held (HoldInterrupts: the master while a frame renders, a slave
 //   always) the signal is noted, not fatal: the master then writes the frame's samples so far
-//   for --resume before it ends (render_command.cpp), and a slave waits a moment for the
+//   for --resume before it ends (master/frame_steps.h), and a slave waits a moment for the
 //   master's end of the job (slave_node.cpp);
 // - otherwise, and at the second signal, the process ends at once, as the default action
 //   would.

@@ -54,7 +54,7 @@ inline constexpr uint32_t kMaxTileSamples = 16384;
 // `coarse_rounds` is false: then one sweep), pixels within a tile by priority. Scanline: tiles
 // and pixels in scanline order, every pass one sweep. Each round sweeps the whole frame, so
 // with a block cache smaller than the blocks the frame needs every round loads them again:
-// the caller turns the rounds off out of core (render_command.cpp, --coarse-rounds).
+// the caller turns the rounds off out of core (master/frame_steps.h, --coarse-rounds).
 FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint32_t pass_spp,
                         PixelOrder order, bool coarse_rounds = true);
 

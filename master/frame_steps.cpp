@@ -1,0 +1,199 @@
+#include "master/frame_steps.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+
+#include "common/base/interrupt.h"
+#include "common/base/log.h"
+#include "common/image/exr_io.h"
+#include "master/preflight.h"
+#include "master/provenance.h"
+#include "master/resume.h"
+
+namespace raystack::master {
+
+Status WriteStats(const std::string& path, const std::string& json) {
+  if (path.empty()) return OkStatus();
+  std::ofstream out(path);
+  out << json;
+  if (!out) return Status::Error(path + ": cannot write the statistics");
+  return OkStatus();
+}
+
+std::string OutputOf(const RenderArgs& args, const render::Scene& scene) {
+  return args.output.empty() ? scene.output : args.output;
+}
+
+Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
+                                 const render::Film& film, image::ImageLayers layers,
+                                 FrameWriter* writer) {
+  const size_t frames = scene.cameras.size();
+  const std::string output = OutputOf(args, scene);
+  FrameWriter::Image image;
+  image.exr = FramePath(output, f, frames, ".exr");
+  if (args.png) image.png = FramePath(output, f, frames, ".png");
+  image.exposure = args.exposure;
+  image.background = f + 1 < frames;  // the next frame renders while it is written
+  image.layers = std::move(layers);
+  image.layers.provenance = Provenance(scene, f);
+  if (film.nonfinite_dropped() > 0)
+    LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
+                static_cast<unsigned long long>(film.nonfinite_dropped()));
+  const std::string exr = image.exr;
+  RAYSTACK_RETURN_IF_ERROR(writer->Write(std::move(image)));
+  return exr;
+}
+
+render::Film& FilmFor(const render::Camera& camera, std::unique_ptr<render::Film>* film) {
+  if (*film && (*film)->width() == camera.width() && (*film)->height() == camera.height())
+    (*film)->Clear();
+  else
+    *film = std::make_unique<render::Film>(camera.width(), camera.height());
+  return **film;
+}
+
+Expected<render::Scene> LoadSceneFor(const RenderArgs& args) {
+  Expected<render::Scene> scene = render::LoadScene(args.scene);
+  if (scene.ok() && args.spp > 0) scene->integrator.spp = static_cast<int>(args.spp);
+  return scene;
+}
+
+render::FramePlan PlanOf(const RenderArgs& args, const render::Scene& scene,
+                         const render::Camera& camera, bool coarse_rounds) {
+  return render::MakeFramePlan(camera.width(), camera.height(), args.tile_size,
+                               static_cast<uint32_t>(scene.integrator.spp), args.pass_spp,
+                               args.engine.pixel_order, coarse_rounds);
+}
+
+void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materials) {
+  const Vec3f b = scene.background;
+  if (!scene.lights.empty() || materials.any_emissive() || b.x > 0 || b.y > 0 || b.z > 0) return;
+  LOG_WARNING("render",
+              "%s: the scene has no light (no point lights, no emissive material in the store "
+              "or the scene, a black background): the image will be black",
+              scene.source.c_str());
+}
+
+uint64_t StoredBytes(const store::StoreReader& store) {
+  uint64_t stored = 0;
+  for (const store::BlockEntry& e : store.blocks()) stored += e.stored_bytes;
+  return stored;
+}
+
+bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, int rem_slaves,
+                  std::string* why) {
+  if (args.coarse_rounds != "auto") {
+    *why = "--coarse-rounds " + args.coarse_rounds;
+    return args.coarse_rounds == "on";
+  }
+  if (!store) {
+    *why = "the store's size is unknown here";
+    return true;
+  }
+  const uint64_t decoded = store->summary().raw_bytes;
+  // Each slave's budget loses its share as the slaves count it: stored bytes (RunSlave).
+  const uint64_t share = rem_slaves > 0 ? StoredBytes(*store) / static_cast<uint64_t>(rem_slaves) : 0;
+  const uint64_t room = args.engine.cache_bytes > share ? args.engine.cache_bytes - share : 0;
+  const bool fits = decoded <= room;
+  *why = StrFormat("decoded blocks %.1f MB %s the %.1f MiB cache", static_cast<double>(decoded) / 1e6,
+                   fits ? "fit in" : "exceed", static_cast<double>(args.engine.cache_bytes) / kMiB);
+  if (share > 0)
+    *why += StrFormat(" less its rem share of %.1f MiB", static_cast<double>(share) / kMiB);
+  return fits;
+}
+
+void LogFirstPass(const RenderArgs& args, bool rounds, const std::string& why) {
+  if (args.quiet || args.engine.pixel_order != render::PixelOrder::kPriority) return;
+  std::printf("first pass: %s (%s)\n", rounds ? "5 coarse rounds" : "one sweep", why.c_str());
+}
+
+InterruptsHeld::InterruptsHeld() { HoldInterrupts(true); }
+InterruptsHeld::~InterruptsHeld() { HoldInterrupts(false); }
+
+void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,
+                                   const std::function<void()>& then) {
+  const int signal = InterruptSignal();
+  if (signal == 0) return;
+  const Status s = writer->Finish();
+  then();
+  const char* name = InterruptName(signal);
+  if (frame == 0)
+    std::fprintf(stderr, "raystack render: interrupted (%s) before the first frame\n", name);
+  else
+    std::fprintf(stderr, "raystack render: interrupted (%s) as frame %zu ended: %s; frames %zu "
+                 "to %zu are not rendered\n", name, frame - 1,
+                 s.ok() ? "it is written" : s.message().c_str(), frame, frames - 1);
+  std::fflush(nullptr);
+  std::_Exit(128 + signal);
+}
+
+void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& film,
+                    const std::string& path, uint32_t spp, const std::function<void()>& then) {
+  const char* name = InterruptName(signal);
+  Expected<uint64_t> finished = checkpoints->Final(film, spp);
+  then();
+  const uint64_t pixels = static_cast<uint64_t>(film.width()) * static_cast<uint64_t>(film.height());
+  if (!finished.ok())
+    std::fprintf(stderr, "raystack render: interrupted (%s); the frame's samples so far could "
+                 "not be written: %s\n", name, finished.status().message().c_str());
+  else if (*finished == 0)
+    std::fprintf(stderr, "raystack render: interrupted (%s): the frame so far is in %s, but no "
+                 "pixel has all its %u samples yet (each pass covers every pixel a little), so "
+                 "--resume would render the frame again\n", name, path.c_str(), spp);
+  else
+    std::fprintf(stderr, "raystack render: interrupted (%s): the frame so far is in %s, %llu of "
+                 "%llu pixels with all their samples; the same command with --resume keeps those "
+                 "and renders the rest\n", name, path.c_str(),
+                 static_cast<unsigned long long>(*finished), static_cast<unsigned long long>(pixels));
+  std::fflush(nullptr);
+  std::_Exit(128 + signal);
+}
+
+Status LoadReference(const RenderArgs& args, size_t f, size_t frames, const render::Camera& camera,
+                     std::unique_ptr<image::ImageLayers>* ref) {
+  if (args.reference.empty()) {
+    ref->reset();
+    return OkStatus();
+  }
+  const std::string path = frames > 1 ? FramePath(args.reference, f, frames, ".exr") : args.reference;
+  if (!*ref) *ref = std::make_unique<image::ImageLayers>();
+  Status s = image::ReadExrInto(path, ref->get());
+  if (s.ok()) s = render::CheckReference(**ref, camera.width(), camera.height(), path);
+  if (!s.ok()) ref->reset();
+  return s;
+}
+
+Expected<std::unique_ptr<ConvergenceLog>> OpenLog(const RenderArgs& args) {
+  if (args.convergence_log.empty()) return std::unique_ptr<ConvergenceLog>();
+  return ConvergenceLog::Open(args.convergence_log);
+}
+
+void ReportStop(const RenderArgs& args, const ConvergenceMonitor& monitor) {
+  if (monitor.stopped() && !args.quiet) std::printf("stopped: %s\n", monitor.stop_reason().c_str());
+}
+
+Status ResumeInto(const RenderArgs& args, const render::Scene& scene, size_t f,
+                  render::FramePlan* plan, render::Film* film) {
+  if (!args.resume) return OkStatus();
+  const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
+  Expected<ResumePlan> resume =
+      PlanResume(exr, plan->width, plan->height, plan->spp(), Provenance(scene, f));
+  if (!resume.ok()) return resume.status();
+  size_t tiles = 0;
+  for (render::Sweep& sweep : plan->sweeps) {
+    std::erase_if(sweep.tiles, [&](const render::Tile& t) { return !resume->Needs(t); });
+    tiles += sweep.tiles.size();
+  }
+  ApplyResume(*resume, film);
+  if (!args.quiet && resume->finished.empty())
+    std::printf("resume frame %zu: no checkpoint at %s, every tile to render\n", f, exr.c_str());
+  else if (!args.quiet)
+    std::printf("resume frame %zu: %zu of %llu pixels finished in %s, %zu tiles to render\n", f,
+                resume->kept_pixels.size(),
+                static_cast<unsigned long long>(plan->width) * static_cast<unsigned long long>(plan->height),
+                exr.c_str(), tiles);
+  return OkStatus();
+}
+
+}  // namespace raystack::master

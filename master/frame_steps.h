@@ -1,0 +1,99 @@
+#pragma once
+// The steps of `raystack render` that the one-process run (local_render.h) and the master of a
+// distributed job (distributed_render.h) share: the scene with the command line's overrides,
+// each frame's film, plan, reference and resumed pixels, its images, and what a signal does.
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "common/base/status.h"
+#include "common/image/image_layers.h"
+#include "common/render/camera.h"
+#include "common/render/film.h"
+#include "common/render/frame_plan.h"
+#include "common/render/material_table.h"
+#include "common/render/scene.h"
+#include "common/store/store_reader.h"
+#include "master/checkpoints.h"
+#include "master/convergence_monitor.h"
+#include "master/frame_writer.h"
+#include "master/render_args.h"
+
+namespace raystack::master {
+
+// --cache-mb counts MiB (2^20 bytes), and the messages about the cache say MiB too.
+inline constexpr double kMiB = 1024.0 * 1024.0;
+
+// Writes --stats' JSON to `path` (nothing when it is empty).
+Status WriteStats(const std::string& path, const std::string& json);
+// The output the images are named from: --output, else the scene's.
+std::string OutputOf(const RenderArgs& args, const render::Scene& scene);
+// The scene file, with the command line's overrides.
+Expected<render::Scene> LoadSceneFor(const RenderArgs& args);
+// A scene that can only come out black (no point light, nothing emissive in the store's
+// materials or the scene's, a black background) is most likely a mistake: say so up front.
+void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materials);
+// The stored (compressed) bytes of every block.
+uint64_t StoredBytes(const store::StoreReader& store);
+
+// --coarse-rounds auto: the first pass's rounds sweep the frame five times, which costs nothing
+// when the blocks stay in the cache and reloads them on every sweep when they do not (the
+// dragon x36 with a 72 MB cache: 4.5 loads per block used instead of 1.1). `store` may be null
+// (a master that cannot open it): then the rounds stay on, as for an in-core scene.
+// `rem_slaves`: the slaves sharing the store's blocks under --blocks rem (0 otherwise); each
+// keeps its share in its cache for its peers, so less of the cache is left for the rest.
+bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, int rem_slaves,
+                  std::string* why);
+void LogFirstPass(const RenderArgs& args, bool rounds, const std::string& why);
+
+// The film for the next frame: the previous frame's, cleared, when the size is the same
+// (Film::Clear: a few milliseconds instead of ~20 of page faults between two frames).
+render::Film& FilmFor(const render::Camera& camera, std::unique_ptr<render::Film>* film);
+render::FramePlan PlanOf(const RenderArgs& args, const render::Scene& scene,
+                         const render::Camera& camera, bool coarse_rounds);
+// --resume: the pixels frame `f`'s checkpoint holds finished go into `film`, and the plan keeps
+// only the tiles that still have a pixel to render.
+Status ResumeInto(const RenderArgs& args, const render::Scene& scene, size_t f,
+                  render::FramePlan* plan, render::Film* film);
+// What a frame is measured against, if anything: --reference (REF-f.exr with several cameras).
+// Frame f's reference into `*ref` (null without --reference), read into the memory of the frame
+// before's: new memory for a 960x540 reference was ~50 ms of page faults at every frame's start.
+Status LoadReference(const RenderArgs& args, size_t f, size_t frames, const render::Camera& camera,
+                     std::unique_ptr<image::ImageLayers>* ref);
+// --convergence-log's file, or null without it.
+Expected<std::unique_ptr<ConvergenceLog>> OpenLog(const RenderArgs& args);
+// Says why the frame stopped early, if a stop rule (--time-limit, --target-error) ended it.
+void ReportStop(const RenderArgs& args, const ConvergenceMonitor& monitor);
+// Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
+// returns the EXR's path, or the error of an earlier frame's write.
+Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
+                                 const render::Film& film, image::ImageLayers layers,
+                                 FrameWriter* writer);
+
+// While it lives, SIGINT and SIGTERM are noted, not fatal: from the first frame to the last
+// image written (the frame rendering is written by EndInterrupted, one rendered and queued by
+// the writer; the default action would lose it mid-write).
+struct InterruptsHeld {
+  InterruptsHeld();
+  ~InterruptsHeld();
+  InterruptsHeld(const InterruptsHeld&) = delete;
+  InterruptsHeld& operator=(const InterruptsHeld&) = delete;
+};
+// A signal noted before frame `frame` began to render: the frames before it are written (or
+// their writes finished here), the others are not rendered, and the process ends.
+void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,
+                                   const std::function<void()>& then = [] {});
+// SIGINT or SIGTERM while frame `frame` renders (Ctrl-C; Slurm's time limit, through mpirun,
+// which sends SIGKILL a second later): writes the frame's samples so far where --resume finds
+// them (the frame's EXR, with its provenance), says so, and ends the process with the shell's
+// code for the signal. Without it the run left nothing, unless --checkpoint-s had written some.
+// `then`: run once the frame is written (tell the slaves: not before, since mpirun ends the
+// job, this process included, as soon as a rank ends early).
+[[noreturn]] void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& film,
+                                 const std::string& path, uint32_t spp,
+                                 const std::function<void()>& then = [] {});
+
+}  // namespace raystack::master

@@ -1,0 +1,172 @@
+#include "master/local_render.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <limits>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/base/interrupt.h"
+#include "common/base/log.h"
+#include "common/base/progress.h"
+#include "common/render/camera.h"
+#include "common/render/film.h"
+#include "common/render/material_table.h"
+#include "common/store/store_reader.h"
+#include "master/checkpoints.h"
+#include "master/convergence_monitor.h"
+#include "master/frame_steps.h"
+#include "master/frame_writer.h"
+#include "master/output_lock.h"
+#include "master/preflight.h"
+#include "master/preview/live_preview.h"
+#include "master/provenance.h"
+#include "slave/direct_reads.h"
+#include "slave/render_engine.h"
+#include "slave/tile_source.h"
+
+namespace raystack::master {
+namespace {
+
+// The frame plan's tiles, as PlanTileSource, remembering which were handed out (the live
+// preview shows the ones still in flight).
+class WatchedTileSource final : public slave::TileSource {
+ public:
+  explicit WatchedTileSource(const render::FramePlan& plan) : tiles_(plan) {}
+  bool Next(uint32_t thread, slave::Tile* tile) override {
+    if (!tiles_.Next(thread, tile)) return false;
+    std::lock_guard lock(mu_);
+    given_.push_back(*tile);
+    return true;
+  }
+  std::vector<preview::RankTiles> Given() const {
+    std::lock_guard lock(mu_);
+    return {preview::RankTiles{0, given_}};
+  }
+  void Stop() { tiles_.Stop(); }  // a stop rule holds
+
+ private:
+  slave::PlanTileSource tiles_;
+  mutable std::mutex mu_;
+  std::vector<render::Tile> given_;
+};
+
+}  // namespace
+
+Status RenderLocally(const RenderArgs& args) {
+  Expected<render::Scene> scene = LoadSceneFor(args);
+  if (!scene.ok()) return scene.status();
+  const std::string output = OutputOf(args, *scene);
+  const size_t frames = scene->cameras.size();
+  RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, 0));  // the film alone, before the store is read
+  RAYSTACK_RETURN_IF_ERROR(CheckOutputs(*scene, output, args.png, args.checkpoint_s > 0));
+  // Held to the end of the job; named from the output as written ("out" and "out.exr" are one).
+  Expected<OutputLock> output_lock = OutputLock::Take(FramePath(output, 0, 1, ".exr"));
+  if (!output_lock.ok()) return output_lock.status();
+  RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference));
+  Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
+  if (!log.ok()) return log.status();
+
+  Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
+  if (!store.ok()) return store.status();
+  // With the blocks this process will hold: all of them in core, else at most its cache.
+  const uint64_t decoded = (*store)->summary().raw_bytes;
+  const bool all_blocks =
+      args.engine.mode == slave::TraceMode::kIncore || args.engine.mode == slave::TraceMode::kBvh;
+  RAYSTACK_RETURN_IF_ERROR(
+      CheckMemory(*scene, all_blocks ? decoded : std::min(decoded, args.engine.cache_bytes)));
+  std::string reads;
+  RAYSTACK_RETURN_IF_ERROR(
+      slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads));
+  if (!args.quiet) std::printf("reads: %s\n", reads.c_str());
+  Expected<std::unique_ptr<slave::RenderEngine>> engine =
+      slave::RenderEngine::Create(**store, args.engine);
+  if (!engine.ok()) return engine.status();
+  const render::MaterialTable materials =
+      render::MaterialTable::Build((*store)->materials(), *scene);
+  WarnIfUnlit(*scene, materials);
+  Expected<preview::LivePreview> preview = preview::LivePreview::Start(args.preview);
+  if (!preview.ok()) return preview.status();
+
+  std::string why;
+  const bool coarse_rounds = CoarseRounds(args, store->get(), 0, &why);
+  LogFirstPass(args, coarse_rounds, why);
+  std::string stats_json = "[\n";
+  const InterruptsHeld held;  // to the last write (declared before `writer`: outlives it)
+  FrameWriter writer(!args.quiet);
+  std::unique_ptr<render::Film> reused_film;  // FilmFor
+  std::unique_ptr<image::ImageLayers> reference;  // LoadReference
+  for (size_t f = 0; f < frames; ++f) {
+    const render::Camera camera(scene->cameras[f]);
+    render::Film& film = FilmFor(camera, &reused_film);
+    render::FilmSink sink(&film);
+    render::FramePlan plan = PlanOf(args, *scene, camera, coarse_rounds);
+    RAYSTACK_RETURN_IF_ERROR(ResumeInto(args, *scene, f, &plan, &film));
+    WatchedTileSource tiles(plan);
+    RAYSTACK_RETURN_IF_ERROR(LoadReference(args, f, frames, camera, &reference));
+    slave::RenderStats stats;
+    Status status;
+    const uint64_t total = plan.total_samples();
+    ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log->get(),
+                               reference.get(), args.log_interval_s);
+    EndIfInterruptedBetweenFrames(f, frames, &writer);
+    {
+      ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
+                                args.quiet);
+      std::atomic<bool> finished{false};
+      preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
+                          scene->integrator.spp);
+      std::thread render([&] {
+        status = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
+        finished.store(true);
+      });
+      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
+                              Provenance(*scene, f), &writer, args.kill_after_checkpoints,
+                              args.fail_checkpoints);
+      uint64_t shown = 0;
+      // Polled at least as often as the convergence log asks for rows.
+      const auto poll = std::chrono::microseconds(
+          static_cast<int64_t>(std::min(0.1, args.log_interval_s) * 1e6));
+      while (!finished.load()) {
+        std::this_thread::sleep_for(poll);
+        if (const int signal = InterruptSignal())
+          EndInterrupted(signal, &checkpoints, film, FramePath(output, f, frames, ".exr"), plan.spp());
+        const uint64_t done = film.samples_merged();
+        progress.Update(done - shown);
+        shown = done;
+        checkpoints.Maybe(film);
+        if (!monitor.Poll()) tiles.Stop();
+        preview->SetErrorEstimate(monitor.last().error_estimate);  // at each pass end
+        preview->Update([&] { return tiles.Given(); });
+      }
+      render.join();
+      progress.Update(film.samples_merged() - shown);
+      if (!status.ok()) progress.Abandon();
+    }
+    if (!status.ok()) {
+      preview->EndFrame(std::numeric_limits<double>::quiet_NaN());
+      return status;
+    }
+    image::ImageLayers resolved = writer.TakeSpare();
+    film.ResolveInto(&resolved);
+    monitor.Finish(resolved);
+    preview->SetErrorEstimate(monitor.last().error_estimate);  // the last pass's
+    preview->EndFrame(stats.rays_per_second);
+    ReportStop(args, monitor);
+    Expected<std::string> exr = WriteFrame(args, *scene, f, film, std::move(resolved), &writer);
+    if (!exr.ok()) return exr.status();
+    if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
+    stats_json += stats.ToJson();
+    if (f + 1 < frames) stats_json += ",";
+  }
+  RAYSTACK_RETURN_IF_ERROR(writer.Finish());
+  RAYSTACK_RETURN_IF_ERROR(WriteStats(args.stats, stats_json + "]\n"));
+  preview->Finish();
+  return OkStatus();
+}
+
+}  // namespace raystack::master
