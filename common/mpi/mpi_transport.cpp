@@ -4,6 +4,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 #include <thread>
 
 #include "common/base/log.h"
@@ -169,10 +170,20 @@ Status MpiTransport::ProgressPosted() {
   requests.reserve(posted_.size());
   for (const Posted& p : posted_) requests.push_back(p.request);
   std::vector<int> finished(requests.size());
+  std::vector<MPI_Status> statuses(requests.size());
   int count = 0;
   if (!requests.empty()) {
     const int rc = MPI_Testsome(static_cast<int>(requests.size()), requests.data(), &count,
-                                finished.data(), MPI_STATUSES_IGNORE);
+                                finished.data(), statuses.data());
+    // MPI_ERR_IN_STATUS: the failed sends' own errors are in their statuses.
+    for (int k = 0; rc == MPI_ERR_IN_STATUS && k < count && posted_error_.ok(); ++k) {
+      const int err = statuses[static_cast<size_t>(k)].MPI_ERROR;
+      if (err != MPI_SUCCESS)
+        posted_error_ = Status::Error(StrFormat(
+            "rank %d: a posted send to rank %d failed: %s", rank_,
+            std::next(posted_.begin(), finished[static_cast<size_t>(k)])->to,
+            MpiError(err).c_str()));
+    }
     if (rc != MPI_SUCCESS && posted_error_.ok())
       posted_error_ = Status::Error(StrFormat("rank %d: a posted send failed: %s", rank_,
                                               MpiError(rc).c_str()));
