@@ -163,19 +163,32 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
     }
     case MaterialType::kMirror: {
       if (!can_bounce || !NonZero(m.albedo)) break;
-      Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, ng, p_error),
-            Normalize(Reflect(ray.direction, n)), ray.weight * m.albedo, out);
+      Vec3f reflected = Normalize(Reflect(ray.direction, n));
+      // Near an outline a shading normal can send the reflection under the surface, where it
+      // would meet the surface itself and be lost: a smooth mirror sphere in a white world went
+      // dark at its rim. There the surface's own normal reflects it.
+      if (!(Dot(reflected, ng) > 0)) reflected = Normalize(Reflect(ray.direction, ng));
+      Spawn(ray, RayType::kSpecular, OffsetRayOrigin(p, ng, p_error), reflected,
+            ray.weight * m.albedo, out);
       break;
     }
     case MaterialType::kGlass: {
       if (!can_bounce || !NonZero(m.albedo)) break;
       const bool entering = !(ray.flags & kHitBackFace);
       const float eta = entering ? 1.0f / m.ior : m.ior;
-      const float cos_i = std::min(1.0f, std::max(0.0f, -Dot(ray.direction, n)));
-      float cos_t;
-      const float f = FresnelDielectric(cos_i, eta, &cos_t);
-      const Vec3f reflected = Normalize(Reflect(ray.direction, n));
-      const Vec3f refracted = Normalize(ray.direction * eta + n * (eta * cos_i - cos_t));
+      // The interface's lobes with normal `nn`: a shading normal's may leave the reflection
+      // under the surface or the refraction above it (near an outline: the rim of a smooth glass
+      // sphere went dark); then both come from the surface's own normal, as for a flat face.
+      float cos_i, cos_t, f;
+      Vec3f reflected, refracted;
+      const auto lobes = [&](Vec3f nn) {
+        cos_i = std::min(1.0f, std::max(0.0f, -Dot(ray.direction, nn)));
+        f = FresnelDielectric(cos_i, eta, &cos_t);
+        reflected = Normalize(Reflect(ray.direction, nn));
+        refracted = Normalize(ray.direction * eta + nn * (eta * cos_i - cos_t));
+      };
+      lobes(n);
+      if (!(Dot(reflected, ng) > 0) || (f < 1.0f && !(Dot(refracted, ng) < 0))) lobes(ng);
       const Vec3f tint = ray.weight * m.albedo;
       if (path_) {  // one lobe, chosen with its Fresnel probability (the weight is unchanged)
         if (rng.Uniform(ray.depth, RandomUse::kLobe) < f)

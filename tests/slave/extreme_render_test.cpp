@@ -297,6 +297,68 @@ TEST(ExtremeRadiometry, ClearGlassInAUniformBackgroundConservesEnergy) {
   }
 }
 
+// A sphere of radius 1 at the origin with a normal at each vertex (smooth shading, as most OBJ
+// exporters write it): coarse, so its facets lean up to ~8 degrees from the shading normals.
+std::string SmoothSphere() {
+  std::string obj;
+  char line[200];
+  const int rings = 12, segments = 24;
+  for (int r = 0; r <= rings; ++r) {
+    for (int k = 0; k < segments; ++k) {
+      const double theta = std::numbers::pi * r / rings, phi = 2 * std::numbers::pi * k / segments;
+      const double x = std::sin(theta) * std::cos(phi), y = std::cos(theta),
+                   z = std::sin(theta) * std::sin(phi);
+      std::snprintf(line, sizeof(line), "v %.17g %.17g %.17g\nvn %.17g %.17g %.17g\n", x, y, z, x,
+                    y, z);
+      obj += line;
+    }
+  }
+  auto index = [&](int r, int k) { return r * segments + k % segments + 1; };
+  for (int r = 0; r < rings; ++r) {
+    for (int k = 0; k < segments; ++k) {
+      const int a = index(r, k), b = index(r, k + 1), c = index(r + 1, k + 1), d = index(r + 1, k);
+      if (r > 0) {  // the poles' rings are one point: no zero-area triangles
+        std::snprintf(line, sizeof(line), "f %d//%d %d//%d %d//%d\n", a, a, c, c, b, b);
+        obj += line;
+      }
+      if (r + 1 < rings) {
+        std::snprintf(line, sizeof(line), "f %d//%d %d//%d %d//%d\n", a, a, d, d, c, c);
+        obj += line;
+      }
+    }
+  }
+  return obj;
+}
+
+// A perfect mirror and clear glass in a uniform white world lose no light, with shading normals
+// too: near the outline a shading normal sent the reflection under the surface (the mirror's
+// rim at 0.75-0.9 of the background, found by a user with an exported model), and the
+// refraction above it.
+TEST(ExtremeRadiometry, SmoothShadedMirrorAndGlassKeepTheWholeBackground) {
+  TestStore s = BuildObj(SmoothSphere());
+  ASSERT_TRUE(s.reader);
+  ASSERT_TRUE(s.reader->summary().model_flags & store::kModelHasNormals);
+  for (const render::MaterialType type : {render::MaterialType::kMirror,
+                                          render::MaterialType::kGlass}) {
+    render::Scene scene = ClearGlassScene({0.4f, 0.9f, 3.2f}, {0, 0, 0}, 64);
+    scene.default_material.type = type;
+    scene.integrator.type = render::IntegratorType::kPath;
+    scene.integrator.max_depth = 64;
+    scene.integrator.spp = 4;
+    const RenderOutcome out = Render(*s.reader, scene, Stack());
+    ASSERT_TRUE(out.status.ok()) << out.status.message();
+    int covered = 0, dark = 0;
+    for (size_t i = 0; i < out.image.z.size(); ++i) {
+      if (!std::isfinite(out.image.z[i])) continue;
+      ++covered;
+      if (out.image.rgba[4 * i] < 0.999f) ++dark;
+    }
+    ASSERT_GT(covered, 500);
+    EXPECT_EQ(dark, 0) << (type == render::MaterialType::kMirror ? "mirror" : "glass") << ": "
+                       << dark << " of " << covered << " pixels lost light";
+  }
+}
+
 // Glass seen through glass: the camera inside a glass cube inside another. Whitted traces both
 // lobes at each interface, and rays stay inside the outer cube by reflection, so the rays
 // would double with every bounce (depth 64 in a glass box did not end, growing past 2 GB).
