@@ -26,7 +26,9 @@ struct RayRecord {
   uint8_t depth;      // bounces so far
   uint16_t priority;  // the pixel's priority, inherited by every child
   uint8_t flags;      // kHitBackFace, kOccluded
-  uint8_t reserved;   // (no walk state: the queue a ray waits in names its block)
+  // Diffuse rays: the cosine at the surface they left, in 255ths (QuantizeCosine): the density
+  // they were drawn with, which weighs an emitter they meet against next-event estimation's.
+  uint8_t origin_cosine;
   // The hit triangle's own normal, octahedral, on the side `normal` faces: secondary rays start
   // off the surface along it (the hit point's error is measured against the surface's plane,
   // which a shading normal leaning from it does not see).
@@ -39,6 +41,13 @@ inline constexpr uint8_t kOccluded = 2;     // a shadow ray found a blocker
 inline constexpr uint8_t kPretraced = 4;    // bvh mode: its closest hit was found with its packet
 
 inline RayType TypeOf(const RayRecord& r) { return static_cast<RayType>(r.type); }
+
+// A cosine in [0, 1] to 255ths and back: both sides of multiple importance sampling take the
+// density of a diffuse direction from the same 8 bits, so their weights still sum to one.
+inline uint8_t QuantizeCosine(float c) {
+  return static_cast<uint8_t>(std::lround(std::fmin(1.0f, std::fmax(0.0f, c)) * 255.0f));
+}
+inline float CosineOf(uint8_t q) { return static_cast<float>(q) * (1.0f / 255.0f); }
 inline bool IsShadow(const RayRecord& r) { return TypeOf(r) == RayType::kShadow; }
 
 // Octahedral unit-vector encoding in 2 x 16 bits (error < 1e-4 rad): the normal rides along

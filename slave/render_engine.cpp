@@ -128,7 +128,9 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   }
   if (options_.mode == TraceMode::kBvh && !bvh_) BuildBvh(&s.bvh_build_seconds);
 
-  const Shader shader(scene, materials);
+  // The emitters path tracing aims at: the store's lights.bin with this scene's materials.
+  const render::AreaLights area(store_.emitters(), materials);
+  const Shader shader(scene, materials, &area);
   FrameShared shared;
   shared.store = &store_;
   shared.walk = &walk_;

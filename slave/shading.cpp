@@ -55,9 +55,13 @@ void Basis(Vec3f n, Vec3f* t, Vec3f* b) {
 
 }  // namespace
 
-Shader::Shader(const render::Scene& scene, const render::MaterialTable& materials)
+Shader::Shader(const render::Scene& scene, const render::MaterialTable& materials,
+               const render::AreaLights* area)
     : scene_(scene),
       materials_(materials),
+      area_(scene.integrator.type == render::IntegratorType::kPath && area && !area->empty()
+                ? area
+                : nullptr),
       path_(scene.integrator.type == render::IntegratorType::kPath),
       max_depth_(scene.integrator.max_depth),
       seed_(scene.integrator.seed),
@@ -82,15 +86,26 @@ void Shader::Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f di
 void Shader::DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albedo,
                          uint32_t pixel, uint32_t sample, ShadeOutput* out) const {
   const auto& lights = scene_.lights;
-  if (lights.empty() || !NonZero(albedo)) return;
+  // Path tracing chooses one of the point lights or the emitters (as one more choice). The
+  // emitters only where the path may bounce on: light from an emitter reaches this point as a
+  // path one segment longer, which the depth limit cuts when the bounce is not traced (so the
+  // image converges to the one the bounces alone would give).
+  const bool emitters = area_ && ray.depth < max_depth_;
+  const size_t choices = lights.size() + (emitters ? 1 : 0);
+  if (choices == 0 || !NonZero(albedo)) return;
   size_t first = 0, last = lights.size();
   float scale = 1.0f;
   if (path_) {  // next-event estimation: one light, chosen uniformly
     const SampleRandom rng(seed_, pixel, sample);
     const float u = rng.Uniform(ray.depth, RandomUse::kLightChoice);
-    first = std::min(lights.size() - 1, static_cast<size_t>(u * static_cast<float>(lights.size())));
+    const size_t chosen = std::min(choices - 1, static_cast<size_t>(u * static_cast<float>(choices)));
+    scale = static_cast<float>(choices);
+    if (chosen == lights.size()) {
+      EmitterLight(ray, origin, n, albedo, scale, rng, out);
+      return;
+    }
+    first = chosen;
     last = first + 1;
-    scale = static_cast<float>(lights.size());
   }
   for (size_t i = first; i < last; ++i) {
     const Vec3f to_light = lights[i].position - origin;
@@ -104,6 +119,49 @@ void Shader::DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albe
     if (!NonZero(weight)) continue;
     Spawn(ray, RayType::kShadow, origin, to_light, weight, out);
   }
+}
+
+void Shader::EmitterLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albedo, float scale,
+                          const SampleRandom& rng, ShadeOutput* out) const {
+  const render::AreaLights::Sample s =
+      area_->Pick(rng.Uniform(ray.depth, RandomUse::kEmitterChoice),
+                  rng.Uniform(ray.depth, RandomUse::kEmitterU),
+                  rng.Uniform(ray.depth, RandomUse::kEmitterV));
+  // The shadow ray ends just off the emitter on the side facing the shading point, so that the
+  // emitter itself (and its coplanar neighbours) lie beyond the segment it tests.
+  const Vec3f facing = Dot(s.normal, origin - s.point) >= 0 ? s.normal : -s.normal;
+  const Vec3f target = OffsetRayOrigin(s.point, facing, s.error);
+  const Vec3f to_light = target - origin;
+  const float d2 = Dot(to_light, to_light);
+  if (!(d2 > 0)) return;
+  const float d = std::sqrt(d2);
+  const float cos_surface = Dot(n, to_light) / d;
+  const float cos_light = -Dot(facing, to_light) / d;
+  if (!(cos_surface > 0) || !(cos_light > 0)) return;
+  // Lambertian BRDF albedo/pi times L cos cos' / d^2, over the density of the point per area,
+  // weighed against the diffuse bounce that could have met the same point (the balance
+  // heuristic; EmissionWeight gives that ray the rest): near an emitter, where 1/d^2 is large,
+  // the bounce takes most of the weight, and the fireflies it would make here do not appear.
+  const float light_pdf = s.pdf_area * d2 / (cos_light * scale);  // per solid angle
+  const float bounce_pdf = CosineOf(QuantizeCosine(cos_surface)) / std::numbers::pi_v<float>;
+  const float mis = light_pdf / (light_pdf + bounce_pdf);
+  const Vec3f weight = ray.weight * albedo * s.emission *
+                       (mis * scale * cos_surface * cos_light /
+                        (d2 * std::numbers::pi_v<float> * s.pdf_area));
+  if (!NonZero(weight) || !std::isfinite(MaxComponent(weight))) return;
+  Spawn(ray, RayType::kShadow, origin, to_light, weight, out);
+}
+
+float Shader::EmissionWeight(const RayRecord& ray, Vec3f ng) const {
+  if (!area_ || TypeOf(ray) != RayType::kDiffuse) return 1.0f;
+  const float pdf_area = area_->PdfArea(ray.material);
+  if (!(pdf_area > 0)) return 1.0f;  // not sampled by EmitterLight: only found this way
+  const float cos_light = -Dot(ng, ray.direction);  // ng faces the ray's origin
+  if (!(cos_light > 0)) return 1.0f;
+  const float choices = static_cast<float>(scene_.lights.size() + 1);
+  const float light_pdf = pdf_area * ray.tmax * ray.tmax / (cos_light * choices);  // as EmitterLight
+  const float bounce_pdf = CosineOf(ray.origin_cosine) / std::numbers::pi_v<float>;
+  return bounce_pdf / (bounce_pdf + light_pdf);
 }
 
 void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
@@ -137,7 +195,7 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
     out->normal = n;
     out->albedo = m.albedo;
   }
-  if (m.emissive()) out->radiance = ray.weight * m.emission;
+  if (m.emissive()) out->radiance = ray.weight * m.emission * EmissionWeight(ray, ng);
   const bool can_bounce = ray.depth < max_depth_;
   const SampleRandom rng(seed_, pixel, sample);
   switch (m.type) {
@@ -159,6 +217,7 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
       const Vec3f dir = Normalize(t * (r * std::cos(phi)) + b * (r * std::sin(phi)) +
                                   n * std::sqrt(std::max(0.0f, 1.0f - u1)));
       Spawn(ray, RayType::kDiffuse, above, dir, weight, out);
+      out->children.back().origin_cosine = QuantizeCosine(Dot(n, dir));
       break;
     }
     case MaterialType::kMirror: {

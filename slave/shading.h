@@ -10,7 +10,9 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/render/area_lights.h"
 #include "common/render/material_table.h"
+#include "common/render/random.h"
 #include "common/render/scene.h"
 #include "slave/ray_record.h"
 
@@ -28,7 +30,10 @@ struct ShadeOutput {
 
 class Shader {
  public:
-  Shader(const render::Scene& scene, const render::MaterialTable& materials);
+  // `area`: the emissive triangles path tracing aims at (null or empty: none); it must
+  // outlive the shader.
+  Shader(const render::Scene& scene, const render::MaterialTable& materials,
+         const render::AreaLights* area = nullptr);
 
   void Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample, ShadeOutput* out) const;
 
@@ -38,11 +43,19 @@ class Shader {
   // `origin`: the hit point moved off the surface (OffsetRayOrigin), where shadow rays start.
   void DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albedo,
                    uint32_t pixel, uint32_t sample, ShadeOutput* out) const;
+  // One shadow ray towards a point on an emissive triangle (path tracing), its weight the
+  // estimate's times `scale` (1 / the probability of choosing the emitters).
+  void EmitterLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albedo, float scale,
+                    const render::SampleRandom& rng, ShadeOutput* out) const;
+  // The share of an emitter's radiance a ray that met it adds: all of it, except for a diffuse
+  // ray meeting an emitter that EmitterLight samples too (the balance heuristic's weight).
+  float EmissionWeight(const RayRecord& ray, Vec3f ng) const;
   void Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f direction, Vec3f weight,
              ShadeOutput* out) const;
 
   const render::Scene& scene_;
   const render::MaterialTable& materials_;
+  const render::AreaLights* const area_;  // null unless path tracing has emitters to aim at
   const bool path_;
   const int max_depth_;
   const uint64_t seed_;

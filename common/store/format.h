@@ -21,6 +21,9 @@ inline constexpr char kBlocksMagic[8] = {'R', 'S', 'T', 'K', 'B', 'L', 'K', '\0'
 inline constexpr const char* kIndexFile = "index.bin";
 inline constexpr const char* kOctreeFile = "octree.bin";
 inline constexpr const char* kBlocksFile = "blocks.bin";
+// The emissive triangles (optional: stores written before it have none, see EmitterRecord).
+inline constexpr char kLightsMagic[8] = {'R', 'S', 'T', 'K', 'L', 'I', 'T', '\0'};
+inline constexpr const char* kLightsFile = "lights.bin";
 // Empty; locked by the converter while it writes the store (not part of the format).
 inline constexpr const char* kLockFile = ".lock";
 
@@ -72,6 +75,24 @@ struct MaterialRecord {
   int32_t illum;
 };
 static_assert(sizeof(MaterialRecord) == 112);
+
+// lights.bin's body: every triangle whose material emits (Ke > 0 in its MTL), once each (not
+// per block), in source id order, so that a path tracer can aim rays at the emitters without
+// reading the blocks that hold them (next-event estimation).
+struct EmitterRecord {
+  float p[3][3];      // the corners, as in the blocks
+  uint32_t triangle;  // source triangle id
+  uint32_t material;  // index into index.bin's materials
+};
+static_assert(sizeof(EmitterRecord) == 44);
+
+// True when an MTL record emits (what MaterialFromMtl makes emissive; the converter lists its
+// triangles in lights.bin).
+inline bool EmitsLight(const MaterialRecord& m) {
+  for (const float k : m.ke)
+    if (k > 0 && k <= 3.402823466e38f) return true;  // finite and positive (NaN compares false)
+  return false;
+}
 
 struct BlockEntry {
   uint64_t offset;        // in blocks.bin

@@ -103,6 +103,7 @@ Expected<std::unique_ptr<StoreReader>> StoreReader::Open(const std::string& dir)
   r->dir_ = dir;
   Status s = r->ReadIndex();
   if (s.ok()) s = r->ReadOctree();
+  if (s.ok()) s = r->ReadLights();
   if (s.ok()) s = r->OpenBlocks();
   if (!s.ok()) return s;
   return r;
@@ -175,6 +176,31 @@ Status StoreReader::ReadIndex() {
   }
   if (references != s.references || raw != s.raw_bytes || stored != s.stored_bytes)
     return Status::Error(path + ": the summary's totals (references, bytes) are not its blocks' sums");
+  return OkStatus();
+}
+
+Status StoreReader::ReadLights() {
+  const std::string path = dir_ + "/" + kLightsFile;
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0 && errno == ENOENT) return OkStatus();  // an older store
+  std::vector<uint8_t> body;
+  RAYSTACK_RETURN_IF_ERROR(ReadChecked(path, kLightsMagic, &body));
+  if (body.size() % sizeof(EmitterRecord) != 0)
+    return Status::Error(path + ": size is not a whole number of emitter records");
+  emitters_.resize(body.size() / sizeof(EmitterRecord));
+  if (!emitters_.empty()) std::memcpy(emitters_.data(), body.data(), body.size());
+  for (size_t i = 0; i < emitters_.size(); ++i) {
+    const EmitterRecord& e = emitters_[i];
+    bool finite = true;
+    for (const auto& corner : e.p)
+      for (const float x : corner) finite = finite && std::isfinite(x);
+    if (!finite || e.material >= materials_.size() || !EmitsLight(materials_[e.material]) ||
+        e.triangle >= summary_.source_triangles)
+      return Status::Error(StrFormat("%s: emitter %zu (triangle %u) is not an emissive triangle "
+                                     "of this store (a non-finite corner, or a material or id "
+                                     "out of range)", path.c_str(), i, e.triangle));
+  }
+  lights_listed_ = true;
   return OkStatus();
 }
 

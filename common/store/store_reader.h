@@ -63,6 +63,10 @@ class StoreReader {
   const StoreSummary& summary() const { return summary_; }
   std::span<const BlockEntry> blocks() const { return blocks_; }
   std::span<const MaterialRecord> materials() const { return materials_; }
+  // The emissive triangles (lights.bin). Empty, with lights_listed() false, for a store written
+  // before lights.bin existed: its emitters are only found by the rays that meet them.
+  std::span<const EmitterRecord> emitters() const { return emitters_; }
+  bool lights_listed() const { return lights_listed_; }
   OctreeView octree() const { return OctreeView(nodes_, NodeBoundsView(), root_cell()); }
   Bounds3f root_cell() const;
   Bounds3f model_bounds() const;
@@ -106,6 +110,7 @@ class StoreReader {
   StoreReader() = default;
   Status ReadIndex();
   Status ReadOctree();
+  Status ReadLights();
   void ComputeNodeBounds();
   Status OpenBlocks();
   Status ReadRangeDirect(uint64_t offset, uint64_t size, uint8_t* out) const;
@@ -116,6 +121,8 @@ class StoreReader {
   std::vector<MaterialRecord> materials_;
   std::vector<BlockEntry> blocks_;
   std::vector<OctreeNode> nodes_;
+  std::vector<EmitterRecord> emitters_;
+  bool lights_listed_ = false;
   // Per node, the union of its blocks' bounds: lower x, y, z then upper x, y, z, each an array
   // of node_count floats (NodeBounds).
   std::vector<float> node_bounds_;

@@ -118,7 +118,7 @@ StoreWriter::~StoreWriter() {
 void StoreWriter::RemovePartialStore() {
   if (lock_fd_ < 0) return;  // not locked: the files may be another writer's
   std::error_code ec;
-  for (const char* file : {kBlocksFile, kOctreeFile, kIndexFile}) {
+  for (const char* file : {kBlocksFile, kOctreeFile, kLightsFile, kIndexFile}) {
     std::filesystem::remove(Tmp(dir_ + "/" + file), ec);
     if (created_dir_) std::filesystem::remove(dir_ + "/" + file, ec);
   }
@@ -152,7 +152,8 @@ Status StoreWriter::Add(const EncodedBlock& b) {
 }
 
 Status StoreWriter::Finish(StoreSummary s, std::span<const OctreeNode> octree,
-                           std::span<const MaterialRecord> materials) {
+                           std::span<const MaterialRecord> materials,
+                           std::span<const EmitterRecord> emitters) {
   const std::string blocks_path = dir_ + "/" + kBlocksFile;
   FileHeader h{};
   std::memcpy(h.magic, kBlocksMagic, 8);
@@ -170,6 +171,10 @@ Status StoreWriter::Finish(StoreSummary s, std::span<const OctreeNode> octree,
   std::vector<uint8_t> body;
   Append(&body, octree.data(), octree.size());
   RAYSTACK_RETURN_IF_ERROR(WriteWhole(dir_ + "/" + kOctreeFile, kOctreeMagic, body));
+  // Always written, empty too, so that an older store's lights.bin never outlives it.
+  body.clear();
+  Append(&body, emitters.data(), emitters.size());
+  RAYSTACK_RETURN_IF_ERROR(WriteWhole(dir_ + "/" + kLightsFile, kLightsMagic, body));
 
   s.block_count = static_cast<uint32_t>(entries_.size());
   s.octree_node_count = static_cast<uint32_t>(octree.size());

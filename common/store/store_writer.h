@@ -1,7 +1,7 @@
 #pragma once
 // Writes a block store directory: blocks are appended to blocks.bin in the order given (the
-// converter gives them in space-filling-curve order); Finish() writes octree.bin and then
-// index.bin. Each file is written under a temporary name and renamed into place, index.bin
+// converter gives them in space-filling-curve order); Finish() writes octree.bin, lights.bin
+// and then index.bin. Each file is written under a temporary name and renamed into place, index.bin
 // last, so a store directory with an index.bin is always complete.
 
 #include <cstdint>
@@ -43,8 +43,10 @@ class StoreWriter {
   // Appends a block; ids must come in order 0, 1, 2, ...
   Status Add(const EncodedBlock& block);
   // Completes the store. `summary`'s counts of blocks, bytes and references are filled here.
+  // `emitters`: the emissive triangles (lights.bin), each once.
   Status Finish(StoreSummary summary, std::span<const OctreeNode> octree,
-                std::span<const MaterialRecord> materials);
+                std::span<const MaterialRecord> materials,
+                std::span<const EmitterRecord> emitters = {});
 
   std::span<const BlockEntry> entries() const { return entries_; }
 

@@ -61,12 +61,15 @@ inline std::unique_ptr<store::StoreReader> OpenDirect(const TestStore& s) {
   return std::move(*direct);
 }
 
-// A store from OBJ text (written to a temp file first).
-inline TestStore BuildObj(const std::string& obj_text, uint32_t target_kb = 8) {
+// A store from OBJ text (written to a temp file first), with `mtl_text` as model.mtl beside it
+// when given (the OBJ names it with "mtllib model.mtl").
+inline TestStore BuildObj(const std::string& obj_text, uint32_t target_kb = 8,
+                          const std::string& mtl_text = "") {
   Expected<TempDir> tmp = TempDir::Create();
   EXPECT_TRUE(tmp.ok());
   const std::string path = tmp->File("model.obj");
   std::ofstream(path) << obj_text;
+  if (!mtl_text.empty()) std::ofstream(tmp->File("model.mtl")) << mtl_text;
   prep::ConvertOptions o;
   o.inputs = {path};
   TestStore s = BuildStore(o, target_kb);

@@ -73,6 +73,45 @@ double Since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// The triangles of `source` whose material emits, for lights.bin. Held in memory, up to a tenth
+// of the converter's budget (2.4 M triangles at the default 1 GB): past that, none are kept and
+// a path tracer finds the emitters only where its rays happen to meet them.
+Status CollectEmitters(const TriangleSource& source,
+                       std::span<const store::MaterialRecord> materials, uint64_t budget,
+                       std::vector<store::EmitterRecord>* emitters) {
+  std::vector<uint8_t> emits(materials.size());
+  bool any = false;
+  for (size_t m = 0; m < materials.size(); ++m) any |= (emits[m] = store::EmitsLight(materials[m]));
+  if (!any) return OkStatus();
+  const uint64_t most = budget / 10 / sizeof(store::EmitterRecord);
+  bool too_many = false;
+  RAYSTACK_RETURN_IF_ERROR(source.ForEach(
+      [&](std::span<const store::PackedTriangle> tris, std::span<const store::TriangleAttributes>) {
+        for (const store::PackedTriangle& t : tris) {
+          const uint32_t m = t.material();
+          if (m >= emits.size() || !emits[m] || too_many) continue;
+          if (emitters->size() >= most) {
+            too_many = true;
+            continue;
+          }
+          store::EmitterRecord& e = emitters->emplace_back();
+          for (int c = 0; c < 3; ++c)
+            for (int a = 0; a < 3; ++a) e.p[c][a] = t.p[c][a];
+          e.triangle = t.id;
+          e.material = m;
+        }
+        return OkStatus();
+      }));
+  if (too_many) {
+    LOG_WARNING("prep", "more than %llu emissive triangles (a tenth of --mem-limit): lights.bin "
+                "lists none, so path tracing will find the emitters only where its rays meet "
+                "them (a larger --mem-limit keeps them)", static_cast<unsigned long long>(most));
+    emitters->clear();
+    emitters->shrink_to_fit();
+  }
+  return OkStatus();
+}
+
 }  // namespace
 
 // The range float ray tracing works in (import::kMaxCoordinate): the readers check each
@@ -165,6 +204,9 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   }
 
   RAYSTACK_RETURN_IF_ERROR(CheckScale(source.bounds(), source.copies() > 1));
+  std::vector<store::EmitterRecord> emitters;
+  RAYSTACK_RETURN_IF_ERROR(CollectEmitters(source, materials, budget, &emitters));
+  report.emitters = emitters.size();
 
   // 2. Octree and blocks.
   Expected<std::unique_ptr<store::StoreWriter>> writer = store::StoreWriter::Create(args.output);
@@ -203,7 +245,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   summary.max_block_bytes = options.max_block_bytes;
   summary.target_block_bytes = options.target_block_bytes;
   summary.codec = args.shuffle ? store::kCodecShuffleLz4 : store::kCodecLz4;
-  RAYSTACK_RETURN_IF_ERROR((*writer)->Finish(summary, built->octree, materials));
+  RAYSTACK_RETURN_IF_ERROR((*writer)->Finish(summary, built->octree, materials, emitters));
 
   const BuildResult& r = *built;
   report.blocks = r.blocks;

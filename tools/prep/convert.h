@@ -45,6 +45,7 @@ struct ConvertReport {
   uint64_t blocks = 0, references = 0, raw_bytes = 0, stored_bytes = 0;
   uint32_t largest_raw_bytes = 0, max_depth = 0, partition_passes = 0, multi_block_leaves = 0;
   uint64_t octree_nodes = 0;
+  uint64_t emitters = 0;  // emissive triangles listed in lights.bin
   double seconds = 0, read_seconds = 0;
 };
 

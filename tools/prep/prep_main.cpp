@@ -187,6 +187,9 @@ int Run(const Args& args) {
       args.convert.shuffle ? "shuffle+lz4" : "lz4", static_cast<double>(r.stored_bytes) / tris,
       static_cast<unsigned long long>(r.octree_nodes), r.max_depth, r.partition_passes,
       r.multi_block_leaves, r.seconds, r.read_seconds, mtri_s, PeakRssMb());
+  if (r.emitters > 0)
+    std::printf("  lights         %llu emissive triangles (lights.bin, for path tracing)\n",
+                static_cast<unsigned long long>(r.emitters));
   if (!args.stats_json.empty()) {
     std::FILE* f = std::fopen(args.stats_json.c_str(), "w");
     if (!f) {
@@ -199,7 +202,7 @@ int Run(const Args& args) {
                  "\"references\": %llu, \"raw_bytes\": %llu, \"stored_bytes\": %llu, "
                  "\"largest_raw_block_bytes\": %u, \"seconds\": %.3f, \"read_seconds\": %.3f, "
                  "\"mtriangles_per_s\": %.3f, \"peak_rss_mb\": %.1f, \"octree_nodes\": %llu, "
-                 "\"max_depth\": %u}\n",
+                 "\"max_depth\": %u, \"emitters\": %llu}\n",
                  static_cast<unsigned long long>(r.triangles),
                  static_cast<unsigned long long>(r.zero_area_dropped),
                  static_cast<unsigned long long>(r.blocks),
@@ -207,7 +210,7 @@ int Run(const Args& args) {
                  static_cast<unsigned long long>(r.raw_bytes),
                  static_cast<unsigned long long>(r.stored_bytes), r.largest_raw_bytes, r.seconds,
                  r.read_seconds, mtri_s, PeakRssMb(), static_cast<unsigned long long>(r.octree_nodes),
-                 r.max_depth);
+                 r.max_depth, static_cast<unsigned long long>(r.emitters));
     std::fclose(f);
   }
   return 0;

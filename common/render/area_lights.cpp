@@ -1,0 +1,76 @@
+#include "common/render/area_lights.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace raystack::render {
+
+AreaLights::AreaLights(std::span<const store::EmitterRecord> emitters,
+                       const MaterialTable& materials) {
+  const size_t material_count = materials.size() - 1;  // the store's, without the default
+  pdf_area_.assign(material_count, 0.0f);
+  std::vector<double> power, areas;
+  for (const store::EmitterRecord& e : emitters) {
+    if (e.material >= material_count) continue;
+    const Material& m = materials.Get(e.material);
+    const Vec3f p0{e.p[0][0], e.p[0][1], e.p[0][2]}, p1{e.p[1][0], e.p[1][1], e.p[1][2]},
+        p2{e.p[2][0], e.p[2][1], e.p[2][2]};
+    const Vec3f cross = Cross(p1 - p0, p2 - p0);
+    // In double: at the largest scales a model may have (1e18) the float square overflows.
+    const double cx = cross.x, cy = cross.y, cz = cross.z;
+    const double area = 0.5 * std::sqrt(cx * cx + cy * cy + cz * cz);
+    const double ex = m.emission.x, ey = m.emission.y, ez = m.emission.z;
+    const double radiance = (ex + ey + ez) / 3;
+    // The scene made it dark (then no triangle of its material is here, and its hits add
+    // nothing either), or it has no area a ray could meet.
+    if (!m.emissive() || !(area > 0) || !std::isfinite(area) || !(radiance > 0)) continue;
+    Triangle t;
+    t.p0 = p0;
+    t.e1 = p1 - p0;
+    t.e2 = p2 - p0;
+    for (int a = 0; a < 3; ++a)  // a few ulps of the corners: what interpolating them rounds
+      t.error[a] = (std::fabs(p0[a]) + std::fabs(p1[a]) + std::fabs(p2[a])) * 0x1p-20f;
+    t.normal = Normalize(cross * static_cast<float>(1 / (2 * area)));  // unit before the square
+    t.emission = m.emission;
+    triangles_.push_back(t);
+    power.push_back(area * radiance);
+    areas.push_back(area);
+  }
+  double total = 0;
+  for (const double w : power) total += w;
+  double running = 0;
+  cumulative_.reserve(triangles_.size());
+  for (size_t i = 0; i < triangles_.size(); ++i) {
+    const double p = power[i] / total;
+    running += p;
+    cumulative_.push_back(static_cast<float>(running));
+    triangles_[i].pdf_area = static_cast<float>(p / areas[i]);
+  }
+  // The same density for every triangle of a material: power / total / area = radiance / total.
+  for (const store::EmitterRecord& e : emitters) {
+    if (e.material >= material_count) continue;
+    const Vec3f em = materials.Get(e.material).emission;
+    const double radiance = (double{em.x} + double{em.y} + double{em.z}) / 3;
+    if (radiance > 0 && total > 0) pdf_area_[e.material] = static_cast<float>(radiance / total);
+  }
+  if (!cumulative_.empty()) cumulative_.back() = 1.0f;
+}
+
+AreaLights::Sample AreaLights::Pick(float u_choice, float u1, float u2) const {
+  const size_t i = std::min<size_t>(
+      triangles_.size() - 1,
+      static_cast<size_t>(std::upper_bound(cumulative_.begin(), cumulative_.end(), u_choice) -
+                          cumulative_.begin()));
+  const Triangle& t = triangles_[i];
+  // Uniform on the triangle: barycentrics (1 - sqrt(u1), sqrt(u1) (1 - u2), sqrt(u1) u2).
+  const float su = std::sqrt(u1);
+  Sample s;
+  s.point = t.p0 + t.e1 * (su * (1 - u2)) + t.e2 * (su * u2);
+  s.error = t.error;
+  s.normal = t.normal;
+  s.emission = t.emission;
+  s.pdf_area = t.pdf_area;
+  return s;
+}
+
+}  // namespace raystack::render
