@@ -66,8 +66,35 @@ render::FramePlan PlanOf(const RenderArgs& args, const render::Scene& scene,
                                args.engine.pixel_order, coarse_rounds);
 }
 
-void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materials) {
+void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materials,
+                 const store::StoreReader& store) {
   const Vec3f b = scene.background;
+  const bool path = scene.integrator.type == render::IntegratorType::kPath;
+  if (!path && materials.any_emissive())
+    LOG_WARNING("render", "%s: the whitted integrator lights with point lights only: the emissive "
+                "materials are seen, but light nothing (the \"path\" integrator lights with them)",
+                scene.source.c_str());
+  if (path && materials.any_emissive()) {
+    bool stored = false;  // an emitter lights.bin lists, or would list with a newer converter
+    for (size_t m = 0; m + 1 < materials.size(); ++m)
+      stored = stored || (materials.Get(static_cast<uint32_t>(m)).emissive() &&
+                          store::EmitsLight(store.materials()[m]));
+    if (stored && !store.lights_listed())
+      LOG_WARNING("render", "%s: converted before raystack-prep listed emitters (no %s): path "
+                  "tracing finds its emissive triangles only where rays meet them; convert the "
+                  "model again for far less noise", store.dir().c_str(), store::kLightsFile);
+    for (size_t m = 0; m + 1 < materials.size(); ++m)
+      if (materials.Get(static_cast<uint32_t>(m)).emissive() &&
+          !store::EmitsLight(store.materials()[m]))
+        LOG_WARNING("render", "%s: material '%s' emits only by the scene file: path tracing finds "
+                    "it only where rays meet it (it aims at what the MTL makes emissive: give it "
+                    "Ke there and convert again for less noise)", scene.source.c_str(),
+                    store.materials()[m].name);
+    if (materials.default_material().emissive())
+      LOG_WARNING("render", "%s: the default material emits: path tracing finds those triangles "
+                  "only where rays meet them (it aims at what the MTL makes emissive)",
+                  scene.source.c_str());
+  }
   if (!scene.lights.empty() || materials.any_emissive() || b.x > 0 || b.y > 0 || b.z > 0) return;
   LOG_WARNING("render",
               "%s: the scene has no light (no point lights, no emissive material in the store "

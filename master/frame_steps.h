@@ -35,7 +35,11 @@ std::string OutputOf(const RenderArgs& args, const render::Scene& scene);
 Expected<render::Scene> LoadSceneFor(const RenderArgs& args);
 // A scene that can only come out black (no point light, nothing emissive in the store's
 // materials or the scene's, a black background) is most likely a mistake: say so up front.
-void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materials);
+// Also emitters that will not light as the user may think: under whitted (point lights only),
+// or under path without lights.bin's list (an older store, a material emissive by the scene
+// file alone), where only the rays that meet them find them.
+void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materials,
+                 const store::StoreReader& store);
 // The stored (compressed) bytes of every block.
 uint64_t StoredBytes(const store::StoreReader& store);
 

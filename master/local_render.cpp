@@ -88,7 +88,7 @@ Status RenderLocally(const RenderArgs& args) {
   if (!engine.ok()) return engine.status();
   const render::MaterialTable materials =
       render::MaterialTable::Build((*store)->materials(), *scene);
-  WarnIfUnlit(*scene, materials);
+  WarnIfUnlit(*scene, materials, **store);
   Expected<preview::LivePreview> preview = preview::LivePreview::Start(args.preview);
   if (!preview.ok()) return preview.status();
 
