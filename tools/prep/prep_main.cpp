@@ -170,7 +170,7 @@ int Run(const Args& args) {
   const ConvertReport& r = *converted;
   const double tris = static_cast<double>(r.triangles);
   const double mtri_s = tris / r.seconds / 1e6;
-  std::printf(
+  if (!args.convert.quiet) std::printf(
       "store %s\n"
       "  triangles      %llu (read %llu, %llu zero-area dropped, x%llu copies)\n"
       "  blocks         %llu, mean raw %.1f KB, largest %.1f KB, %.3f references per triangle\n"
@@ -187,7 +187,7 @@ int Run(const Args& args) {
       args.convert.shuffle ? "shuffle+lz4" : "lz4", static_cast<double>(r.stored_bytes) / tris,
       static_cast<unsigned long long>(r.octree_nodes), r.max_depth, r.partition_passes,
       r.multi_block_leaves, r.seconds, r.read_seconds, mtri_s, PeakRssMb());
-  if (r.emitters > 0)
+  if (r.emitters > 0 && !args.convert.quiet)
     std::printf("  lights         %llu emissive triangles (lights.bin, for path tracing)\n",
                 static_cast<unsigned long long>(r.emitters));
   if (!args.stats_json.empty()) {
