@@ -208,6 +208,12 @@ TEST_F(PrepCliTest, QuietPrintsNoSummary) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("store " + dir_->File("loud")), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("2 emissive triangles"), std::string::npos) << r.out;
+  // raystack-info shows what the renderer reads of each material, and the emitters listed.
+  r = Info({dir_->File("loud")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("lights           2 emissive triangles (lights.bin)"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("Ke (17 12 4) Ni 1 d 1 illum 2"), std::string::npos) << r.out;
 }
 
 // Float ray tracing multiplies coordinates: a model whose copies reach past +-1e18, or one

@@ -69,9 +69,18 @@ int Run(const std::string& dir, bool verify, bool list) {
               (m.model_flags & store::kModelHasUvs) ? "uvs " : "",
               (m.model_flags & store::kModelHasMaterials) ? "materials" : (m.model_flags ? "" : "none"));
   std::printf("materials        %u\n", m.material_count);
+  // What MaterialFromMtl reads (illum, d and Ni choose mirror or glass), as stored.
   for (const store::MaterialRecord& r : s.materials())
-    std::printf("  %-24s Kd (%.3g %.3g %.3g) Ke (%.3g %.3g %.3g)\n", r.name, double{r.kd[0]}, double{r.kd[1]},
-                double{r.kd[2]}, double{r.ke[0]}, double{r.ke[1]}, double{r.ke[2]});
+    std::printf("  %-24s Kd (%.3g %.3g %.3g) Ks (%.3g %.3g %.3g) Ke (%.3g %.3g %.3g) Ni %.3g d %.3g "
+                "illum %d\n", r.name, double{r.kd[0]}, double{r.kd[1]}, double{r.kd[2]},
+                double{r.ks[0]}, double{r.ks[1]}, double{r.ks[2]}, double{r.ke[0]},
+                double{r.ke[1]}, double{r.ke[2]}, double{r.ni}, double{r.d}, r.illum);
+  if (s.lights_listed())
+    std::printf("lights           %zu emissive triangles (%s)\n", s.emitters().size(),
+                store::kLightsFile);
+  else
+    std::printf("lights           not listed (converted before %s: path tracing does not aim at "
+                "its emitters; convert again)\n", store::kLightsFile);
   if (m.block_count) PrintHistogram(s.blocks());
   if (list) {
     for (uint32_t i = 0; i < s.blocks().size(); ++i) {
