@@ -40,7 +40,8 @@ options:
   --bvh-leaf N            most triangles per leaf of a block's BVH (default 8)
   --bvh-traversal-cost X  SAH cost of a BVH node relative to a triangle test (default 4)
   --stats-json FILE       also write the run's figures as JSON
-  -q, --quiet             no progress or information lines (warnings and errors stay)
+  -q, --quiet             no progress or information lines (the summary, warnings and
+                          errors stay)
   -h, --help              this text
 )";
 
@@ -170,7 +171,7 @@ int Run(const Args& args) {
   const ConvertReport& r = *converted;
   const double tris = static_cast<double>(r.triangles);
   const double mtri_s = tris / r.seconds / 1e6;
-  if (!args.convert.quiet) std::printf(
+  std::printf(
       "store %s\n"
       "  triangles      %llu (read %llu, %llu zero-area dropped, x%llu copies)\n"
       "  blocks         %llu, mean raw %.1f KB, largest %.1f KB, %.3f references per triangle\n"
@@ -187,7 +188,7 @@ int Run(const Args& args) {
       args.convert.shuffle ? "shuffle+lz4" : "lz4", static_cast<double>(r.stored_bytes) / tris,
       static_cast<unsigned long long>(r.octree_nodes), r.max_depth, r.partition_passes,
       r.multi_block_leaves, r.seconds, r.read_seconds, mtri_s, PeakRssMb());
-  if (r.emitters > 0 && !args.convert.quiet)
+  if (r.emitters > 0)
     std::printf("  lights         %llu emissive triangles (lights.bin, for path tracing)\n",
                 static_cast<unsigned long long>(r.emitters));
   if (!args.stats_json.empty()) {
