@@ -6,6 +6,7 @@
 
 #include <cstdio>
 
+#include <filesystem>
 #include <fstream>
 
 #include "common/base/temp_dir.h"
@@ -295,6 +296,9 @@ TEST_F(DistributedCli, ARankWithAnotherStoreOrSceneEndsTheJobNamingIt) {
        "8", "-q"},
       dir_->path());
   ASSERT_EQ(other_store.exit_code, 0) << other_store.err;
+  // The same store converted before lights.bin existed: the same index, another image.
+  std::filesystem::copy(dir_->File("store"), dir_->File("store-older"));
+  std::filesystem::remove(dir_->File("store-older/lights.bin"));
   const std::string integrator = R"({ "type": "whitted" })";
   const std::string scene = Scene(integrator);
   std::string text = Slurp(scene);
@@ -310,6 +314,9 @@ TEST_F(DistributedCli, ARankWithAnotherStoreOrSceneEndsTheJobNamingIt) {
     std::string scene, error;
   };
   for (const Case& c : {Case{write("other-store.json", R"("store": "store")", R"("store": "store2")"),
+                             "reads another store than the master"},
+                        Case{write("older-store.json", R"("store": "store")",
+                                   R"("store": "store-older")"),
                              "reads another store than the master"},
                         Case{write("other-light.json", "[100, 100, 100]", "[100, 100, 90]"),
                              "read another scene than the master"},
