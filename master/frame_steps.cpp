@@ -83,13 +83,19 @@ void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materi
       LOG_WARNING("render", "%s: converted before raystack-prep listed emitters (no %s): path "
                   "tracing finds its emissive triangles only where rays meet them; convert the "
                   "model again for far less noise", store.dir().c_str(), store::kLightsFile);
+    std::string names;  // the first few, then how many more (a scene may have thousands)
+    size_t count = 0;
     for (size_t m = 0; m + 1 < materials.size(); ++m)
       if (materials.Get(static_cast<uint32_t>(m)).emissive() &&
-          !store::EmitsLight(store.materials()[m]))
-        LOG_WARNING("render", "%s: material '%s' emits only by the scene file: path tracing finds "
-                    "it only where rays meet it (it aims at what the MTL makes emissive: give it "
-                    "Ke there and convert again for less noise)", scene.source.c_str(),
-                    store.materials()[m].name);
+          !store::EmitsLight(store.materials()[m]) && ++count <= 3)
+        names += (names.empty() ? "'" : ", '") + std::string(store.materials()[m].name) + "'";
+    if (count > 3) names += StrFormat(" and %zu more", count - 3);
+    if (count > 0)
+      LOG_WARNING("render", "%s: material%s %s emit%s only by the scene file: path tracing finds "
+                  "%s only where rays meet %s (it aims at what the MTL makes emissive: give %s Ke "
+                  "there and convert again for less noise)", scene.source.c_str(),
+                  count > 1 ? "s" : "", names.c_str(), count > 1 ? "" : "s",
+                  count > 1 ? "them" : "it", count > 1 ? "them" : "it", count > 1 ? "them" : "it");
     if (materials.default_material().emissive())
       LOG_WARNING("render", "%s: the default material emits: path tracing finds those triangles "
                   "only where rays meet them (it aims at what the MTL makes emissive)",

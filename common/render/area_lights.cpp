@@ -10,6 +10,7 @@ AreaLights::AreaLights(std::span<const store::EmitterRecord> emitters,
   const size_t material_count = materials.size() - 1;  // the store's, without the default
   pdf_area_.assign(material_count, 0.0f);
   std::vector<double> power, areas;
+  std::vector<uint8_t> listed(material_count, 0);  // materials with a triangle here
   for (const store::EmitterRecord& e : emitters) {
     if (e.material >= material_count) continue;
     const Material& m = materials.Get(e.material);
@@ -35,6 +36,7 @@ AreaLights::AreaLights(std::span<const store::EmitterRecord> emitters,
     triangles_.push_back(t);
     power.push_back(area * radiance);
     areas.push_back(area);
+    listed[e.material] = 1;
   }
   double total = 0;
   for (const double w : power) total += w;
@@ -43,20 +45,20 @@ AreaLights::AreaLights(std::span<const store::EmitterRecord> emitters,
   for (size_t i = 0; i < triangles_.size(); ++i) {
     const double p = power[i] / total;
     running += p;
-    cumulative_.push_back(static_cast<float>(running));
+    cumulative_.push_back(running);
     triangles_[i].pdf_area = static_cast<float>(p / areas[i]);
   }
   // The same density for every triangle of a material: power / total / area = radiance / total.
-  for (const store::EmitterRecord& e : emitters) {
-    if (e.material >= material_count) continue;
-    const Vec3f em = materials.Get(e.material).emission;
+  for (size_t m = 0; m < material_count; ++m) {
+    if (!listed[m]) continue;
+    const Vec3f em = materials.Get(static_cast<uint32_t>(m)).emission;
     const double radiance = (double{em.x} + double{em.y} + double{em.z}) / 3;
-    if (radiance > 0 && total > 0) pdf_area_[e.material] = static_cast<float>(radiance / total);
+    pdf_area_[m] = static_cast<float>(radiance / total);
   }
   if (!cumulative_.empty()) cumulative_.back() = 1.0f;
 }
 
-AreaLights::Sample AreaLights::Pick(float u_choice, float u1, float u2) const {
+AreaLights::Sample AreaLights::Pick(double u_choice, float u1, float u2) const {
   const size_t i = std::min<size_t>(
       triangles_.size() - 1,
       static_cast<size_t>(std::upper_bound(cumulative_.begin(), cumulative_.end(), u_choice) -

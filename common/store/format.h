@@ -59,7 +59,9 @@ struct StoreSummary {
   uint32_t max_block_bytes;     // the cap the store was built with
   uint32_t target_block_bytes;  // the mean it aimed at
   uint32_t codec;               // BlockCodec
-  uint32_t reserved;
+  // lights.bin's body checksum, its low 32 bits | 1; 0 in a store written before lights.bin
+  // (whose reader then ignores a lights.bin beside it: another conversion's).
+  uint32_t lights_checksum;
 };
 static_assert(sizeof(StoreSummary) == 112);
 

@@ -78,8 +78,15 @@ Status ReadChecked(const std::string& path, const char (&magic)[8], std::vector<
     status = Status::Error(path + ": size does not match its header (truncated?)");
   } else {
     body->resize(h.body_bytes);
-    ssize_t got = ::pread(fd, body->data(), body->size(), sizeof h);
-    if (got != static_cast<ssize_t>(body->size()))
+    // In pieces: one pread returns at most ~2 GiB.
+    uint64_t done = 0;
+    while (done < body->size()) {
+      const ssize_t got = ::pread(fd, body->data() + done, body->size() - done,
+                                  static_cast<off_t>(sizeof h + done));
+      if (got <= 0) break;
+      done += static_cast<uint64_t>(got);
+    }
+    if (done != body->size())
       status = Status::Error(path + ": short read");
     else if (Checksum(*body) != h.body_checksum)
       status = Status::Error(path + ": checksum mismatch (file is damaged)");
@@ -181,10 +188,18 @@ Status StoreReader::ReadIndex() {
 
 Status StoreReader::ReadLights() {
   const std::string path = dir_ + "/" + kLightsFile;
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0 && errno == ENOENT) return OkStatus();  // an older store
+  if (summary_.lights_checksum == 0) {  // written before lights.bin: any beside it is not its own
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0)
+      LOG_WARNING("store", "%s: ignored (index.bin was written without it, by an older "
+                  "raystack-prep)", path.c_str());
+    return OkStatus();
+  }
   std::vector<uint8_t> body;
   RAYSTACK_RETURN_IF_ERROR(ReadChecked(path, kLightsMagic, &body));
+  if ((static_cast<uint32_t>(Checksum(body)) | 1u) != summary_.lights_checksum)
+    return Status::Error(path + ": not this store's (index.bin names another; a conversion was "
+                         "interrupted or mixed): convert the model again");
   if (body.size() % sizeof(EmitterRecord) != 0)
     return Status::Error(path + ": size is not a whole number of emitter records");
   emitters_.resize(body.size() / sizeof(EmitterRecord));
@@ -195,10 +210,12 @@ Status StoreReader::ReadLights() {
     for (const auto& corner : e.p)
       for (const float x : corner) finite = finite && std::isfinite(x);
     if (!finite || e.material >= materials_.size() || !EmitsLight(materials_[e.material]) ||
-        e.triangle >= summary_.source_triangles)
+        e.triangle >= summary_.source_triangles ||
+        (i > 0 && e.triangle <= emitters_[i - 1].triangle))
       return Status::Error(StrFormat("%s: emitter %zu (triangle %u) is not an emissive triangle "
-                                     "of this store (a non-finite corner, or a material or id "
-                                     "out of range)", path.c_str(), i, e.triangle));
+                                     "of this store (a non-finite corner, a material or id out "
+                                     "of range, or ids out of order)", path.c_str(), i,
+                                     e.triangle));
   }
   lights_listed_ = true;
   return OkStatus();

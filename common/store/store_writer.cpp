@@ -171,10 +171,12 @@ Status StoreWriter::Finish(StoreSummary s, std::span<const OctreeNode> octree,
   std::vector<uint8_t> body;
   Append(&body, octree.data(), octree.size());
   RAYSTACK_RETURN_IF_ERROR(WriteWhole(dir_ + "/" + kOctreeFile, kOctreeMagic, body));
-  // Always written, empty too, so that an older store's lights.bin never outlives it.
+  // Always written, empty too, so that an older store's lights.bin never outlives it; index.bin
+  // names it by checksum, so a lights.bin of another conversion is never taken for this one's.
   body.clear();
   Append(&body, emitters.data(), emitters.size());
   RAYSTACK_RETURN_IF_ERROR(WriteWhole(dir_ + "/" + kLightsFile, kLightsMagic, body));
+  s.lights_checksum = static_cast<uint32_t>(Checksum(body)) | 1u;
 
   s.block_count = static_cast<uint32_t>(entries_.size());
   s.octree_node_count = static_cast<uint32_t>(octree.size());

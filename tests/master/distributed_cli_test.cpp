@@ -12,6 +12,7 @@
 #include "common/base/temp_dir.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/convergence_csv.h"
+#include "tests/support/older_store.h"
 #include "tests/support/store_dir_fixture.h"
 
 namespace raystack::testing {
@@ -297,8 +298,7 @@ TEST_F(DistributedCli, ARankWithAnotherStoreOrSceneEndsTheJobNamingIt) {
       dir_->path());
   ASSERT_EQ(other_store.exit_code, 0) << other_store.err;
   // The same store converted before lights.bin existed: the same index, another image.
-  std::filesystem::copy(dir_->File("store"), dir_->File("store-older"));
-  std::filesystem::remove(dir_->File("store-older/lights.bin"));
+  ASSERT_TRUE(CopyAsOlderStore(dir_->File("store"), dir_->File("store-older")));
   const std::string integrator = R"({ "type": "whitted" })";
   const std::string scene = Scene(integrator);
   std::string text = Slurp(scene);

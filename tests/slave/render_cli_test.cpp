@@ -11,6 +11,7 @@
 #include "common/base/temp_dir.h"
 #include "common/image/exr_io.h"
 #include "tests/prep/run_process.h"
+#include "tests/support/older_store.h"
 #include "tests/support/store_dir_fixture.h"
 
 namespace raystack::testing {
@@ -80,8 +81,7 @@ TEST_F(RenderCli, EmittersThatWillNotLightAsExpectedAreAWarning) {
        dir_->File("box"), "-q"},
       dir_->path());
   ASSERT_EQ(prep.exit_code, 0) << prep.err;
-  std::filesystem::copy(dir_->File("box"), dir_->File("older"));
-  std::filesystem::remove(dir_->File("older/lights.bin"));
+  ASSERT_TRUE(CopyAsOlderStore(dir_->File("box"), dir_->File("older")));
   const auto render = [&](const std::string& store, const std::string& integrator) {
     const std::string path = dir_->File("box.json");
     std::ofstream(path) << R"({ "store": ")" << store << R"(",
