@@ -66,6 +66,15 @@ Kd 0 0 0
 Ke 10 10 10
 )";
 
+// A floor quad and a lamp quad (materials of kLitRoomMtl), corners in order around each.
+std::string FloorAndLamp(const Vec3f (&floor)[4], const Vec3f (&lamp)[4]) {
+  std::string obj = "mtllib model.mtl\n";
+  for (const auto* quad : {&floor, &lamp})
+    for (const Vec3f& v : *quad)
+      obj += "v " + std::to_string(v.x) + " " + std::to_string(v.y) + " " + std::to_string(v.z) + "\n";
+  return obj + "usemtl floor\nf 1 3 2\nf 1 4 3\nusemtl lamp\nf 5 6 7\nf 5 7 8\n";
+}
+
 // The room seen from the front, the lamp out of view, path traced to one bounce (where aiming
 // at the lamp from the last vertex too would add a second bounce's light: +39% in a closed box).
 render::Scene LitRoomScene(int spp, uint64_t seed) {
@@ -298,22 +307,10 @@ f 13 15 16
 // bounces (which find the lamp from there as often as not), the floor around it has less noise
 // than with the bounces alone, and the mean is theirs.
 TEST(AreaLights, NextToAnEmitterTheBouncesTakeOverAndMakeNoFireflies) {
-  TestStore s = BuildObj(R"(mtllib model.mtl
-v -2 0 -2
-v 2 0 -2
-v 2 0 2
-v -2 0 2
-v -0.3 0.02 -0.3
-v 0.3 0.02 -0.3
-v 0.3 0.02 0.3
-v -0.3 0.02 0.3
-usemtl floor
-f 1 3 2
-f 1 4 3
-usemtl lamp
-f 5 6 7
-f 5 7 8
-)", 8, kLitRoomMtl);
+  TestStore s = BuildObj(FloorAndLamp({{-2, 0, -2}, {2, 0, -2}, {2, 0, 2}, {-2, 0, 2}},
+                                      {{-0.3f, 0.02f, -0.3f}, {0.3f, 0.02f, -0.3f},
+                                       {0.3f, 0.02f, 0.3f}, {-0.3f, 0.02f, 0.3f}}),
+                         8, kLitRoomMtl);
   ASSERT_TRUE(s.reader);
   std::unique_ptr<store::StoreReader> older = WithoutLights(s, s.dir->path() + "/older");
   ASSERT_TRUE(older);
@@ -338,22 +335,10 @@ f 5 7 8
 // rounded with the magnitude of its origin, landed past the emitter, which then shadowed itself
 // (half the rays, the image 64% too dark; found by the day's review). Against the bounces alone.
 TEST(AreaLights, AFarPointSeesAnEmitterNearTheAxesUnshadowedByItself) {
-  TestStore s = BuildObj(R"(mtllib model.mtl
-v 150 0 -60
-v 250 0 -60
-v 250 0 60
-v 150 0 60
-v 0.01 0 -20
-v 0.01 40 -20
-v 0.01 40 20
-v 0.01 0 20
-usemtl floor
-f 1 3 2
-f 1 4 3
-usemtl lamp
-f 5 6 7
-f 5 7 8
-)", 8, kLitRoomMtl);
+  TestStore s = BuildObj(FloorAndLamp({{150, 0, -60}, {250, 0, -60}, {250, 0, 60}, {150, 0, 60}},
+                                      {{0.01f, 0, -20}, {0.01f, 40, -20}, {0.01f, 40, 20},
+                                       {0.01f, 0, 20}}),
+                         8, kLitRoomMtl);
   ASSERT_TRUE(s.reader);
   std::unique_ptr<store::StoreReader> older = WithoutLights(s, s.dir->path() + "/older");
   ASSERT_TRUE(older);
