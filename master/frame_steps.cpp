@@ -79,7 +79,11 @@ void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materi
     for (size_t m = 0; m + 1 < materials.size(); ++m)
       stored = stored || (materials.Get(static_cast<uint32_t>(m)).emissive() &&
                           store::EmitsLight(store.materials()[m]));
-    if (stored && !store.lights_listed())
+    if (stored && (store.summary().model_flags & store::kModelEmittersUnlisted))
+      LOG_WARNING("render", "%s: more emissive triangles than raystack-prep's --mem-limit listed: "
+                  "path tracing finds them only where rays meet them; convert again with a larger "
+                  "--mem-limit for far less noise", store.dir().c_str());
+    else if (stored && !store.lights_listed())
       LOG_WARNING("render", "%s: converted before raystack-prep listed emitters (no %s): path "
                   "tracing finds its emissive triangles only where rays meet them; convert the "
                   "model again for far less noise", store.dir().c_str(), store::kLightsFile);

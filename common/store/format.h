@@ -43,6 +43,8 @@ enum ModelFlags : uint32_t {
   kModelHasNormals = 1u << 0,
   kModelHasUvs = 1u << 1,
   kModelHasMaterials = 1u << 2,
+  // Emissive triangles exist but lights.bin lists none: more than the converter's budget held.
+  kModelEmittersUnlisted = 1u << 3,
 };
 
 struct StoreSummary {

@@ -176,6 +176,26 @@ TEST(AreaLights, TheConverterListsEachEmissiveTriangleOnce) {
   EXPECT_TRUE(plain.reader->emitters().empty());
 }
 
+// More emissive triangles than a tenth of the converter's budget: none are listed, and the store
+// says so (kModelEmittersUnlisted), so that raystack-info and the renderer can say it too,
+// instead of "0 emissive triangles" (found by a helper with 200,978 of them at --mem-limit 64).
+TEST(AreaLights, EmittersTooManyToListAreMarkedUnlisted) {
+  Expected<TempDir> tmp = TempDir::Create();
+  ASSERT_TRUE(tmp.ok());
+  std::ofstream(tmp->File("model.obj")) << kLitRoomObj;
+  std::ofstream(tmp->File("model.mtl")) << kLitRoomMtl;
+  prep::ConvertOptions o;
+  o.inputs = {tmp->File("model.obj")};
+  o.memory_limit_bytes = 10 * sizeof(store::EmitterRecord);  // room to list one emitter
+  TestStore s = BuildStore(o);
+  ASSERT_TRUE(s.reader);
+  EXPECT_TRUE(s.reader->emitters().empty());
+  EXPECT_TRUE(s.reader->summary().model_flags & store::kModelEmittersUnlisted);
+  TestStore listed = BuildObj(kLitRoomObj, 8, kLitRoomMtl);
+  ASSERT_TRUE(listed.reader);
+  EXPECT_FALSE(listed.reader->summary().model_flags & store::kModelEmittersUnlisted);
+}
+
 TEST(AreaLights, ADamagedListIsRefusedNamingItAndAMissingOneIsAnOlderStore) {
   TestStore s = BuildObj(kLitRoomObj, 8, kLitRoomMtl);
   ASSERT_TRUE(s.reader);

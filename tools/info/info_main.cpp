@@ -75,7 +75,10 @@ int Run(const std::string& dir, bool verify, bool list) {
                 "illum %d\n", r.name, double{r.kd[0]}, double{r.kd[1]}, double{r.kd[2]},
                 double{r.ks[0]}, double{r.ks[1]}, double{r.ks[2]}, double{r.ke[0]},
                 double{r.ke[1]}, double{r.ke[2]}, double{r.ni}, double{r.d}, r.illum);
-  if (s.lights_listed())
+  if (m.model_flags & store::kModelEmittersUnlisted)
+    std::printf("lights           not listed (more emissive triangles than the converter's "
+                "--mem-limit held: path tracing does not aim at them)\n");
+  else if (s.lights_listed())
     std::printf("lights           %zu emissive triangles (%s)\n", s.emitters().size(),
                 store::kLightsFile);
   else

@@ -76,9 +76,10 @@ double Since(std::chrono::steady_clock::time_point start) {
 // The triangles of `source` whose material emits, for lights.bin. Held in memory, up to a tenth
 // of the converter's budget (2.4 M triangles at the default 1 GB): past that, none are kept and
 // a path tracer finds the emitters only where its rays happen to meet them.
+// `*too_many`: whether some were found but none kept.
 Status CollectEmitters(const TriangleSource& source,
                        std::span<const store::MaterialRecord> materials, uint64_t budget,
-                       std::vector<store::EmitterRecord>* emitters) {
+                       std::vector<store::EmitterRecord>* emitters, bool* too_many_out) {
   std::vector<uint8_t> emits(materials.size());
   bool any = false;
   for (size_t m = 0; m < materials.size(); ++m) any |= (emits[m] = store::EmitsLight(materials[m]));
@@ -109,6 +110,7 @@ Status CollectEmitters(const TriangleSource& source,
     emitters->clear();
     emitters->shrink_to_fit();
   }
+  *too_many_out = too_many;
   return OkStatus();
 }
 
@@ -205,7 +207,8 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
 
   RAYSTACK_RETURN_IF_ERROR(CheckScale(source.bounds(), source.copies() > 1));
   std::vector<store::EmitterRecord> emitters;
-  RAYSTACK_RETURN_IF_ERROR(CollectEmitters(source, materials, budget, &emitters));
+  bool unlisted = false;  // emissive triangles, too many to list
+  RAYSTACK_RETURN_IF_ERROR(CollectEmitters(source, materials, budget, &emitters, &unlisted));
   report.emitters = emitters.size();
 
   // 2. Octree and blocks.
@@ -241,7 +244,8 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   }
   summary.model_flags = (sink.has_normals() ? uint32_t{store::kModelHasNormals} : 0u) |
                         (sink.has_uvs() ? uint32_t{store::kModelHasUvs} : 0u) |
-                        (materials.empty() ? 0u : uint32_t{store::kModelHasMaterials});
+                        (materials.empty() ? 0u : uint32_t{store::kModelHasMaterials}) |
+                        (unlisted ? uint32_t{store::kModelEmittersUnlisted} : 0u);
   summary.max_block_bytes = options.max_block_bytes;
   summary.target_block_bytes = options.target_block_bytes;
   summary.codec = args.shuffle ? store::kCodecShuffleLz4 : store::kCodecLz4;
