@@ -9,8 +9,8 @@ AreaLights::AreaLights(std::span<const store::EmitterRecord> emitters,
                        const MaterialTable& materials) {
   const size_t material_count = materials.size() - 1;  // the store's, without the default
   pdf_area_.assign(material_count, 0.0f);
-  std::vector<double> power, areas;
-  std::vector<uint8_t> listed(material_count, 0);  // materials with a triangle here
+  std::vector<double> power;
+  std::vector<double> radiance_of(material_count, 0.0);  // materials with a triangle here
   for (const store::EmitterRecord& e : emitters) {
     if (e.material >= material_count) continue;
     const Material& m = materials.Get(e.material);
@@ -33,29 +33,21 @@ AreaLights::AreaLights(std::span<const store::EmitterRecord> emitters,
       t.error[a] = (std::fabs(p0[a]) + std::fabs(p1[a]) + std::fabs(p2[a])) * 0x1p-20f;
     t.normal = Normalize(cross * static_cast<float>(1 / (2 * area)));  // unit before the square
     t.emission = m.emission;
+    t.material = e.material;
     triangles_.push_back(t);
     power.push_back(area * radiance);
-    areas.push_back(area);
-    listed[e.material] = 1;
+    radiance_of[e.material] = radiance;
   }
   double total = 0;
   for (const double w : power) total += w;
   double running = 0;
   cumulative_.reserve(triangles_.size());
-  for (size_t i = 0; i < triangles_.size(); ++i) {
-    const double p = power[i] / total;
-    running += p;
-    cumulative_.push_back(running);
-    triangles_[i].pdf_area = static_cast<float>(p / areas[i]);
-  }
-  // The same density for every triangle of a material: power / total / area = radiance / total.
-  for (size_t m = 0; m < material_count; ++m) {
-    if (!listed[m]) continue;
-    const Vec3f em = materials.Get(static_cast<uint32_t>(m)).emission;
-    const double radiance = (double{em.x} + double{em.y} + double{em.z}) / 3;
-    pdf_area_[m] = static_cast<float>(radiance / total);
-  }
-  if (!cumulative_.empty()) cumulative_.back() = 1.0f;
+  for (const double w : power) cumulative_.push_back(running += w / total);
+  if (!cumulative_.empty()) cumulative_.back() = 1.0;
+  // A triangle's chance over its area, power / total / area, is its material's radiance / total:
+  // one density for all the triangles of a material.
+  for (size_t m = 0; m < material_count && total > 0; ++m)
+    pdf_area_[m] = static_cast<float>(radiance_of[m] / total);
 }
 
 AreaLights::Sample AreaLights::Pick(double u_choice, float u1, float u2) const {
@@ -71,7 +63,7 @@ AreaLights::Sample AreaLights::Pick(double u_choice, float u1, float u2) const {
   s.error = t.error;
   s.normal = t.normal;
   s.emission = t.emission;
-  s.pdf_area = t.pdf_area;
+  s.pdf_area = pdf_area_[t.material];
   return s;
 }
 

@@ -51,7 +51,7 @@ class AreaLights {
     Vec3f error;       // (|p0| + |p1| + |p2|) scaled to a bound on a point's rounding
     Vec3f normal;
     Vec3f emission;
-    float pdf_area;  // the probability of choosing it over its area
+    uint32_t material;  // its store material (pdf_area_)
   };
   std::vector<Triangle> triangles_;
   std::vector<double> cumulative_;  // probability of choosing a triangle at or before i
