@@ -66,6 +66,44 @@ render::FramePlan PlanOf(const RenderArgs& args, const render::Scene& scene,
                                args.engine.pixel_order, coarse_rounds);
 }
 
+namespace {
+
+// Path tracing aims at the emitters lights.bin lists: say which emitters it cannot aim at (a
+// store too full, or converted before lights.bin; emissive by the scene file alone).
+void WarnIfEmittersNotAimedAt(const render::Scene& scene, const render::MaterialTable& materials,
+                              const store::StoreReader& store) {
+  bool stored = false;  // an emitter lights.bin lists, or would list with a newer converter
+  for (size_t m = 0; m + 1 < materials.size(); ++m)
+    stored = stored || (materials.Get(static_cast<uint32_t>(m)).emissive() &&
+                        store::EmitsLight(store.materials()[m]));
+  if (stored && (store.summary().model_flags & store::kModelEmittersUnlisted))
+    LOG_WARNING("render", "%s: more emissive triangles than raystack-prep's --mem-limit listed: "
+                "path tracing finds them only where rays meet them; convert again with a larger "
+                "--mem-limit for far less noise", store.dir().c_str());
+  else if (stored && !store.lights_listed())
+    LOG_WARNING("render", "%s: converted before raystack-prep listed emitters (no %s): path "
+                "tracing finds its emissive triangles only where rays meet them; convert the "
+                "model again for far less noise", store.dir().c_str(), store::kLightsFile);
+  std::string names;  // the first few, then how many more (a scene may have thousands)
+  size_t count = 0;
+  for (size_t m = 0; m + 1 < materials.size(); ++m)
+    if (materials.Get(static_cast<uint32_t>(m)).emissive() &&
+        !store::EmitsLight(store.materials()[m]) && ++count <= 3)
+      names += (names.empty() ? "'" : ", '") + std::string(store.materials()[m].name) + "'";
+  if (count > 3) names += StrFormat(" and %zu more", count - 3);
+  if (count > 0)
+    LOG_WARNING("render", "%s: emissive only by the scene file: %s; path tracing finds such "
+                "emitters only where rays meet them (it aims at what the MTL makes emissive: "
+                "give them Ke there and convert again for less noise)", scene.source.c_str(),
+                names.c_str());
+  if (materials.default_material().emissive())
+    LOG_WARNING("render", "%s: the default material emits: path tracing finds those triangles "
+                "only where rays meet them (it aims at what the MTL makes emissive)",
+                scene.source.c_str());
+}
+
+}  // namespace
+
 void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materials,
                  const store::StoreReader& store) {
   const Vec3f b = scene.background;
@@ -74,37 +112,7 @@ void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materi
     LOG_WARNING("render", "%s: the whitted integrator lights with point lights only: the emissive "
                 "materials are seen, but light nothing (the \"path\" integrator lights with them)",
                 scene.source.c_str());
-  if (path && materials.any_emissive()) {
-    bool stored = false;  // an emitter lights.bin lists, or would list with a newer converter
-    for (size_t m = 0; m + 1 < materials.size(); ++m)
-      stored = stored || (materials.Get(static_cast<uint32_t>(m)).emissive() &&
-                          store::EmitsLight(store.materials()[m]));
-    if (stored && (store.summary().model_flags & store::kModelEmittersUnlisted))
-      LOG_WARNING("render", "%s: more emissive triangles than raystack-prep's --mem-limit listed: "
-                  "path tracing finds them only where rays meet them; convert again with a larger "
-                  "--mem-limit for far less noise", store.dir().c_str());
-    else if (stored && !store.lights_listed())
-      LOG_WARNING("render", "%s: converted before raystack-prep listed emitters (no %s): path "
-                  "tracing finds its emissive triangles only where rays meet them; convert the "
-                  "model again for far less noise", store.dir().c_str(), store::kLightsFile);
-    std::string names;  // the first few, then how many more (a scene may have thousands)
-    size_t count = 0;
-    for (size_t m = 0; m + 1 < materials.size(); ++m)
-      if (materials.Get(static_cast<uint32_t>(m)).emissive() &&
-          !store::EmitsLight(store.materials()[m]) && ++count <= 3)
-        names += (names.empty() ? "'" : ", '") + std::string(store.materials()[m].name) + "'";
-    if (count > 3) names += StrFormat(" and %zu more", count - 3);
-    if (count > 0)
-      LOG_WARNING("render", "%s: material%s %s emit%s only by the scene file: path tracing finds "
-                  "%s only where rays meet %s (it aims at what the MTL makes emissive: give %s Ke "
-                  "there and convert again for less noise)", scene.source.c_str(),
-                  count > 1 ? "s" : "", names.c_str(), count > 1 ? "" : "s",
-                  count > 1 ? "them" : "it", count > 1 ? "them" : "it", count > 1 ? "them" : "it");
-    if (materials.default_material().emissive())
-      LOG_WARNING("render", "%s: the default material emits: path tracing finds those triangles "
-                  "only where rays meet them (it aims at what the MTL makes emissive)",
-                  scene.source.c_str());
-  }
+  if (path && materials.any_emissive()) WarnIfEmittersNotAimedAt(scene, materials, store);
   if (!scene.lights.empty() || materials.any_emissive() || b.x > 0 || b.y > 0 || b.z > 0) return;
   LOG_WARNING("render",
               "%s: the scene has no light (no point lights, no emissive material in the store "
