@@ -67,7 +67,7 @@ TEST(ObjReader, NegativeIndicesCountBackFromTheLastVertex) {
   EXPECT_EQ(r.sink.triangles[0].uv[1][0], 1.0f);
 }
 
-TEST(ObjReader, PolygonsBecomeFans) {
+TEST(ObjReader, ConvexPolygonsBecomeFans) {
   ScratchFiles files;
   ObjResult r = ReadObjText(files,
                             "v 0 0 0\nv 1 0 0\nv 2 1 0\nv 1 2 0\nv 0 1 0\n"
@@ -82,6 +82,27 @@ TEST(ObjReader, PolygonsBecomeFans) {
   }
   EXPECT_EQ(r.sink.triangles[2].p[0], (Vec3f{0, 0, 0}));
   EXPECT_EQ(r.sink.triangles[2].p[2], (Vec3f{0, 1, 0}));
+}
+
+// An L-shaped face listed from its notch's corner (as Blender writes n-gons): its fan covered
+// the notch with a triangle outside the face (found by a helper converting exporters' files).
+TEST(ObjReader, AConcavePolygonIsSplitInsideItself) {
+  ScratchFiles files;
+  ObjResult r = ReadObjText(files,
+                            "v 2 1 0\nv 1 1 0\nv 1 2 0\nv 0 2 0\nv 0 0 0\nv 2 0 0\n"
+                            "vn 0 0 1\nf 1//1 2//1 3//1 4//1 5//1 6//1\n");
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  ASSERT_EQ(r.sink.triangles.size(), 4u);
+  float area = 0;
+  for (const SourceTriangle& t : r.sink.triangles) {
+    const Vec3f n = Cross(t.p[1] - t.p[0], t.p[2] - t.p[0]);
+    EXPECT_GT(n.z, 0) << "the face's winding is kept";
+    area += 0.5f * n.z;
+    const Vec3f c = (t.p[0] + t.p[1] + t.p[2]) * (1.0f / 3);
+    EXPECT_FALSE(c.x > 1 && c.y > 1) << "a triangle in the notch";
+    EXPECT_TRUE(t.has_normals);
+  }
+  EXPECT_FLOAT_EQ(area, 3.0f);
 }
 
 TEST(ObjReader, ToleratesCrlfTabsCommentsGroupsAndContinuations) {

@@ -46,10 +46,10 @@ class ObjReader {
   Status ReadTexCoord(std::string_view rest);
   Status ReadNormal(std::string_view rest);
   Status ReadFace(std::string_view rest);
-  Status ReadCorner(std::string_view token, FanCorner* corner);
+  Status ReadCorner(std::string_view token, FaceCorner* corner);
   Status ResolveIndex(std::string_view text, const VertexTable& table, const char* what,
                       uint64_t* index);
-  Status EmitFan();
+  Status EmitFace();
   Status LoadMaterialLibraries(std::string_view rest);
   void WarnOnce(std::string_view keyword);
   Status Finish();
@@ -63,7 +63,7 @@ class ObjReader {
   TriangleBatcher batcher_;
   MaterialTable materials_;
   uint32_t material_ = kNoMaterial;
-  std::vector<FanCorner> corners_;  // of the current face; reused
+  std::vector<FaceCorner> corners_;  // of the current face; reused
   std::string joined_;           // a statement continued over several lines
   std::set<std::string, std::less<>> warned_keywords_;
 };
@@ -161,11 +161,11 @@ Status ObjReader::ReadFace(std::string_view rest) {
     return input_.LineError(StrFormat("face with %zu vertices (at least 3 needed)",
                                       corners_.size()));
   ++info_->faces;
-  return EmitFan();
+  return EmitFace();
 }
 
 // "v", "v/vt", "v//vn" or "v/vt/vn".
-Status ObjReader::ReadCorner(std::string_view token, FanCorner* corner) {
+Status ObjReader::ReadCorner(std::string_view token, FaceCorner* corner) {
   const std::string_view whole = token;
   std::string_view parts[3];
   int count = 0;
@@ -220,11 +220,11 @@ Status ObjReader::ResolveIndex(std::string_view text, const VertexTable& table, 
                                                           : "normals"));
 }
 
-Status ObjReader::EmitFan() {
+Status ObjReader::EmitFace() {
   if (batcher_.WouldExceedLimit(corners_.size() - 2))
     return input_.LineError(StrFormat("more than %llu triangles",
                                       static_cast<unsigned long long>(batcher_.max_triangles())));
-  return batcher_.AddFan(corners_, material_);
+  return batcher_.AddPolygon(corners_, material_);
 }
 
 // `mtllib a.mtl b.mtl`: paths relative to the OBJ's folder. A missing library is a warning:

@@ -45,7 +45,7 @@ class PlyReader {
   Status ReadFaceCorners(const PlyProperty& list);
   Status ReadTriangleStrips(const PlyElement& element);
   Status ReadStrip(const PlyProperty& list);
-  Status Corner(int64_t index, FanCorner* corner);
+  Status Corner(int64_t index, FaceCorner* corner);
   Status SkipElement(const PlyElement& element);
   Status SkipProperty(const PlyProperty& property);
 
@@ -57,7 +57,7 @@ class PlyReader {
   std::unique_ptr<PlyValueReader> values_;
   std::unique_ptr<VertexTable> vertices_;  // created by the vertex element
   VertexLayout layout_;
-  std::vector<FanCorner> corners_;  // of the current face; reused
+  std::vector<FaceCorner> corners_;  // of the current face; reused
 };
 
 Status PlyReader::Read() {
@@ -186,7 +186,7 @@ Status PlyReader::ReadFaces(const PlyElement& element) {
         if (batcher_.WouldExceedLimit(corners_.size() - 2))
           return values_->Error(StrFormat("more than %llu triangles",
                                           static_cast<unsigned long long>(batcher_.max_triangles())));
-        return batcher_.AddFan(corners_, kNoMaterial);
+        return batcher_.AddPolygon(corners_, kNoMaterial);
       });
 }
 
@@ -198,7 +198,7 @@ Status PlyReader::ReadFaceCorners(const PlyProperty& list) {
                                     static_cast<long long>(count),
                                     static_cast<long long>(kMaxFaceVertices)));
   corners_.resize(static_cast<size_t>(count));
-  for (FanCorner& corner : corners_) {
+  for (FaceCorner& corner : corners_) {
     int64_t index = 0;
     RAYSTACK_RETURN_IF_ERROR(values_->ReadInteger(list.type, &index));
     RAYSTACK_RETURN_IF_ERROR(Corner(index, &corner));
@@ -207,7 +207,7 @@ Status PlyReader::ReadFaceCorners(const PlyProperty& list) {
 }
 
 // The corner of vertex `index` (checked against the vertex count).
-Status PlyReader::Corner(int64_t index, FanCorner* corner) {
+Status PlyReader::Corner(int64_t index, FaceCorner* corner) {
   if (index < 0 || static_cast<uint64_t>(index) >= vertices_->size())
     return values_->Error(StrFormat("face index %lld out of range (file has %llu vertices)",
                                     static_cast<long long>(index),
@@ -239,7 +239,7 @@ Status PlyReader::ReadStrip(const PlyProperty& list) {
   int64_t count = 0;
   RAYSTACK_RETURN_IF_ERROR(values_->ReadInteger(list.count_type, &count));
   if (count < 0) return values_->Error(StrFormat("strip with %lld indices", static_cast<long long>(count)));
-  FanCorner window[3];  // the last two corners of the strip, and the new one
+  FaceCorner window[3];  // the last two corners of the strip, and the new one
   int64_t in_strip = 0;  // corners of the current strip so far
   for (int64_t k = 0; k < count; ++k) {
     int64_t index = 0;
@@ -256,7 +256,7 @@ Status PlyReader::ReadStrip(const PlyProperty& list) {
                                         static_cast<unsigned long long>(batcher_.max_triangles())));
       corners_.assign({window[in_strip % 2 == 0 ? 0 : 1], window[in_strip % 2 == 0 ? 1 : 0],
                        window[2]});
-      RAYSTACK_RETURN_IF_ERROR(batcher_.AddFan(corners_, kNoMaterial));
+      RAYSTACK_RETURN_IF_ERROR(batcher_.AddPolygon(corners_, kNoMaterial));
     }
     window[0] = window[1];
     window[1] = window[2];

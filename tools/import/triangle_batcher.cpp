@@ -33,19 +33,22 @@ Status TriangleBatcher::Add(const SourceTriangle& triangle) {
   return OkStatus();
 }
 
-Status TriangleBatcher::AddFan(std::span<const FanCorner> corners, uint32_t material) {
+Status TriangleBatcher::AddPolygon(std::span<const FaceCorner> corners, uint32_t material) {
+  positions_.clear();
+  for (const FaceCorner& c : corners) positions_.push_back(c.p);
+  if (!splitter_.Split(positions_, &split_)) ++fanned_concave_;
   SourceTriangle triangle;
   triangle.material = material;
-  for (size_t i = 1; i + 1 < corners.size(); ++i) {
-    const FanCorner* fan[3] = {&corners[0], &corners[i], &corners[i + 1]};
+  for (const PolygonSplitter::Triangle& t : split_) {
     triangle.has_normals = triangle.has_uvs = true;
     for (int k = 0; k < 3; ++k) {
-      triangle.p[k] = fan[k]->p;
-      triangle.n[k] = fan[k]->n;
-      triangle.uv[k][0] = fan[k]->uv[0];
-      triangle.uv[k][1] = fan[k]->uv[1];
-      triangle.has_normals &= fan[k]->has_normal;
-      triangle.has_uvs &= fan[k]->has_uv;
+      const FaceCorner& c = corners[t[k]];
+      triangle.p[k] = c.p;
+      triangle.n[k] = c.n;
+      triangle.uv[k][0] = c.uv[0];
+      triangle.uv[k][1] = c.uv[1];
+      triangle.has_normals &= c.has_normal;
+      triangle.has_uvs &= c.has_uv;
     }
     RAYSTACK_RETURN_IF_ERROR(Add(triangle));
   }
@@ -65,6 +68,11 @@ Status TriangleBatcher::Finish(const std::string& path) {
     LOG_WARNING("import", "%s: dropped %llu zero-area triangles (of %llu)", path.c_str(),
                 static_cast<unsigned long long>(info_->zero_area_dropped),
                 static_cast<unsigned long long>(info_->triangles));
+  if (fanned_concave_ > 0)
+    LOG_WARNING("import", "%s: %llu non-convex faces of more than %zu corners were split as "
+                "fans from their first corner, which may cover their notches (split them in the "
+                "modeller)", path.c_str(), static_cast<unsigned long long>(fanned_concave_),
+                PolygonSplitter::kMaxClippedCorners);
   return OkStatus();
 }
 

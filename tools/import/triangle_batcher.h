@@ -10,11 +10,12 @@
 
 #include "common/base/status.h"
 #include "tools/import/model_reader.h"
+#include "tools/import/polygon_split.h"
 
 namespace raystack::import {
 
 // One corner of a polygon, attributes already fetched from the vertex tables.
-struct FanCorner {
+struct FaceCorner {
   Vec3f p;
   Vec3f n;
   float uv[2] = {0, 0};
@@ -36,8 +37,8 @@ class TriangleBatcher {
   uint64_t max_triangles() const { return max_triangles_; }
   // Counts the triangle and queues it unless its area is zero; sends a full batch.
   Status Add(const SourceTriangle& triangle);
-  // Fan-triangulates a convex polygon of n >= 3 corners into n - 2 triangles, via Add().
-  Status AddFan(std::span<const FanCorner> corners, uint32_t material);
+  // Splits a face of n >= 3 corners into n - 2 triangles (PolygonSplitter), each via Add().
+  Status AddPolygon(std::span<const FaceCorner> corners, uint32_t material);
   // Sends what is queued and logs how many zero-area triangles were dropped from `path`.
   Status Finish(const std::string& path);
 
@@ -48,6 +49,10 @@ class TriangleBatcher {
   ModelInfo* info_;
   uint64_t max_triangles_;
   std::vector<SourceTriangle> batch_;
+  PolygonSplitter splitter_;
+  std::vector<Vec3f> positions_;  // of the face being split
+  std::vector<PolygonSplitter::Triangle> split_;
+  uint64_t fanned_concave_ = 0;  // faces too large to clip, split as fans
 };
 
 }  // namespace raystack::import
