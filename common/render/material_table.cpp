@@ -1,9 +1,11 @@
 #include "common/render/material_table.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
 #include <string>
+#include <utility>
 
 #include "common/base/log.h"
 
@@ -21,6 +23,12 @@ Vec3f Clean(const float v[3]) {
 }
 
 bool NonZero(Vec3f v) { return v.x > 0 || v.y > 0 || v.z > 0; }
+
+const char* TypeName(MaterialType type) {
+  return type == MaterialType::kMirror ? "a mirror" : type == MaterialType::kGlass ? "glass" : "diffuse";
+}
+
+float MaxComponent(Vec3f v) { return std::max(v.x, std::max(v.y, v.z)); }
 
 std::string RecordName(const store::MaterialRecord& record) {
   return std::string(record.name, strnlen(record.name, sizeof record.name));
@@ -42,23 +50,35 @@ void WarnAboutSharedOverrides(const std::map<std::string, size_t>& matched,
 
 }  // namespace
 
-Material MaterialFromMtl(const store::MaterialRecord& record) {
+Material MaterialFromMtl(const store::MaterialRecord& record, std::string* note) {
   Material m;
   m.emission = Clean(record.ke);
+  const Vec3f kd = Clean(record.kd), ks = Clean(record.ks);
   const int illum = record.illum;
-  if (illum == 3 || illum == 5) {
+  const bool mirror_illum = illum == 3 || illum == 5;
+  const bool glass_illum = illum == 4 || illum == 6 || illum == 7 || illum == 9;
+  std::string why;
+  if (mirror_illum && NonZero(ks)) {
     m.type = MaterialType::kMirror;
-    m.albedo = Clean(record.ks);
-  } else if (illum == 4 || illum == 6 || illum == 7 || illum == 9 || record.d < 1) {
+    m.albedo = ks;
+    if (MaxComponent(kd) > MaxComponent(ks))
+      why = StrFormat("its Kd (%g %g %g) is stronger than its Ks but unused (illum %d makes a "
+                      "mirror of Ks)", double{kd.x}, double{kd.y}, double{kd.z}, illum);
+  } else if (record.d < 1 || (glass_illum && record.ni != 1.0f)) {
     m.type = MaterialType::kGlass;
-    // Ni < 1 (or missing, NaN) cannot be glass in air; 1.5 is common glass.
+    // Ni < 1 (or not given, NaN) cannot be glass in air; 1.5 is common glass.
     m.ior = record.ni >= 1 ? std::min(record.ni, kMaxIor) : 1.5f;
-    const Vec3f ks = Clean(record.ks);
     m.albedo = NonZero(ks) ? ks : Vec3f{1, 1, 1};
   } else {
     m.type = MaterialType::kDiffuse;
-    m.albedo = Clean(record.kd);
+    m.albedo = kd;
+    if (mirror_illum)
+      why = StrFormat("illum %d asks for a mirror, but its Ks is 0", illum);
+    else if (glass_illum)
+      why = StrFormat("illum %d asks for glass, but it is opaque (d 1) with Ni 1: it would be "
+                      "invisible", illum);
   }
+  if (note) *note = std::move(why);
   return m;
 }
 
@@ -68,6 +88,8 @@ MaterialTable MaterialTable::Build(std::span<const store::MaterialRecord> record
   table.default_ = scene.default_material;
   table.materials_.reserve(records.size());
   std::map<std::string, size_t> matched;  // override key -> store materials it replaces
+  constexpr size_t kNamedNotes = 8;  // then a count: a model may have thousands
+  size_t noted = 0;
   for (const store::MaterialRecord& record : records) {
     const std::string name = RecordName(record);
     auto it = scene.overrides.find(name);
@@ -80,9 +102,16 @@ MaterialTable MaterialTable::Build(std::span<const store::MaterialRecord> record
       ++matched[it->first];
       table.materials_.push_back(it->second);
     } else {
-      table.materials_.push_back(MaterialFromMtl(record));
+      std::string note;
+      table.materials_.push_back(MaterialFromMtl(record, &note));
+      if (!note.empty() && ++noted <= kNamedNotes)
+        LOG_INFO(kComponent, "material '%s' renders as %s: %s", name.c_str(),
+                 TypeName(table.materials_.back().type), note.c_str());
     }
   }
+  if (noted > kNamedNotes)
+    LOG_INFO(kComponent, "%zu more materials are not what their MTL illum asks for "
+             "(raystack-info lists each)", noted - kNamedNotes);
   WarnAboutSharedOverrides(matched, scene.source);
   constexpr size_t kNamedUnused = 8;  // then a count: a scene may list thousands
   size_t unused = 0;

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "common/render/scene.h"
@@ -13,12 +14,17 @@
 
 namespace raystack::render {
 
-// Material for an MTL record: Ke > 0 -> emission = Ke; illum 3 or 5 -> mirror with albedo Ks;
-// illum 4, 6, 7, 9, or d < 1 -> glass with ior Ni (1.5 if Ni < 1) and albedo = Ks if nonzero
-// else [1,1,1]; otherwise diffuse with albedo Kd. The first rule that matches wins, in this
-// order. So that shading never sees what a scene file could not say: non-finite or negative
-// MTL colours become 0 and Ni above 4 becomes 4 (the range LoadScene accepts).
-Material MaterialFromMtl(const store::MaterialRecord& record);
+// Material for an MTL record: Ke > 0 -> emission = Ke; illum 3 or 5 with Ks > 0 -> mirror with
+// albedo Ks; d < 1, or illum 4, 6, 7 or 9 with an Ni other than 1 -> glass with ior Ni (1.5 if
+// Ni < 1 or not given) and albedo = Ks if nonzero else [1,1,1]; otherwise diffuse with albedo
+// Kd. The first rule that matches wins, in this order. Exporters write these illums for
+// materials that are neither (CityEngine: illum 3 with Ks 0 for its Lambert materials, a black
+// mirror; Maya: illum 4 with Ni 1 and d 1 for every Lambert, an invisible glass), hence the
+// Ks and Ni conditions. So that shading never sees what a scene file could not say:
+// non-finite or negative MTL colours become 0 and Ni above 4 becomes 4 (the range LoadScene
+// accepts). `note`, when given, receives why the record's illum was not followed or what it
+// leaves unused (empty when nothing is), for messages.
+Material MaterialFromMtl(const store::MaterialRecord& record, std::string* note = nullptr);
 
 class MaterialTable {
  public:

@@ -81,7 +81,52 @@ TEST(MaterialFromMtl, MirrorRuleWinsOverTransparency) {
   store::MaterialRecord r = Record("odd");
   r.illum = 3;
   r.d = 0.5f;
+  Set(r.ks, {0.5f, 0.5f, 0.5f});
   EXPECT_EQ(MaterialFromMtl(r).type, MaterialType::kMirror);
+  Set(r.ks, {0, 0, 0});  // a black mirror: the transparency decides
+  EXPECT_EQ(MaterialFromMtl(r).type, MaterialType::kGlass);
+}
+
+// Found by a helper converting exporters' files: CityEngine writes illum 3 with Ks 0 for its
+// Lambert materials (a black mirror), Maya illum 4 with Ni 1 and no transparency for every
+// Lambert (a glass of index 1, invisible). Both are diffuse with their Kd, and say why.
+TEST(MaterialFromMtl, IllumsThatExportersWriteForLambertsAreDiffuse) {
+  store::MaterialRecord city = Record("facade");
+  city.illum = 3;
+  Set(city.kd, {0.6f, 0.5f, 0.4f});
+  std::string note;
+  Material m = MaterialFromMtl(city, &note);
+  EXPECT_EQ(m.type, MaterialType::kDiffuse);
+  EXPECT_EQ(m.albedo, (Vec3f{0.6f, 0.5f, 0.4f}));
+  EXPECT_NE(note.find("illum 3 asks for a mirror, but its Ks is 0"), std::string::npos) << note;
+
+  store::MaterialRecord maya = Record("lambert2SG");
+  maya.illum = 4;
+  maya.ni = 1.0f;
+  Set(maya.kd, {0.5f, 0.5f, 0.5f});
+  m = MaterialFromMtl(maya, &note);
+  EXPECT_EQ(m.type, MaterialType::kDiffuse);
+  EXPECT_EQ(m.albedo, (Vec3f{0.5f, 0.5f, 0.5f}));
+  EXPECT_NE(note.find("illum 4 asks for glass, but it is opaque"), std::string::npos) << note;
+  maya.ni = 0;  // no Ni in the MTL: the glass its illum asks for, of index 1.5
+  m = MaterialFromMtl(maya, &note);
+  EXPECT_EQ(m.type, MaterialType::kGlass);
+  EXPECT_EQ(m.ior, 1.5f);
+  EXPECT_TRUE(note.empty()) << note;
+  maya.ni = 1.0f;
+  maya.d = 0.9f;  // transparent: glass whatever its index
+  EXPECT_EQ(MaterialFromMtl(maya).type, MaterialType::kGlass);
+
+  // A mirror whose Kd is stronger than its Ks stays a mirror (the MTL says so), and says so.
+  store::MaterialRecord metal = Record("metal");
+  metal.illum = 3;
+  Set(metal.kd, {0.8f, 0.1f, 0.1f});
+  Set(metal.ks, {0.5f, 0.5f, 0.5f});
+  EXPECT_EQ(MaterialFromMtl(metal, &note).type, MaterialType::kMirror);
+  EXPECT_NE(note.find("is stronger than its Ks but unused"), std::string::npos) << note;
+  Set(metal.kd, {0.1f, 0.1f, 0.1f});
+  MaterialFromMtl(metal, &note);
+  EXPECT_TRUE(note.empty()) << note;
 }
 
 TEST(MaterialFromMtl, KeEmitsWhateverTheType) {
@@ -92,6 +137,7 @@ TEST(MaterialFromMtl, KeEmitsWhateverTheType) {
   EXPECT_EQ(m.emission, (Vec3f{17, 12, 4}));
   EXPECT_TRUE(m.emissive());
   r.illum = 7;
+  r.ni = 1.5f;
   m = MaterialFromMtl(r);
   EXPECT_EQ(m.type, MaterialType::kGlass);
   EXPECT_TRUE(m.emissive());

@@ -42,7 +42,7 @@ struct Material {
   Vec3f kd{0.8f, 0.8f, 0.8f};  // diffuse albedo
   Vec3f ks{0, 0, 0};           // specular
   Vec3f ke{0, 0, 0};           // emission
-  float ni = 1.0f;             // index of refraction
+  float ni = 0.0f;             // index of refraction; 0 when the MTL gives none
   float d = 1.0f;              // opacity
   int illum = 2;
   // Where its `newmtl` is ("file.mtl:12"), for messages; empty when no MTL defined it.

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "common/base/log.h"
+#include "common/render/material_table.h"
 #include "common/store/store_reader.h"
 
 namespace raystack {
@@ -69,12 +70,26 @@ int Run(const std::string& dir, bool verify, bool list) {
               (m.model_flags & store::kModelHasUvs) ? "uvs " : "",
               (m.model_flags & store::kModelHasMaterials) ? "materials" : (m.model_flags ? "" : "none"));
   std::printf("materials        %u\n", m.material_count);
-  // What MaterialFromMtl reads (illum, d and Ni choose mirror or glass), as stored.
-  for (const store::MaterialRecord& r : s.materials())
-    std::printf("  %-24s Kd (%.3g %.3g %.3g) Ks (%.3g %.3g %.3g) Ke (%.3g %.3g %.3g) Ni %.3g d %.3g "
+  // Each record as stored (illum, d and Ni choose mirror or glass; Ni "none" when the MTL gave
+  // none), then what the renderer makes of it (render::MaterialFromMtl) and why, when its illum
+  // is not followed: exporters write illums for materials that are not mirrors or glass.
+  for (const store::MaterialRecord& r : s.materials()) {
+    const std::string ni = r.ni == 0 ? std::string("none") : StrFormat("%.3g", double{r.ni});
+    std::printf("  %-24s Kd (%.3g %.3g %.3g) Ks (%.3g %.3g %.3g) Ke (%.3g %.3g %.3g) Ni %s d %.3g "
                 "illum %d\n", r.name, double{r.kd[0]}, double{r.kd[1]}, double{r.kd[2]},
                 double{r.ks[0]}, double{r.ks[1]}, double{r.ks[2]}, double{r.ke[0]},
-                double{r.ke[1]}, double{r.ke[2]}, double{r.ni}, double{r.d}, r.illum);
+                double{r.ke[1]}, double{r.ke[2]}, ni.c_str(), double{r.d}, r.illum);
+    std::string note;
+    const render::Material as = render::MaterialFromMtl(r, &note);
+    const Vec3f a = as.albedo;
+    std::printf("  %-24s renders as %s (%.3g %.3g %.3g)%s%s%s\n", "",
+                as.type == render::MaterialType::kMirror  ? "a mirror"
+                : as.type == render::MaterialType::kGlass ? "glass, tinted"
+                                                          : "diffuse",
+                double{a.x}, double{a.y}, double{a.z},
+                as.type == render::MaterialType::kGlass ? StrFormat(", index %.3g", double{as.ior}).c_str() : "",
+                as.emissive() ? ", emits" : "", note.empty() ? "" : (": " + note).c_str());
+  }
   if (m.model_flags & store::kModelEmittersUnlisted)
     std::printf("lights           not listed (more emissive triangles than the converter's "
                 "--mem-limit held: path tracing does not aim at them)\n");
