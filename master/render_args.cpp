@@ -25,7 +25,7 @@ options:
                             BVH over all triangles (the fastest when the model fits in RAM;
                             needs about twice incore's memory; same image)
   --cache-mb N              block cache budget in MiB, never exceeded (default 512)
-  --threads N               ray threads (default: all cores)
+  --threads N               ray threads (default: all cores, at most 64)
   --feed-fraction P         start the next tile once this fraction of the current one is
                             done (default 0.1)
   --tile-size N             tile side in pixels (default 32)
@@ -123,7 +123,7 @@ bool ParseNumber(const std::string& s, T* out) {
 
 Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
   bool bind_given = false, hold_given = false;
-  a->engine.threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  a->engine.threads = DefaultRayThreads(std::thread::hardware_concurrency());
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     auto value = [&](std::string* out) -> Status {

@@ -2,12 +2,14 @@
 // The options of `raystack render SCENE.json [options]`: what they hold, their usage text, and
 // parsing them (each value checked against its range, every error naming the option).
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 
 #include "common/base/status.h"
 #include "master/convergence_monitor.h"
 #include "master/preview/live_preview.h"
+#include "slave/block_loader.h"
 #include "slave/direct_reads.h"
 #include "slave/render_engine.h"
 
@@ -45,6 +47,13 @@ struct RenderArgs {
   int64_t fail_checkpoints = 0;
   preview::LivePreviewOptions preview;
 };
+
+// --threads' default: every core, up to the most ray threads the loader can serve
+// (BlockLoader::kMaxRayThreads), so that a node with more cores than that still renders.
+inline int DefaultRayThreads(unsigned cores) {
+  return static_cast<int>(
+      std::clamp(cores, 1u, static_cast<unsigned>(slave::BlockLoader::kMaxRayThreads)));
+}
 
 // Fills `a` from the command line; `*help` is set by -h/--help (then nothing else is checked).
 Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help);
