@@ -131,6 +131,28 @@ TEST(ObjReader, ToleratesCrlfTabsCommentsGroupsAndContinuations) {
   EXPECT_EQ(r.info.bounds.upper, (Vec3f{1, 1, 0}));
 }
 
+// Found by a helper converting exporters' files: Blender writes `mtllib my model.mtl` (a name
+// with a space, unquoted), and every material was lost; two OBJ files concatenated name their
+// library twice, and every material was "defined again"; a comment ending in a backslash (a
+// Windows path) swallowed the next line, a vertex.
+TEST(ObjReader, ExportersLibraryNamesAndCommentsAreReadAsTheyMeanThem) {
+  ScratchFiles files;
+  files.Write("my model.mtl", "newmtl Red Paint\nKd 1 0 0\n");
+  ObjResult r = ReadObjText(files,
+                            "# Exported from D:\\Projects\\\n"
+                            "mtllib my model.mtl\nmtllib my model.mtl\n"
+                            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\n"
+                            "usemtl Red Paint\nf 1 2 3\n");
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.info.vertices, 4u);
+  ASSERT_EQ(r.sink.triangles.size(), 1u);
+  EXPECT_EQ(r.sink.triangles[0].p[0], (Vec3f{0, 0, 0}));
+  ASSERT_EQ(r.info.materials.size(), 1u);
+  EXPECT_EQ(r.info.materials[0].name, "Red Paint");
+  EXPECT_EQ(r.info.materials[0].kd, (Vec3f{1, 0, 0}));
+  EXPECT_FALSE(r.info.materials[0].defined_at.empty());
+}
+
 TEST(ObjReader, MaterialsComeFromSeveralLibrariesNextToTheObj) {
   ScratchFiles files;
   files.Write("a.mtl", "newmtl red\nKd 1 0 0\n");

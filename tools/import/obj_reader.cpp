@@ -66,6 +66,7 @@ class ObjReader {
   std::vector<FaceCorner> corners_;  // of the current face; reused
   std::string joined_;           // a statement continued over several lines
   std::set<std::string, std::less<>> warned_keywords_;
+  std::set<std::string, std::less<>> libraries_;  // loaded already (concatenated OBJs repeat them)
 };
 
 Status ObjReader::Read() {
@@ -76,8 +77,10 @@ Status ObjReader::Read() {
 }
 
 bool ObjReader::NextStatement(std::string_view* line) {
+  // A backslash in a comment continues nothing ("# Exported from D:\\Projects\\" swallowed the
+  // vertex after it).
   auto continues = [](std::string_view text) {
-    text = Trim(text);
+    text = Trim(StripComment(text));
     return !text.empty() && text.back() == '\\';
   };
   if (!input_.NextLine(line)) return false;
@@ -85,7 +88,7 @@ bool ObjReader::NextStatement(std::string_view* line) {
   joined_.clear();
   std::string_view part = *line;
   do {
-    part = Trim(part);
+    part = Trim(StripComment(part));
     joined_.append(part.substr(0, part.size() - 1));
     joined_.push_back(' ');
   } while (input_.NextLine(&part) && continues(part));
@@ -229,10 +232,18 @@ Status ObjReader::EmitFace() {
 
 // `mtllib a.mtl b.mtl`: paths relative to the OBJ's folder. A missing library is a warning:
 // the geometry is still worth having, with default materials. A malformed one is an error.
+// Blender writes a file name with spaces as it is (`mtllib my model.mtl`): the whole rest of
+// the line is tried first as one name, as Blender's own importer does.
 Status ObjReader::LoadMaterialLibraries(std::string_view rest) {
   std::filesystem::path folder = std::filesystem::path(input_.path()).parent_path();
-  for (std::string_view name = NextToken(&rest); !name.empty(); name = NextToken(&rest)) {
+  const std::string_view whole = Trim(rest);
+  std::error_code ec;
+  const bool one_name = whole.find_first_of(" \t") != std::string_view::npos &&
+                        std::filesystem::is_regular_file(folder / std::string(whole), ec);
+  for (std::string_view name = one_name ? whole : NextToken(&rest); !name.empty();
+       name = one_name ? std::string_view() : NextToken(&rest)) {
     std::string path = (folder / std::string(name)).string();
+    if (!libraries_.insert(path).second) continue;
     Expected<BufferedInput> mtl = BufferedInput::Open(path, nullptr, kMtlBufferBytes);
     if (!mtl.ok()) {
       LOG_WARNING("import", "%s:%llu: material library not loaded: %s", input_.path().c_str(),
