@@ -153,6 +153,30 @@ TEST(ObjReader, ExportersLibraryNamesAndCommentsAreReadAsTheyMeanThem) {
   EXPECT_FALSE(r.info.materials[0].defined_at.empty());
 }
 
+// Normals or texture coordinates that are not finite ("nan", 3ds Max's "-1.#IND" for a
+// degenerate face) stopped the whole conversion; they are optional data: the faces that use
+// them go without, and they are counted. A comment after a normal is still a comment.
+TEST(ObjReader, NonFiniteNormalsAndUvsAreDroppedNotFatal) {
+  ScratchFiles files;
+  ObjResult r = ReadObjText(files,
+                            "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                            "vn -1.#IND -1.#IND -1.#IND\nvn nan 0 1\nvn 0 0 1 # up\n"
+                            "vt 0 inf\nvt 1 1\n"
+                            "f 1//1 2//1 3//1\nf 1//2 2//2 3//2\nf 1/2/3 2/2/3 3/2/3\n"
+                            "f 1/1/3 2/2/3 3/2/3\n");
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.info.attributes_not_finite, 3u);
+  ASSERT_EQ(r.sink.triangles.size(), 4u);
+  EXPECT_FALSE(r.sink.triangles[0].has_normals);
+  EXPECT_FALSE(r.sink.triangles[1].has_normals);
+  EXPECT_TRUE(r.sink.triangles[2].has_normals);
+  EXPECT_EQ(r.sink.triangles[2].n[0], (Vec3f{0, 0, 1}));
+  EXPECT_TRUE(r.sink.triangles[2].has_uvs);
+  EXPECT_FALSE(r.sink.triangles[3].has_uvs);
+  // Positions stay strict: a vertex that is not finite is an error naming its line.
+  ExpectErrorMentions(ReadObjText(files, "v nan 0 0\n").status, {"model.obj:1:", "not finite"});
+}
+
 TEST(ObjReader, MaterialsComeFromSeveralLibrariesNextToTheObj) {
   ScratchFiles files;
   files.Write("a.mtl", "newmtl red\nKd 1 0 0\n");

@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <limits>
 
 #include "tests/import/import_test_util.h"
@@ -227,6 +229,38 @@ TEST(PlyReader, AsciiErrorsNameFileAndLine) {
     Status status = ReadPlyText(files, c.bytes).status;
     if (c.mentions.empty()) EXPECT_TRUE(status.ok()) << status.message();
     else ExpectErrorMentions(status, c.mentions);
+  }
+}
+
+// A normal or texture coordinate that is not a finite number (a scanner's NaN normal) stopped
+// the whole conversion; it is optional data: its faces now go without it, and it is counted.
+// A position that is not finite stays an error, naming the vertex and property.
+TEST(PlyReader, ANonFiniteNormalOrUvIsDroppedAndAPositionNamesItsVertex) {
+  ScratchFiles files;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::vector<TestPlyProperty> vertex = {{"float", "x", ""}, {"float", "y", ""},
+                                               {"float", "z", ""}, {"float", "nx", ""},
+                                               {"float", "ny", ""}, {"float", "nz", ""},
+                                               {"float", "u", ""}, {"float", "v", ""}};
+  for (const char* format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
+    SCOPED_TRACE(format);
+    const std::vector<TestPlyElement> model = {
+        {"vertex", vertex,
+         {{0, 0, 0, 0, 0, 1, 0, 0}, {1, 0, 0, nan, 0, 1, 1, 0}, {0, 1, 0, 0, 0, 1, 0, 1},
+          {1, 1, 0, 0, 0, 1, 1, INFINITY}}},
+        {"face", {{"int", "vertex_indices", "uchar"}}, {{3, 0, 1, 2}, {3, 0, 2, 3}}}};
+    PlyResult r = ReadPlyText(files, TestPlyWriter::Build(format, model));
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
+    EXPECT_EQ(r.info.attributes_not_finite, 2u);
+    ASSERT_EQ(r.sink.triangles.size(), 2u);
+    EXPECT_FALSE(r.sink.triangles[0].has_normals);  // vertex 1's normal
+    EXPECT_TRUE(r.sink.triangles[0].has_uvs);
+    EXPECT_TRUE(r.sink.triangles[1].has_normals);
+    EXPECT_FALSE(r.sink.triangles[1].has_uvs);  // vertex 3's v
+    std::vector<TestPlyElement> bad = model;
+    bad[0].rows[2][1] = nan;
+    ExpectErrorMentions(ReadPlyText(files, TestPlyWriter::Build(format, bad)).status,
+                        {"m.ply", "(vertex 2, property 'y')"});
   }
 }
 

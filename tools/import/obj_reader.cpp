@@ -1,6 +1,9 @@
 #include "tools/import/obj_reader.h"
 
+#include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <limits>
 #include <set>
 #include <string>
 #include <vector>
@@ -43,6 +46,7 @@ class ObjReader {
   Status ReadStatement(std::string_view line);
   Status ReadFloats(std::string_view* rest, float* out, int required, int optional);
   Status ReadPosition(std::string_view rest);
+  Status ReadAttributeFloats(std::string_view* rest, float* out, int required, int optional);
   Status ReadTexCoord(std::string_view rest);
   Status ReadNormal(std::string_view rest);
   Status ReadFace(std::string_view rest);
@@ -104,8 +108,11 @@ Status ObjReader::ReadStatement(std::string_view line) {
   if (keyword.empty()) return OkStatus();
   if (keyword == "v") return ReadPosition(rest);
   if (keyword == "f") return ReadFace(rest);
-  if (keyword == "vt") return ReadTexCoord(rest);
-  if (keyword == "vn") return ReadNormal(rest);
+  if (keyword == "vt" || keyword == "vn") {
+    rest = StripCommentKeepingMsvcNonFinite(line);
+    NextToken(&rest);  // the keyword
+    return keyword == "vt" ? ReadTexCoord(rest) : ReadNormal(rest);
+  }
   if (keyword == "usemtl") {
     std::string_view name = Trim(rest);
     material_ = name.empty() ? kNoMaterial : materials_.Use(name);
@@ -142,15 +149,39 @@ Status ObjReader::ReadPosition(std::string_view rest) {
   return positions_.Append(xyz);
 }
 
+// Texture coordinates and normals are optional data: one that is not a finite number is kept as
+// NaN, and the faces that use it go without (a warning counts them), rather than the whole model
+// being refused for it.
+Status ObjReader::ReadAttributeFloats(std::string_view* rest, float* out, int required,
+                                      int optional) {
+  bool finite = true;
+  for (int i = 0; i < required + optional; ++i) {
+    std::string_view token = NextToken(rest);
+    if (token.empty()) {
+      if (i < required)
+        return input_.LineError(StrFormat("expected %d numbers, found %d", required, i));
+      break;
+    }
+    if (const char* why = ParseFloat(token, &out[i])) {
+      if (!SpellsNonFinite(token) && std::strcmp(why, "number out of float range") != 0)
+        return input_.LineError(std::string(why) + ": '" + std::string(token) + "'");
+      out[i] = std::numeric_limits<float>::quiet_NaN();
+      finite = false;
+    }
+  }
+  if (!finite) ++info_->attributes_not_finite;
+  return OkStatus();
+}
+
 Status ObjReader::ReadTexCoord(std::string_view rest) {
   float uv[2] = {0, 0};
-  RAYSTACK_RETURN_IF_ERROR(ReadFloats(&rest, uv, 1, 1));  // a third (w) may follow
+  RAYSTACK_RETURN_IF_ERROR(ReadAttributeFloats(&rest, uv, 1, 1));  // a third (w) may follow
   return uvs_.Append(uv);
 }
 
 Status ObjReader::ReadNormal(std::string_view rest) {
   float n[3];
-  RAYSTACK_RETURN_IF_ERROR(ReadFloats(&rest, n, 3, 0));
+  RAYSTACK_RETURN_IF_ERROR(ReadAttributeFloats(&rest, n, 3, 0));
   return normals_.Append(n);
 }
 
@@ -188,13 +219,14 @@ Status ObjReader::ReadCorner(std::string_view token, FaceCorner* corner) {
   if (!parts[1].empty()) {
     RAYSTACK_RETURN_IF_ERROR(ResolveIndex(parts[1], uvs_, "texture index", &index));
     RAYSTACK_RETURN_IF_ERROR(uvs_.Get(index, corner->uv));
-    corner->has_uv = true;
+    corner->has_uv = std::isfinite(corner->uv[0]) && std::isfinite(corner->uv[1]);
   }
   if (!parts[2].empty()) {
     RAYSTACK_RETURN_IF_ERROR(ResolveIndex(parts[2], normals_, "normal index", &index));
     RAYSTACK_RETURN_IF_ERROR(normals_.Get(index, values));
     corner->n = {values[0], values[1], values[2]};
-    corner->has_normal = true;
+    corner->has_normal =
+        std::isfinite(values[0]) && std::isfinite(values[1]) && std::isfinite(values[2]);
   }
   return OkStatus();
 }

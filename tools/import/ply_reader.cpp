@@ -1,5 +1,6 @@
 #include "tools/import/ply_reader.h"
 
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -143,9 +144,23 @@ Status PlyReader::ReadVertices(const PlyElement& element) {
     for (size_t p = 0; p < element.properties.size(); ++p) {
       const PlyProperty& property = element.properties[p];
       int slot = layout_.slot_of_property[p];
-      if (slot >= 0) RAYSTACK_RETURN_IF_ERROR(values_->ReadFloat(property.type, &record[slot]));
-      else RAYSTACK_RETURN_IF_ERROR(SkipProperty(property));
+      if (slot < 0) {
+        RAYSTACK_RETURN_IF_ERROR(SkipProperty(property));
+        continue;
+      }
+      // Normals and texture coordinates (slots past x, y, z) are optional data: one that is
+      // not a finite number reads as NaN and its faces go without it (a warning counts them).
+      Status read = values_->ReadFloat(property.type, &record[slot], slot >= 3);
+      if (!read.ok())
+        return Status::Error(read.message() + StrFormat(" (vertex %llu, property '%s')",
+                                                        static_cast<unsigned long long>(i),
+                                                        property.name.c_str()));
     }
+    for (int slot = 3; slot < layout_.floats; ++slot)
+      if (!std::isfinite(record[slot])) {
+        ++info_->attributes_not_finite;
+        break;
+      }
     if (const char* why = PositionOutOfRange(record)) return values_->Error(why);
     RAYSTACK_RETURN_IF_ERROR(values_->EndRecord());
     info_->bounds.Extend(Vec3f{record[0], record[1], record[2]});
@@ -219,10 +234,15 @@ Status PlyReader::Corner(int64_t index, FaceCorner* corner) {
   corner->has_normal = layout_.has_normals;
   if (corner->has_normal) {
     corner->n = {record[next], record[next + 1], record[next + 2]};
+    corner->has_normal = std::isfinite(record[next]) && std::isfinite(record[next + 1]) &&
+                         std::isfinite(record[next + 2]);
     next += 3;
   }
   corner->has_uv = layout_.has_uvs;
-  if (corner->has_uv) corner->uv[0] = record[next], corner->uv[1] = record[next + 1];
+  if (corner->has_uv) {
+    corner->uv[0] = record[next], corner->uv[1] = record[next + 1];
+    corner->has_uv = std::isfinite(corner->uv[0]) && std::isfinite(corner->uv[1]);
+  }
   return OkStatus();
 }
 

@@ -86,7 +86,7 @@ Status PlyValueReader::ReadBinary(PlyType type, double* real, int64_t* integer) 
   return OkStatus();
 }
 
-Status PlyValueReader::ReadFloat(PlyType type, float* out) {
+Status PlyValueReader::ReadFloat(PlyType type, float* out, bool non_finite_as_nan) {
   if (ascii()) {
     std::string_view token;
     RAYSTACK_RETURN_IF_ERROR(NextToken(&token));
@@ -96,16 +96,24 @@ Status PlyValueReader::ReadFloat(PlyType type, float* out) {
       *out = static_cast<float>(value);
       return OkStatus();
     }
-    if (const char* why = ParseFloat(token, out))
+    if (const char* why = ParseFloat(token, out)) {
+      if (non_finite_as_nan &&
+          (SpellsNonFinite(token) || std::strcmp(why, "number out of float range") == 0)) {
+        *out = std::numeric_limits<float>::quiet_NaN();
+        return OkStatus();
+      }
       return Error(std::string(why) + ": '" + std::string(token) + "'");
+    }
     return OkStatus();
   }
   double real = 0;
   int64_t integer = 0;
   RAYSTACK_RETURN_IF_ERROR(ReadBinary(type, &real, &integer));
   if (!std::isfinite(real) ||
-      std::fabs(real) > static_cast<double>(std::numeric_limits<float>::max()))
-    return Error("value is not a finite float");
+      std::fabs(real) > static_cast<double>(std::numeric_limits<float>::max())) {
+    if (!non_finite_as_nan) return Error("value is not a finite float");
+    real = std::numeric_limits<double>::quiet_NaN();
+  }
   *out = static_cast<float>(real);
   return OkStatus();
 }

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <string_view>
 #include <system_error>
 
@@ -69,6 +70,23 @@ inline const char* ParseFloat(std::string_view token, float* out) {
   if (!std::isfinite(value)) return "number is not finite";
   *out = value;
   return nullptr;
+}
+
+// How programs print a number that is not finite: "nan", "-inf", "Infinity", and MSVC's
+// "-1.#IND", "1.#INF00", "1.#QNAN0" (3ds Max writes these for a degenerate face's normal).
+inline bool SpellsNonFinite(std::string_view token) {
+  std::string lower(token);
+  for (char& c : lower) c = static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+  return lower.find("nan") != std::string::npos || lower.find("inf") != std::string::npos ||
+         lower.find("#ind") != std::string::npos;
+}
+
+// A comment starts at '#', except in MSVC's spellings of numbers that are not finite (a '#'
+// right after a '.': "-1.#IND"), which 3ds Max writes in `vn` lines.
+inline std::string_view StripCommentKeepingMsvcNonFinite(std::string_view line) {
+  for (size_t i = 0; i < line.size(); ++i)
+    if (line[i] == '#' && (i == 0 || line[i - 1] != '.')) return line.substr(0, i);
+  return line;
 }
 
 // A decimal integer (an optional sign, then digits; nothing else).

@@ -68,6 +68,10 @@ Status TriangleBatcher::Finish(const std::string& path) {
     LOG_WARNING("import", "%s: dropped %llu zero-area triangles (of %llu)", path.c_str(),
                 static_cast<unsigned long long>(info_->zero_area_dropped),
                 static_cast<unsigned long long>(info_->triangles));
+  if (info_->attributes_not_finite > 0)
+    LOG_WARNING("import", "%s: %llu normals or texture coordinates are not finite numbers (NaN, "
+                "inf, -1.#IND): the faces that use them are shaded without them", path.c_str(),
+                static_cast<unsigned long long>(info_->attributes_not_finite));
   if (fanned_concave_ > 0)
     LOG_WARNING("import", "%s: %llu non-convex faces of more than %zu corners were split as "
                 "fans from their first corner, which may cover their notches (split them in the "
