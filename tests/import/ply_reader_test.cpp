@@ -189,7 +189,12 @@ TEST(PlyReader, AsciiErrorsNameFileAndLine) {
       {Triangle("ascii", {3, 0, -1, 2}), {"m.ply:14:", "face index -1"}},
       {Triangle("ascii", {2, 0, 1}), {"m.ply:14:", "face with 2 vertices"}},
       {Triangle("ascii", {256, 0, 1, 2}), {"m.ply:14:", "out of range for its type"}},
-      {head + "3 0 1 2 1\n", {"m.ply:14:", "more values"}},
+      {head + "3 0 1 2 1\n", {"m.ply:14:", "more values", "for face 0"}},
+      // One vertex line fewer than the header says: the face is read as the last vertex.
+      {"ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+       "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+       "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+       {"m.ply:13:", "for vertex 3", "fewer 'vertex' lines than its header says"}},
       {head + "3 0 1\n", {"m.ply:14:", "fewer values"}},
       {head + "3 0 1.5 2\n", {"m.ply:14:", "not an integer"}},
       {head + "3 0 1 2\n", {}},  // (the good file, to show the cases above differ by one thing)

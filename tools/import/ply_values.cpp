@@ -36,6 +36,12 @@ T Load(const unsigned char* bytes) {
 
 Status PlyValueReader::BeginRecord(std::string_view element_name) {
   if (!ascii()) return OkStatus();
+  if (element_ == element_name) {
+    ++record_;
+  } else {
+    element_ = element_name;
+    record_ = 0;
+  }
   std::string_view line;
   do {
     if (!input_.NextLine(&line)) {
@@ -52,9 +58,14 @@ Status PlyValueReader::BeginRecord(std::string_view element_name) {
 Status PlyValueReader::EndRecord() {
   if (!ascii()) return OkStatus();
   std::string_view token = raystack::import::NextToken(&rest_);
+  // Often a line of the next element, read as this one's: the file has fewer records than its
+  // header declares (a vertex count one too high read the first face as a vertex).
   if (!token.empty())
-    return Error("more values on the line than the header declares ('" + std::string(token) +
-                 "')");
+    return Error(StrFormat("more values on the line than the header declares for %s %llu ('%s'); "
+                           "if this is a line of the next element, the file has fewer '%s' lines "
+                           "than its header says", element_.c_str(),
+                           static_cast<unsigned long long>(record_),
+                           std::string(token).c_str(), element_.c_str()));
   return OkStatus();
 }
 

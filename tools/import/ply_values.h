@@ -42,6 +42,8 @@ class PlyValueReader {
   BufferedInput& input_;
   PlyFormat format_;
   std::string_view rest_;      // ascii: what is left of the record's line
+  std::string element_;        // ascii: the element being read, and its record's index
+  uint64_t record_ = 0;
   uint64_t value_offset_ = 0;  // binary: where the last value started
 };
 
