@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <map>
@@ -114,6 +115,29 @@ Status CollectEmitters(const TriangleSource& source,
   return OkStatus();
 }
 
+// A model far from the origin against its size (georeferenced scans: a 19 cm grid at UTM
+// coordinates of 5.4e6 m) loses its detail when its coordinates become floats, whose steps there
+// (0.5 m) may be coarser than the model: its triangles fall flat and are dropped, and the
+// "zero-area" warning alone sends the user looking in the wrong place. Say what happened.
+void WarnAboutFloatSteps(const Bounds3f& bounds) {
+  const Vec3f extent = bounds.Extent();
+  const float size = std::max(extent.x, std::max(extent.y, extent.z));
+  float reach = 0;
+  for (int a = 0; a < 3; ++a)
+    reach = std::max(reach, std::max(std::fabs(bounds.lower[a]), std::fabs(bounds.upper[a])));
+  if (!(size > 0) || !std::isfinite(reach)) return;
+  const float step = std::nextafter(reach, INFINITY) - reach;
+  constexpr float kFewestSteps = 4096;  // a model at the origin has 2^24 across
+  if (size / step >= kFewestSteps) return;
+  const Vec3f centre = bounds.Center();
+  LOG_WARNING("prep", "the model is %g across but lies %g from the origin, where floats (what "
+              "the store keeps) have steps of %g: %.0f steps across it, and detail finer than a "
+              "step is lost (flattened triangles are dropped as zero-area). Move the model near "
+              "the origin before converting (subtract about (%.9g, %.9g, %.9g))",
+              double{size}, double{reach}, double{step}, double{size / step},
+              double{centre.x}, double{centre.y}, double{centre.z});
+}
+
 }  // namespace
 
 // The range float ray tracing works in (import::kMaxCoordinate): the readers check each
@@ -158,6 +182,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   std::vector<store::MaterialRecord> materials;
   std::vector<import::Material> sources;  // the full names, for WarnAboutCutNames
   uint64_t vertices = 0;
+  Bounds3f read_bounds;  // of every vertex read
   if (!args.generate.empty()) {
     import::ModelInfo info;
     RAYSTACK_RETURN_IF_ERROR(GenerateModel(args.generate, sink, &info));
@@ -182,7 +207,9 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     report.source_triangles += info.triangles;
     report.zero_area_dropped += info.zero_area_dropped;
     vertices += info.vertices;
+    read_bounds.Extend(info.bounds);
   }
+  WarnAboutFloatSteps(read_bounds);
   RAYSTACK_RETURN_IF_ERROR(spool.Close());
   WarnAboutCutNames(sources);
   if (materials.size() > store::kMaxMaterials)
