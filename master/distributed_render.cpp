@@ -227,7 +227,7 @@ bool UseRemoteBlocks(const RenderArgs& args, const store::StoreReader& store, in
 }
 
 Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::Transport* net) {
-  Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene.store);
+  Expected<std::unique_ptr<store::StoreReader>> store = OpenSceneStore(scene);
   if (store.ok()) {  // before any block is read (PeerBlocks reads this slave's share)
     // Each slave decides for its own machine; the master prints each one's reads per frame.
     std::string reads;
@@ -314,7 +314,7 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
   if (net->rank() == 0) {
     Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
     Status s = log.ok() ? CheckMemory(*scene, 0) : log.status();
-    if (s.ok()) s = CheckOutputs(*scene, OutputOf(args, *scene), args.png, args.checkpoint_s > 0);
+    if (s.ok()) s = CheckOutputOf(args, *scene);
     Expected<OutputLock> output_lock =  // held to the end of the job
         s.ok() ? OutputLock::Take(FramePath(OutputOf(args, *scene), 0, 1, ".exr"))
                : Expected<OutputLock>(s);
@@ -326,7 +326,7 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
     }
     // The master reads the store's index when it can (it need not: the slaves read the store),
     // to log the slaves' block mode and to plan the first pass.
-    Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
+    Expected<std::unique_ptr<store::StoreReader>> store = OpenSceneStore(*scene);
     bool rem = false;
     if (store.ok()) {  // which block mode the slaves use, and why
       std::string why;

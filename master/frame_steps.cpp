@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 
 #include "common/base/interrupt.h"
@@ -23,6 +24,32 @@ Status WriteStats(const std::string& path, const std::string& json) {
 
 std::string OutputOf(const RenderArgs& args, const render::Scene& scene) {
   return args.output.empty() ? scene.output : args.output;
+}
+
+Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene) {
+  const Status s = CheckOutputs(scene, OutputOf(args, scene), args.png, args.checkpoint_s > 0);
+  if (s.ok()) return s;
+  return Status::Error((args.output.empty() ? scene.source + ": output" : std::string("--output")) +
+                       ": " + s.message());
+}
+
+Expected<std::unique_ptr<store::StoreReader>> OpenSceneStore(const render::Scene& scene) {
+  Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene.store);
+  if (store.ok()) return store;
+  const std::string where = scene.source + ": store \"" + scene.store + "\": ";
+  const std::string convert = "convert a model into it with raystack-prep MODEL -o " + scene.store;
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status st = fs::status(scene.store, ec);
+  if (!fs::exists(st))
+    return Status::Error(where + "no such folder (" + convert + ")");
+  if (!fs::is_directory(st))
+    return Status::Error(where + "is a file, not a block store (a store is the folder "
+                         "raystack-prep writes: raystack-prep " + scene.store + " -o STORE)");
+  if (!fs::exists(fs::path(scene.store) / store::kIndexFile, ec))
+    return Status::Error(where + "holds no block store (no " + std::string(store::kIndexFile) +
+                         "; " + convert + ")");
+  return Status::Error(where + store.status().message());
 }
 
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,

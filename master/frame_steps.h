@@ -31,6 +31,12 @@ inline constexpr double kMiB = 1024.0 * 1024.0;
 Status WriteStats(const std::string& path, const std::string& json);
 // The output the images are named from: --output, else the scene's.
 std::string OutputOf(const RenderArgs& args, const render::Scene& scene);
+// CheckOutputs (preflight.h) for OutputOf, its errors prefixed by where the output was given
+// ("--output", or the scene file's "output" key).
+Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene);
+// The scene's store, its errors prefixed by the scene file and key, with what to do when the
+// path holds no store at all (not converted yet, a model file, an empty folder).
+Expected<std::unique_ptr<store::StoreReader>> OpenSceneStore(const render::Scene& scene);
 // The scene file, with the command line's overrides.
 Expected<render::Scene> LoadSceneFor(const RenderArgs& args);
 // A scene that can only come out black (no point light, nothing emissive in the store's

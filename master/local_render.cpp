@@ -63,7 +63,7 @@ Status RenderLocally(const RenderArgs& args) {
   const std::string output = OutputOf(args, *scene);
   const size_t frames = scene->cameras.size();
   RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, 0));  // the film alone, before the store is read
-  RAYSTACK_RETURN_IF_ERROR(CheckOutputs(*scene, output, args.png, args.checkpoint_s > 0));
+  RAYSTACK_RETURN_IF_ERROR(CheckOutputOf(args, *scene));
   // Held to the end of the job; named from the output as written ("out" and "out.exr" are one).
   Expected<OutputLock> output_lock = OutputLock::Take(FramePath(output, 0, 1, ".exr"));
   if (!output_lock.ok()) return output_lock.status();
@@ -71,7 +71,7 @@ Status RenderLocally(const RenderArgs& args) {
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
   if (!log.ok()) return log.status();
 
-  Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene->store);
+  Expected<std::unique_ptr<store::StoreReader>> store = OpenSceneStore(*scene);
   if (!store.ok()) return store.status();
   // With the blocks this process will hold: all of them in core, else at most its cache.
   const uint64_t decoded = (*store)->summary().raw_bytes;

@@ -11,6 +11,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <optional>
 #include <string>
@@ -145,8 +146,44 @@ TEST(OutputChecks, ASceneOnStdinResolvesPathsInTheWorkingFolder) {
        kRaystackBinary, dir->path()},
       dir->path());
   EXPECT_EQ(r.exit_code, 1);
-  EXPECT_NE(r.err.find("no-such-store/index.bin"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("/dev/stdin: store \"no-such-store\": no such folder"), std::string::npos)
+      << r.err;
   EXPECT_EQ(r.err.find("/dev/no-such-store"), std::string::npos) << r.err;
+}
+
+// Found by a helper following the docs: a store never converted, a model file given as the
+// store, or an empty folder all said "index.bin: cannot open: No such file or directory", and a
+// bad output named neither the scene file nor its key. Each now says where and what to do.
+TEST(OutputChecks, AStoreOrOutputThatCannotBeUsedIsNamedWithTheSceneKeyAndWhatToDo) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  std::ofstream(dir->File("model.ply")) << "ply\n";
+  std::filesystem::create_directory(dir->File("empty"));
+  struct Case {
+    std::string store, output, extra, says;
+  } cases[] = {
+      {"never-converted", "o.exr", "", "scene.json: store \"" + dir->File("never-converted") +
+                                           "\": no such folder (convert a model into it with "
+                                           "raystack-prep MODEL -o "},
+      {"model.ply", "o.exr", "", "is a file, not a block store"},
+      {"empty", "o.exr", "", "holds no block store (no index.bin; convert a model into it"},
+      {"empty", "o.png", "", "scene.json: output: " + dir->File("o.png") +
+                                 ": the output is an OpenEXR image"},
+      {"empty", "o.exr", "--output=x.png", "--output: x.png: the output is an OpenEXR image"},
+  };
+  for (const Case& c : cases) {
+    std::ofstream(dir->File("scene.json"))
+        << R"({ "store": ")" << c.store << R"(", "output": ")" << c.output
+        << R"(", "camera": { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 4, "height": 3 } })";
+    std::vector<std::string> args = {kRaystackBinary, "render", dir->File("scene.json"), "-q"};
+    if (!c.extra.empty()) {
+      args.push_back("--output");
+      args.push_back(c.extra.substr(9));
+    }
+    const ProcessResult r = RunProcess(args, dir->path());
+    EXPECT_EQ(r.exit_code, 1) << c.store;
+    EXPECT_NE(r.err.find(c.says), std::string::npos) << r.err;
+  }
 }
 
 // A frame whose film cannot fit in the memory available is refused before anything is read
