@@ -128,6 +128,19 @@ class PlotTool(unittest.TestCase):
         self.assertEqual(r.returncode, 0, r.stderr)
         self.assertGreater(os.path.getsize(out), 1000)
 
+    def test_bad_options_are_refused_before_reading(self):
+        # Found by a helper reading the docs: a negative --until gave "area 0", and -o p.jpg
+        # wrote PNG bytes under a JPEG's name.
+        a = os.path.join(self.tmp, "a.csv")
+        write_log(a, [(0.0, 2.0), (1.0, 1.0)])
+        for args, says in ((("--area", "--until", "-1"), "--until must be"),
+                           (("--frame", "-2"), "--frame must be"),
+                           (("-o", os.path.join(self.tmp, "p.jpg")), "give a name ending in .png")):
+            r = self.run_tool(a, "-o", os.path.join(self.tmp, "p.png"), *args)
+            self.assertEqual(r.returncode, 2, args)
+            self.assertIn(says, r.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, "p.jpg")))
+
     def test_bad_logs_name_the_file_and_line(self):
         bad = os.path.join(self.tmp, "bad.csv")
         with open(bad, "w") as f:
