@@ -2,7 +2,6 @@
 
 #include <cstdio>
 #include <cstdlib>
-#include <filesystem>
 #include <fstream>
 
 #include "common/base/interrupt.h"
@@ -37,18 +36,8 @@ Expected<std::unique_ptr<store::StoreReader>> OpenSceneStore(const render::Scene
   Expected<std::unique_ptr<store::StoreReader>> store = store::StoreReader::Open(scene.store);
   if (store.ok()) return store;
   const std::string where = scene.source + ": store \"" + scene.store + "\": ";
-  const std::string convert = "convert a model into it with raystack-prep MODEL -o " + scene.store;
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  const fs::file_status st = fs::status(scene.store, ec);
-  if (!fs::exists(st))
-    return Status::Error(where + "no such folder (" + convert + ")");
-  if (!fs::is_directory(st))
-    return Status::Error(where + "is a file, not a block store (a store is the folder "
-                         "raystack-prep writes: raystack-prep " + scene.store + " -o STORE)");
-  if (!fs::exists(fs::path(scene.store) / store::kIndexFile, ec))
-    return Status::Error(where + "holds no block store (no " + std::string(store::kIndexFile) +
-                         "; " + convert + ")");
+  const std::string none = store::NoStoreThere(scene.store);
+  if (!none.empty()) return Status::Error(where + none);
   return Status::Error(where + store.status().message());
 }
 

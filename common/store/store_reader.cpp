@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <memory>
 
@@ -16,6 +17,20 @@
 #include "common/base/log.h"
 
 namespace raystack::store {
+
+std::string NoStoreThere(const std::string& dir) {
+  namespace fs = std::filesystem;
+  const std::string convert = "convert a model into it with raystack-prep MODEL -o " + dir;
+  std::error_code ec;
+  const fs::file_status st = fs::status(dir, ec);
+  if (!fs::exists(st)) return "no such folder (" + convert + ")";
+  if (!fs::is_directory(st))
+    return "is a file, not a block store (a store is the folder raystack-prep writes: "
+           "raystack-prep " + dir + " -o STORE)";
+  if (!fs::exists(fs::path(dir) / kIndexFile, ec))
+    return "holds no block store (no " + std::string(kIndexFile) + "; " + convert + ")";
+  return "";
+}
 
 uint8_t* DirectBuffer::Reserve(uint64_t bytes) {
   if (bytes > capacity_) {

@@ -51,6 +51,10 @@ class DirectBuffer {
   uint64_t capacity_ = 0;
 };
 
+// When `dir` holds no store at all (nothing there, a file such as a model, a folder without
+// index.bin): why, and what to do, for messages; empty when it may hold one.
+std::string NoStoreThere(const std::string& dir);
+
 class StoreReader {
  public:
   // Opens the store in directory `dir`, verifying headers, versions, checksums and the octree.

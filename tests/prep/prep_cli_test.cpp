@@ -97,13 +97,27 @@ TEST_F(PrepCliTest, MissingOutputFails) {
   ExpectFailsNaming(Prep({"--generate", "sphere:100"}), {"-o"});
 }
 
+// Found by a helper reading the docs: no arguments said "no output store given" (render and
+// info print their usage), and only `raystack` had --version.
+TEST_F(PrepCliTest, NoArgumentsPrintTheUsageAndVersionSaysTheBuild) {
+  ProcessResult r = Prep({});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("usage: raystack-prep INPUT... -o STORE"), std::string::npos) << r.err;
+  r = Prep({"--version"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_EQ(r.out.rfind("raystack-prep 0.", 0), 0u) << r.out;
+  r = Info({"--version"});
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_EQ(r.out.rfind("raystack-info 0.", 0), 0u) << r.out;
+}
+
 TEST_F(PrepCliTest, UnknownOptionFails) {
   ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--frobnicate"}),
                     {"--frobnicate"});
 }
 
 TEST_F(PrepCliTest, BadReplicateFails) {
-  for (const char* bad : {"2,2", "0,1,1", "a,b,c", "1,1,5000"}) {
+  for (const char* bad : {"2,2", "0,1,1", "a,b,c", "1,1,5000", "2,2,2,2", "2,2,2x"}) {
     SCOPED_TRACE(bad);
     ExpectFailsNaming(
         Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--replicate", bad}),

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "common/base/build_id.h"
 #include "common/base/log.h"
 #include "common/render/material_table.h"
 #include "common/store/store_reader.h"
@@ -19,6 +20,7 @@ Prints what a raystack block store holds: format version, triangle and reference
 blocks and their size histogram, bytes per triangle, compression ratio, bounds, materials.
   --verify   read, checksum, decompress and validate every block (exit 1 on the first bad one)
   --blocks   list every block (offset, sizes, triangles, cell, bounds)
+  --version  this build's version and git commit
 )";
 
 void PrintHistogram(std::span<const store::BlockEntry> blocks) {
@@ -40,7 +42,9 @@ void PrintHistogram(std::span<const store::BlockEntry> blocks) {
 int Run(const std::string& dir, bool verify, bool list) {
   Expected<std::unique_ptr<store::StoreReader>> opened = store::StoreReader::Open(dir);
   if (!opened.ok()) {
-    std::fprintf(stderr, "raystack-info: %s\n", opened.status().message().c_str());
+    const std::string none = store::NoStoreThere(dir);
+    std::fprintf(stderr, "raystack-info: %s\n",
+                 none.empty() ? opened.status().message().c_str() : (dir + ": " + none).c_str());
     return 1;
   }
   const store::StoreReader& s = **opened;
@@ -136,6 +140,10 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "-h") || !std::strcmp(argv[i], "--help")) {
       std::fputs(raystack::kUsage, stdout);
+      return 0;
+    }
+    if (!std::strcmp(argv[i], "--version")) {
+      std::printf("raystack-info %s\n", raystack::BuildId());
       return 0;
     }
     if (!std::strcmp(argv[i], "--verify")) verify = true;

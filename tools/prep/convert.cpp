@@ -221,7 +221,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   report.triangles = source.triangles();
   report.copies = source.copies();
   if (source.triangles() >= 0xffffffffull)
-    return Status::Error(StrFormat("%llu triangles after replication: format v1 ids are 32-bit",
+    return Status::Error(StrFormat("%llu triangles after replication: a store's triangle ids are 32-bit (at most 4,294,967,294 triangles)",
                                    static_cast<unsigned long long>(source.triangles())));
   if (source.triangles() == 0) {
     std::string names;

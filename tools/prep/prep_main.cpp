@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "common/base/build_id.h"
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
 #include "common/store/format.h"
@@ -40,6 +41,7 @@ options:
   --bvh-leaf N            most triangles per leaf of a block's BVH (default 8)
   --bvh-traversal-cost X  SAH cost of a BVH node relative to a triangle test (default 4)
   --stats-json FILE       also write the run's figures as JSON
+  --version               this build's version and git commit
   -q, --quiet             no progress or information lines (the summary, warnings and
                           errors stay)
   -h, --help              this text
@@ -109,8 +111,9 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
     } else if (arg == "--replicate") {
       std::string v;
       RAYSTACK_RETURN_IF_ERROR(value(&v));
-      int n = std::sscanf(v.c_str(), "%d,%d,%d", &a->convert.replicate[0], &a->convert.replicate[1], &a->convert.replicate[2]);
-      if (n != 3 || a->convert.replicate[0] < 1 || a->convert.replicate[1] < 1 || a->convert.replicate[2] < 1 ||
+      int end = 0;  // all of it: "2,2,2,2" took 8 copies and dropped the fourth number
+      int n = std::sscanf(v.c_str(), "%d,%d,%d%n", &a->convert.replicate[0], &a->convert.replicate[1], &a->convert.replicate[2], &end);
+      if (n != 3 || static_cast<size_t>(end) != v.size() || a->convert.replicate[0] < 1 || a->convert.replicate[1] < 1 || a->convert.replicate[2] < 1 ||
           a->convert.replicate[0] > 4096 || a->convert.replicate[1] > 4096 || a->convert.replicate[2] > 4096)
         return Status::Error("--replicate wants NX,NY,NZ with each from 1 to 4096, got '" + v + "'");
     } else if (arg == "--bvh-leaf") {
@@ -221,6 +224,14 @@ int Run(const Args& args) {
 }  // namespace raystack::prep
 
 int main(int argc, char** argv) {
+  if (argc == 1) {  // a first run: what to give, not what is missing
+    std::fputs(raystack::prep::kUsage, stderr);
+    return 2;
+  }
+  if (argc == 2 && std::strcmp(argv[1], "--version") == 0) {
+    std::printf("raystack-prep %s\n", raystack::BuildId());
+    return 0;
+  }
   raystack::prep::Args args;
   bool help = false;
   raystack::Status s = raystack::prep::ParseArgs(argc, argv, &args, &help);
