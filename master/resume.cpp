@@ -2,10 +2,36 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
+
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
 
 namespace raystack::master {
+namespace {
+
+// The first line where two provenance records differ ("build ...", "store ...", "camera ...",
+// ...), as "checkpoint: LINE; this run: LINE", each cut to a readable length.
+std::string FirstDifference(const std::string& theirs, const std::string& ours) {
+  size_t a = 0, b = 0;
+  auto line = [](const std::string& text, size_t at) {
+    const size_t end = text.find('\n', at);
+    std::string l = text.substr(at, end == std::string::npos ? std::string::npos : end - at);
+    return l.size() > 120 ? l.substr(0, 117) + "..." : l;
+  };
+  while (a < theirs.size() || b < ours.size()) {
+    const size_t ea = std::min(theirs.find('\n', a), theirs.size());
+    const size_t eb = std::min(ours.find('\n', b), ours.size());
+    if (theirs.compare(a, ea - a, ours, b, eb - b) != 0)
+      return "checkpoint: '" + line(theirs, a) + "'; this run: '" + line(ours, b) + "'";
+    a = ea + 1;
+    b = eb + 1;
+  }
+  return "their records differ";
+}
+
+}  // namespace
+
 
 bool ResumePlan::Needs(const render::Tile& t) const {
   if (finished.empty()) return true;
@@ -35,9 +61,9 @@ Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, u
         exr + (read->provenance.empty()
                    ? ": it does not say what rendered it (not a raystack checkpoint of this "
                      "version): cannot resume from it"
-                   : ": rendered from another scene, camera or setting (the store, camera, "
-                     "lights, materials, background or integrator differ): remove it, or "
-                     "render without --resume"));
+                   : ": rendered from another scene, camera, setting or build (" +
+                         FirstDifference(read->provenance, provenance) +
+                         "): remove it, or render without --resume"));
   if (read->samples.empty())
     return Status::Error(exr + ": no per-pixel sample counts (samples layer): not a raystack "
                          "checkpoint, cannot resume from it");

@@ -285,6 +285,10 @@ TEST_F(Resume, ACheckpointOfAnEditedSceneOrAnotherProgramIsRefused) {
   ProcessResult r = Render(out, 0, {"--resume"});
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("edited.exr: rendered from another scene"), std::string::npos) << r.err;
+  // It says what differs (found by a helper reading the docs: a build's checkpoint was
+  // refused as "another scene" without a word of the build).
+  EXPECT_NE(r.err.find("checkpoint: 'light: position 3 8 4"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("this run: 'light: position 3 9 4"), std::string::npos) << r.err;
   // The same store written another way is the same store.
   std::string spelled = scene;
   spelled.replace(spelled.find("\"store\": \"store\""), 16, "\"store\": \"./store\"");
@@ -311,6 +315,19 @@ TEST_F(Resume, ACheckpointOfAnEditedSceneOrAnotherProgramIsRefused) {
   r = Render(out, 0, {"--resume"});
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("edited.exr: rendered from another scene"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("checkpoint: 'store "), std::string::npos) << r.err;
+
+  // Another build's checkpoint says so.
+  ASSERT_EQ(Render(out, 0).exit_code, 0);
+  image = image::ReadExr(out);
+  ASSERT_TRUE(image.ok()) << image.status().message();
+  const size_t build = image->provenance.find("build ");
+  ASSERT_NE(build, std::string::npos);
+  image->provenance.insert(build + 6, "older-");
+  ASSERT_TRUE(image::WriteExr(out, *image).ok());
+  r = Render(out, 0, {"--resume"});
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("checkpoint: 'build older-"), std::string::npos) << r.err;
 }
 
 TEST_F(Resume, WithoutACheckpointEverythingIsRendered) {
