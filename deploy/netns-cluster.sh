@@ -11,7 +11,7 @@
 #     --mca plm_rsh_agent deploy/netns-rsh.sh --mca btl tcp,self \
 #     --mca btl_tcp_if_include 10.231.0.0/24 --mca oob_tcp_if_include 10.231.0.0/24 raystack render ...
 set -euo pipefail
-usage() { sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
+usage() { sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//' >&2; exit 2; }
 [ $# -ge 2 ] || usage
 cmd="$1"; name="$2"
 case "$cmd" in

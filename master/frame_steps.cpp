@@ -153,6 +153,12 @@ bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, int r
     return true;
   }
   const uint64_t decoded = store->summary().raw_bytes;
+  if (args.engine.mode == slave::TraceMode::kIncore || args.engine.mode == slave::TraceMode::kBvh) {
+    *why = StrFormat("decoded blocks %.1f MB, all in memory (--mode %s has no cache budget)",
+                     static_cast<double>(decoded) / 1e6,
+                     args.engine.mode == slave::TraceMode::kIncore ? "incore" : "bvh");
+    return true;
+  }
   // Each slave's budget loses its share as the slaves count it: stored bytes (RunSlave).
   const uint64_t share = rem_slaves > 0 ? StoredBytes(*store) / static_cast<uint64_t>(rem_slaves) : 0;
   const uint64_t room = args.engine.cache_bytes > share ? args.engine.cache_bytes - share : 0;

@@ -83,8 +83,13 @@ Status RenderLocally(const RenderArgs& args) {
   RAYSTACK_RETURN_IF_ERROR(
       slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads));
   if (!args.quiet) std::printf("reads: %s\n", reads.c_str());
+  for (const std::string& option : args.slave_options)
+    LOG_WARNING("render", "%s has no effect in one process: it is for the slaves of an mpirun "
+                "job (mpirun -np N+1)", option.c_str());
+  slave::EngineOptions options = args.engine;
+  options.faults.fail_read = args.fail_read;  // the one process reads the blocks itself
   Expected<std::unique_ptr<slave::RenderEngine>> engine =
-      slave::RenderEngine::Create(**store, args.engine);
+      slave::RenderEngine::Create(**store, options);
   if (!engine.ok()) return engine.status();
   const render::MaterialTable materials =
       render::MaterialTable::Build((*store)->materials(), *scene);

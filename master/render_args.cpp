@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <thread>
 
 #include "common/base/log.h"
@@ -124,8 +125,16 @@ bool ParseNumber(const std::string& s, T* out) {
 Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
   bool bind_given = false, hold_given = false;
   a->engine.threads = DefaultRayThreads(std::thread::hardware_concurrency());
+  bool log_options_given = false, checkpoint_faults_given = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
+    if (arg == "--blocks" || arg == "--lost-after" || arg == "--fault-rank" ||
+        arg == "--fault-kill-after-tiles" || arg == "--fault-stall-after-tiles" ||
+        arg == "--fault-stall-s")
+      a->slave_options.push_back(arg);
+    log_options_given |= arg == "--reference" || arg == "--log-interval";
+    checkpoint_faults_given |=
+        arg == "--fault-kill-after-checkpoints" || arg == "--fault-fail-checkpoints";
     auto value = [&](std::string* out) -> Status {
       if (i + 1 >= argc) return Status::Error(arg + " needs a value");
       *out = argv[++i];
@@ -138,9 +147,17 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       // %.10g: 16777216 in full, not 1.67772e+07.
       const std::string range = StrFormat("from %.10g to %.10g%s%s%s", lo, hi, *unit ? " (" : "",
                                           unit, *unit ? ")" : "");
-      if (!ParseNumber(v, out))
+      if (!ParseNumber(v, out)) {
+        // A number the option's type cannot hold ("-1" for a count, 99999999999 threads, 1.5
+        // threads) is said as what it is, not as "not a number".
+        double wide = 0;
+        if (ParseNumber(v, &wide) && std::isfinite(wide))
+          return Status::Error(StrFormat("%s %s: must be %s%s", arg.c_str(), v.c_str(),
+                                         wide >= lo && wide <= hi ? "a whole number " : "",
+                                         range.c_str()));
         return Status::Error(StrFormat("%s: '%s' is not a number; give one %s", arg.c_str(),
                                        v.c_str(), range.c_str()));
+      }
       // Written so that NaN ("nan" parses) is out of every range. Said as out of range:
       // "not a number" misled users giving a number too small.
       if (!(static_cast<double>(*out) >= lo && static_cast<double>(*out) <= hi))
@@ -158,7 +175,7 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       a->engine.mode = *mode;
     } else if (arg == "--cache-mb") {
       double mb;
-      RAYSTACK_RETURN_IF_ERROR(number(&mb, 0.001, 1 << 24, "MB"));
+      RAYSTACK_RETURN_IF_ERROR(number(&mb, 0.001, 1 << 24, "MiB"));
       a->engine.cache_bytes = static_cast<uint64_t>(mb * 1024 * 1024);
     } else if (arg == "--threads") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.threads, 1, slave::BlockLoader::kMaxRayThreads));
@@ -268,6 +285,14 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
   if (!a->preview.enabled && (bind_given || hold_given))
     return Status::Error(std::string(bind_given ? "--preview-bind" : "--preview-hold") +
                          " needs the preview on: add --preview PORT (or any)");
+  // So would these: the reference and the interval are the convergence log's, and the
+  // checkpoint faults need checkpoints.
+  if (log_options_given && a->convergence_log.empty())
+    return Status::Error("--reference and --log-interval are the convergence log's: add "
+                         "--convergence-log FILE");
+  if (checkpoint_faults_given && !(a->checkpoint_s > 0))
+    return Status::Error("--fault-kill-after-checkpoints and --fault-fail-checkpoints need "
+                         "checkpoints: add --checkpoint-s S");
   a->preview.server.exposure = a->exposure;
   return OkStatus();
 }

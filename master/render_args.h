@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "common/base/status.h"
 #include "master/convergence_monitor.h"
@@ -46,6 +47,9 @@ struct RenderArgs {
   int64_t kill_after_checkpoints = -1;
   int64_t fail_checkpoints = 0;
   preview::LivePreviewOptions preview;
+  // Options given that only slaves of a distributed job use (--blocks, --lost-after, the
+  // slaves' faults), for a warning when one process renders alone.
+  std::vector<std::string> slave_options;
 };
 
 // --threads' default: every core, up to the most ray threads the loader can serve

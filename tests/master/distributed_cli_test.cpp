@@ -281,7 +281,8 @@ TEST_F(DistributedCli, AMissingReferenceOfALaterCameraIsFoundBeforeRendering) {
   ASSERT_EQ(std::remove(dir_->File("ref-1.exr").c_str()), 0);
   for (const int np : {0, 3}) {
     const ProcessResult r = Render(scene, np, dir_->File("out.exr"), "loc",
-                                   {"--reference", dir_->File("ref.exr")});
+                                   {"--reference", dir_->File("ref.exr"), "--convergence-log",
+                                    dir_->File("log.csv")});
     EXPECT_NE(r.err.find("ref-1.exr: cannot read"), std::string::npos) << np << ": " << r.err;
     EXPECT_TRUE(Slurp(dir_->File("out-0.exr")).empty()) << np << ": frame 0 was rendered";
   }

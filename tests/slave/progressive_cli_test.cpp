@@ -157,13 +157,15 @@ TEST_F(ProgressiveCli, BadOptionsAndReferencesAreClearErrors) {
       "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 20, "height": 10 },
       "output": "other.exr" })";
     const ProcessResult r = RunProcess({kRaystack, "render", dir_->File("other.json"), "--reference",
-                                        dir_->File("small.exr"), "-q"}, dir_->path());
+                                        dir_->File("small.exr"), "--convergence-log",
+                                        dir_->File("log.csv"), "-q"}, dir_->path());
     EXPECT_EQ(r.exit_code, 1);
     EXPECT_NE(r.err.find("small.exr"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("48x32"), std::string::npos) << r.err;
   }
   {
-    const ProcessResult r = Render(1, {"--reference", dir_->File("missing.exr"), "-q"});
+    const ProcessResult r = Render(1, {"--reference", dir_->File("missing.exr"),
+                                       "--convergence-log", dir_->File("log.csv"), "-q"});
     EXPECT_EQ(r.exit_code, 1);
     EXPECT_NE(r.err.find("missing.exr"), std::string::npos) << r.err;
   }

@@ -191,6 +191,20 @@ TEST_F(RenderCli, DirectIoSaysHowItReadsAndKeepsTheImage) {
   EXPECT_NE(bad.err.find("--direct-io must be auto, on or off"), std::string::npos) << bad.err;
 }
 
+// Found by a helper reading the docs: --blocks and the slaves' faults were taken in one process
+// and did nothing, without a word; --fault-fail-read did nothing there either, though the one
+// process reads its blocks itself. Now the first warns and the second fails the read.
+TEST_F(RenderCli, SlaveOptionsWarnInOneProcessAndAnInjectedReadErrorFailsThere) {
+  ProcessResult r = RunProcess({kRaystack, "render", Scene(), "--blocks", "loc", "--lost-after",
+                                "5", "-q"}, dir_->path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("--blocks has no effect in one process"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--lost-after has no effect in one process"), std::string::npos) << r.err;
+  r = RunProcess({kRaystack, "render", Scene(), "--fault-fail-read", "0", "-q"}, dir_->path());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("block"), std::string::npos) << r.err;
+}
+
 TEST_F(RenderCli, BadInputIsAClearError) {
   struct Case {
     std::vector<std::string> args;
@@ -206,9 +220,16 @@ TEST_F(RenderCli, BadInputIsAClearError) {
       {{kRaystack, "render", good, "--cache-mb", "0.001"}, "smaller than the largest block", 1},
       {{kRaystack, "render", good, "--mode", "fast"}, "--mode must be", 2},
       // Found by a real-model user test, 2026-11-26: out of range was "not a number".
-      {{kRaystack, "render", good, "--cache-mb", "0"}, "--cache-mb 0: must be from 0.001 to 16777216 (MB)", 2},
+      {{kRaystack, "render", good, "--cache-mb", "0"}, "--cache-mb 0: must be from 0.001 to 16777216 (MiB)", 2},
       {{kRaystack, "render", good, "--threads", "x"}, "--threads: 'x' is not a number; give one from 1", 2},
       {{kRaystack, "render", good, "--frobnicate"}, "unknown option", 2},
+      // Found by a helper reading the docs: numbers the option's type cannot hold were "not a
+      // number", and options that only another option uses were taken and did nothing.
+      {{kRaystack, "render", good, "--threads", "99999999999"}, "--threads 99999999999: must be from 1 to 64", 2},
+      {{kRaystack, "render", good, "--spp", "-1"}, "--spp -1: must be from 1", 2},
+      {{kRaystack, "render", good, "--threads", "1.5"}, "--threads 1.5: must be a whole number from 1", 2},
+      {{kRaystack, "render", good, "--reference", "r.exr"}, "add --convergence-log FILE", 2},
+      {{kRaystack, "render", good, "--fault-fail-checkpoints", "1"}, "add --checkpoint-s S", 2},
       {{kRaystack, "render"}, "scene file is required", 2},
       {{kRaystack, "render", dir_->File("absent.json")}, "absent.json", 1},
       {{kRaystack, "render", bad_json}, "fov_y_deg", 1},
