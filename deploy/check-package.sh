@@ -14,4 +14,6 @@ work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 (cd "$work" && /usr/bin/raystack-demo demo)
 test -s "$work/demo/default.exr"
+test -s /usr/share/doc/raystack/SCENE_FORMAT.md  # where --help sends the reader
+test -x /usr/bin/raystack-plot
 echo "check-package: the installed raystack rendered $(du -h "$work/demo/default.exr" | cut -f1) of EXR"

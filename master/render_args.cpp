@@ -13,8 +13,9 @@ namespace raystack::master {
 const char* const kRenderUsage = R"(usage: raystack render SCENE.json [options]
 
 Renders a block store (made by raystack-prep) as the scene file describes (format:
-common/render/SCENE_FORMAT.md) and writes an OpenEXR image with layers R G B A, Z, N, albedo,
-samples and variance, plus a tone-mapped PNG beside it. Blocks are loaded on demand into a
+SCENE_FORMAT.md, in the source's common/render/ or in /usr/share/doc/raystack/) and writes an
+OpenEXR image with layers R G B A, Z, N, albedo, samples and variance, plus a tone-mapped PNG
+beside it. Blocks are loaded on demand into a
 cache of --cache-mb; rays that need a missing block wait in that block's queue while a
 loader thread reads it (the ray stack), so the store may be far larger than the cache.
 
@@ -76,7 +77,7 @@ options:
   --convergence-log FILE    write a CSV row every --log-interval seconds and at every pass
                             end: time, rays, samples, pixels covered, the fewest samples
                             of a pixel, the error estimates, and RMSE and relMSE against
-                            --reference (format: README, "Error against run time")
+                            --reference (format: README.md, "Error against run time")
   --log-interval S          seconds between convergence-log rows (default 0.5)
   --reference REF.exr       an image to measure RMSE and relMSE against (same size; with
                             several cameras REF-0.exr, REF-1.exr, ...)
