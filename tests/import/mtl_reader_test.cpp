@@ -73,6 +73,24 @@ TEST(MtlReader, ValuesOutOfRangeAreStoredAsWritten) {
   EXPECT_EQ(materials[1].d, 2.0f);
 }
 
+// Found by a helper converting exporters' files: keys in another case ("KD", "ILLUM") were
+// ignored without a word, and "d -halo 0.6" (the MTL spec's halo form) was a fatal error.
+TEST(MtlReader, KeysInAnyCaseAndTheHaloFormOfDAreRead) {
+  ScratchFiles files;
+  MaterialTable table;
+  ASSERT_TRUE(ReadMtlText(files,
+                          "newmtl a\nKD 0.1 0.8 0.1\nILLUM 3\nkS 0.5\nd -halo 0.6\n"
+                          "Pm 0.2\nmap_Kd wood.png\nfrobnicate 1\n",
+                          &table)
+                  .ok());
+  std::vector<Material> materials = table.Take();
+  ASSERT_EQ(materials.size(), 1u);
+  EXPECT_EQ(materials[0].kd, (Vec3f{0.1f, 0.8f, 0.1f}));
+  EXPECT_EQ(materials[0].ks, (Vec3f{0.5f, 0.5f, 0.5f}));
+  EXPECT_EQ(materials[0].illum, 3);
+  EXPECT_EQ(materials[0].d, 0.6f);
+}
+
 TEST(MtlReader, BadNumberNamesFileAndLine) {
   ScratchFiles files;
   MaterialTable table;

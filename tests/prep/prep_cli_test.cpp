@@ -248,6 +248,31 @@ TEST_F(PrepCliTest, AModelFarFromTheOriginForItsSizeIsWarnedOfItsLostDetail) {
   EXPECT_EQ(r.err.find("Move the model near the origin"), std::string::npos) << r.err;
 }
 
+// Found by a helper converting exporters' files: vertex colours were dropped without a word,
+// 2,000 materials of a missing MTL printed 2,000 warnings, and an MTL key raystack does not know
+// was ignored silently.
+TEST_F(PrepCliTest, WhatIsNotReadIsSaidOnceAndManyNamesAreCounted) {
+  const std::string obj = dir_->File("coloured.obj");
+  {
+    std::ofstream out(obj);
+    out << "mtllib missing.mtl\nmtllib odd.mtl\nv 0 0 0 1 0 0\nv 1 0 0 1 0 0\nv 0 1 0 1 0 0\n";
+    for (int m = 0; m < 10; ++m) out << "usemtl m" << m << "\nf 1 2 3\n";
+    out << "usemtl odd\nf 1 2 3\n";
+  }
+  std::ofstream(dir_->File("odd.mtl")) << "newmtl odd\nKd 1 0 0\nfrobnicate 2\nfrobnicate 3\n";
+  const ProcessResult r = Prep({obj, "-o", dir_->File("s"), "-q"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto count = [&](const std::string& text) {
+    size_t n = 0;
+    for (size_t at = r.err.find(text); at != std::string::npos; at = r.err.find(text, at + 1)) ++n;
+    return n;
+  };
+  EXPECT_EQ(count("vertex colours ('v x y z r g b') are not read"), 1u) << r.err;
+  EXPECT_EQ(count("is defined in no MTL file: it renders as the converter's default"), 8u) << r.err;
+  EXPECT_EQ(count("2 more materials are defined in no MTL file"), 1u) << r.err;
+  EXPECT_EQ(count("odd.mtl:3: 'frobnicate' is no MTL statement raystack knows"), 1u) << r.err;
+}
+
 // Float ray tracing multiplies coordinates: a model whose copies reach past +-1e18, or one
 // smaller than 1e-15 across, would render wrong (overflow, underflow), so prep refuses it and
 // says which way to scale. Models just inside both limits are accepted.

@@ -29,6 +29,11 @@ Material* MaterialTable::Define(std::string_view name) {
   return &materials_[index];
 }
 
+std::string MaterialTable::DefinedAt(std::string_view name) const {
+  auto it = index_.find(std::string(name));
+  return it == index_.end() ? std::string() : materials_[it->second].defined_at;
+}
+
 std::vector<std::string> MaterialTable::UndefinedNames() const {
   std::vector<std::string> names;
   for (size_t i = 0; i < materials_.size(); ++i)
@@ -69,6 +74,11 @@ class MtlLine {
     return OkStatus();
   }
   std::string_view rest() const { return rest_; }
+  // Reads past the next token when it is `token` ("d -halo 0.6": the halo form of d).
+  void SkipIf(std::string_view token) {
+    std::string_view copy = rest_;
+    if (NextToken(&copy) == token) rest_ = copy;
+  }
 
  private:
   bool NextTokenIsEmpty() const {
@@ -79,6 +89,25 @@ class MtlLine {
   BufferedInput& input_;
   std::string_view rest_;
 };
+
+// The statement a key names, whatever its case ("KD", "ILLUM" are written by some tools): its
+// canonical spelling for the statements read, "" for those known and ignored (maps, Ka, Ns, the
+// PBR extension, ...), and nullptr for keys of no MTL statement.
+const char* CanonicalKey(std::string_view key) {
+  std::string lower(key);
+  for (char& c : lower) c = static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+  for (const char* read : {"newmtl", "Kd", "Ks", "Ke", "Ni", "d", "Tr", "illum"}) {
+    std::string l(read);
+    for (char& c : l) c = static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+    if (l == lower) return read;
+  }
+  if (lower.starts_with("map_")) return "";
+  for (const char* ignored : {"ka", "ns", "tf", "sharpness", "bump", "disp", "decal", "refl",
+                              "norm", "pr", "pm", "ps", "pc", "pcr", "aniso", "anisor", "km",
+                              "tw", "ts", "kt"})
+    if (lower == ignored) return "";
+  return nullptr;
+}
 
 }  // namespace
 
@@ -103,6 +132,16 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
     std::string_view rest = StripComment(line);
     std::string_view key = NextToken(&rest);
     if (key.empty()) continue;
+    const char* canonical = CanonicalKey(key);
+    if (!canonical) {
+      if (warned.insert("unknown " + std::string(key)).second)
+        LOG_WARNING("import", "%s:%llu: '%.*s' is no MTL statement raystack knows; ignored (the "
+                    "first such line)", input.path().c_str(),
+                    static_cast<unsigned long long>(input.line_number()),
+                    static_cast<int>(key.size()), key.data());
+      continue;
+    }
+    if (*canonical) key = canonical;
     MtlLine values(input, rest);
     if (key != "newmtl" && !any_newmtl && warned.insert("before newmtl").second)
       LOG_WARNING("import", "%s:%llu: '%.*s' before any newmtl belongs to no material; ignored",
@@ -116,9 +155,9 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
       if (current)
         current->defined_at = input.path() + ":" + std::to_string(input.line_number());
       if (!current) {
-        LOG_WARNING("import", "%s:%llu: material '%.*s' defined again; keeping the first",
+        LOG_WARNING("import", "%s:%llu: material '%.*s' defined again; keeping the first (%s)",
                     input.path().c_str(), static_cast<unsigned long long>(input.line_number()),
-                    static_cast<int>(name.size()), name.data());
+                    static_cast<int>(name.size()), name.data(), table->DefinedAt(name).c_str());
         current = &scratch;
       }
     } else if ((key == "Kd" || key == "Ks" || key == "Ke") &&
@@ -137,6 +176,7 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
       RAYSTACK_RETURN_IF_ERROR(values.Float(&current->ni));
     } else if (key == "d" || key == "Tr") {  // opacity, or transparency (its complement)
       float v = 0;
+      if (key == "d") values.SkipIf("-halo");
       RAYSTACK_RETURN_IF_ERROR(values.Float(&v));
       if (!(v >= 0.0f && v <= 1.0f)) out_of_range(key, "outside [0, 1]");
       current->d = key == "d" ? v : 1.0f - v;

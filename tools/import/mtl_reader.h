@@ -23,6 +23,8 @@ class MaterialTable {
   uint32_t Use(std::string_view name);
   // The entry a `newmtl name` block fills; nullptr if an MTL defined `name` already.
   Material* Define(std::string_view name);
+  // Where `name`'s newmtl is ("file.mtl:12"); empty when no MTL defined it.
+  std::string DefinedAt(std::string_view name) const;
   // Names used but defined by no MTL (they keep the default material).
   std::vector<std::string> UndefinedNames() const;
   // Moves the materials out, indexed as Use() answered.

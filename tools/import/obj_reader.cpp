@@ -70,6 +70,7 @@ class ObjReader {
   std::vector<FaceCorner> corners_;  // of the current face; reused
   std::string joined_;           // a statement continued over several lines
   std::set<std::string, std::less<>> warned_keywords_;
+  bool colours_noted_ = false;
   std::set<std::string, std::less<>> libraries_;  // loaded already (concatenated OBJs repeat them)
 };
 
@@ -144,6 +145,17 @@ Status ObjReader::ReadPosition(std::string_view rest) {
   float xyz[3];
   RAYSTACK_RETURN_IF_ERROR(ReadFloats(&rest, xyz, 3, 0));  // w or vertex colours may follow
   if (const char* why = PositionOutOfRange(xyz)) return input_.LineError(why);
+  if (!colours_noted_) {  // "v x y z r g b" (MeshLab, scanners): the model would come out grey
+    std::string_view after = rest;
+    int more = 0;
+    while (!NextToken(&after).empty()) ++more;
+    if (more >= 3) {
+      colours_noted_ = true;
+      LOG_WARNING("import", "%s:%llu: vertex colours ('v x y z r g b') are not read: surfaces "
+                  "take their material's colour (a scene can set it)", input_.path().c_str(),
+                  static_cast<unsigned long long>(input_.line_number()));
+    }
+  }
   info_->bounds.Extend(Vec3f{xyz[0], xyz[1], xyz[2]});
   ++info_->vertices;
   return positions_.Append(xyz);
@@ -297,9 +309,17 @@ void ObjReader::WarnOnce(std::string_view keyword) {
 
 Status ObjReader::Finish() {
   RAYSTACK_RETURN_IF_ERROR(batcher_.Finish(input_.path()));
-  for (const std::string& name : materials_.UndefinedNames())
-    LOG_WARNING("import", "%s: material '%s' is defined in no MTL file; using a default",
-                input_.path().c_str(), name.c_str());
+  // A model may use thousands of names its missing MTL defined: a few, then a count.
+  constexpr size_t kNamed = 8;
+  const std::vector<std::string> undefined = materials_.UndefinedNames();
+  for (size_t i = 0; i < undefined.size() && i < kNamed; ++i)
+    LOG_WARNING("import", "%s: material '%s' is defined in no MTL file: it renders as the "
+                "converter's default (diffuse, Kd 0.8), and a scene can set it by name "
+                "(\"materials\": {\"%s\": ...})", input_.path().c_str(), undefined[i].c_str(),
+                undefined[i].c_str());
+  if (undefined.size() > kNamed)
+    LOG_WARNING("import", "%s: %zu more materials are defined in no MTL file",
+                input_.path().c_str(), undefined.size() - kNamed);
   info_->materials = materials_.Take();
   return OkStatus();
 }

@@ -40,6 +40,7 @@ class PlyReader {
   Status MakeVertexLayout(const PlyElement& element, VertexLayout* layout) const;
   void WarnAboutTrailingData(PlyFormat format);
   Status ReadVertices(const PlyElement& element);
+  void WarnOfColours(const PlyElement& element) const;
   template <typename ReadList, typename AfterRecord>
   Status ReadIndexLists(const PlyElement& element, ReadList&& read_list, AfterRecord&& after_record);
   Status ReadFaces(const PlyElement& element);
@@ -131,6 +132,7 @@ Status PlyReader::MakeVertexLayout(const PlyElement& element, VertexLayout* layo
   if (layout->has_normals) place(nx), place(ny), place(nz);
   layout->has_uvs = u >= 0 && v >= 0;
   if (layout->has_uvs) place(u), place(v);
+  WarnOfColours(element);
   return OkStatus();
 }
 
@@ -193,7 +195,20 @@ Status PlyReader::ReadIndexLists(const PlyElement& element, ReadList&& read_list
   return OkStatus();
 }
 
+// Scanners and MeshLab colour vertices or faces ("red green blue"): the model would come out in
+// its material's colour without a word.
+void PlyReader::WarnOfColours(const PlyElement& element) const {
+  for (const char* name : {"red", "diffuse_red", "r"})
+    if (element.Find(name) >= 0) {
+      LOG_WARNING("import", "%s: %s colours ('%s', ...) are not read: surfaces take their "
+                  "material's colour (a scene can set it)", input_.path().c_str(),
+                  element.name.c_str(), name);
+      return;
+    }
+}
+
 Status PlyReader::ReadFaces(const PlyElement& element) {
+  WarnOfColours(element);
   return ReadIndexLists(
       element, [this](const PlyProperty& list) { return ReadFaceCorners(list); },
       [this] {
