@@ -94,6 +94,21 @@ Expected<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& di
   return w;
 }
 
+Status StoreWriter::CheckFolderIsForAStore(const std::string& dir) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(dir, ec)) return OkStatus();  // made by Create
+  for (const std::filesystem::directory_entry& e : std::filesystem::directory_iterator(dir, ec)) {
+    const std::string name = e.path().filename().string();
+    bool ours = false;
+    for (const char* file : {kIndexFile, kOctreeFile, kBlocksFile, kLightsFile, kLockFile})
+      ours |= name == file || name == Tmp(file);
+    if (!ours)
+      return Status::Error(dir + ": holds other files ('" + name + "'): a store needs a folder of "
+                           "its own; give a new or empty folder, or a store to replace");
+  }
+  return OkStatus();
+}
+
 Status StoreWriter::CheckNotBeingWritten(const std::string& dir) {
   int fd = -1;
   std::string error;  // (a lock that cannot be tried here is Create's to report)

@@ -38,6 +38,10 @@ class StoreWriter {
   // An error if another process is writing the store in `dir` now (OK when `dir` is missing):
   // for a converter to find out before it reads its model, not after.
   static Status CheckNotBeingWritten(const std::string& dir);
+  // Whether `dir` may become a store: a new or empty folder, or one holding only a store's
+  // files (it is replaced). A folder with other files would get the store's among them, and a
+  // later removal of the store would take the user's files with it.
+  static Status CheckFolderIsForAStore(const std::string& dir);
   ~StoreWriter();
 
   // Appends a block; ids must come in order 0, 1, 2, ...

@@ -111,6 +111,21 @@ TEST_F(PrepCliTest, NoArgumentsPrintTheUsageAndVersionSaysTheBuild) {
   EXPECT_EQ(r.out.rfind("raystack-info 0.", 0), 0u) << r.out;
 }
 
+// Found by a helper reading the docs: -o naming a folder of the user's own files wrote the
+// store's among them (and a failed conversion's clean-up would then have removed a folder it
+// took for its own). Such a folder is refused; a store's folder is replaced.
+TEST_F(PrepCliTest, AFolderOfOtherFilesIsRefusedAndAStoreIsReplaced) {
+  std::filesystem::create_directory(dir_->File("photos"));
+  std::ofstream(dir_->File("photos/holiday.jpg")) << "jpeg";
+  ProcessResult r = Prep({"--generate", "sphere:100", "-o", dir_->File("photos"), "-q"});
+  ExpectFailsNaming(r, {"photos: holds other files ('holiday.jpg')", "a folder of its own"});
+  EXPECT_TRUE(std::filesystem::exists(dir_->File("photos/holiday.jpg")));
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("photos/index.bin")));
+  ASSERT_EQ(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "-q"}).exit_code, 0);
+  r = Prep({"--generate", "sphere:200", "-o", dir_->File("s"), "-q"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+}
+
 TEST_F(PrepCliTest, UnknownOptionFails) {
   ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--frobnicate"}),
                     {"--frobnicate"});

@@ -168,6 +168,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   if (args.target_block_bytes > args.max_block_bytes)
     return Status::Error("the target block size is above the cap");
   RAYSTACK_RETURN_IF_ERROR(store::StoreWriter::CheckNotBeingWritten(args.output));
+  RAYSTACK_RETURN_IF_ERROR(store::StoreWriter::CheckFolderIsForAStore(args.output));
   const uint64_t budget = args.memory_limit_bytes;
   int stale = 0;  // work folders of killed preps (their bucket files can be gigabytes)
   Expected<TempDir> temp = TempDir::CreateOwned(args.temp_dir, "raystack-prep", &stale);
