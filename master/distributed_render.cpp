@@ -270,7 +270,8 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
   wire::SetHelloText(hello.host, HostName());
   if (Status s = net->Send(0, wire::Encode(static_cast<uint32_t>(net->rank()), hello)); !s.ok())
     return s;
-  const render::MaterialTable materials = render::MaterialTable::Build((*store)->materials(), scene);
+  const render::MaterialTable materials =
+      render::MaterialTable::Build((*store)->materials(), scene, net->rank() == 1);
   if (net->rank() == 1) WarnIfUnlit(scene, materials, **store);  // once for the job
   slave::NodeFaults faults;
   if (faulty) faults = {args.kill_after_tiles, args.stall_after_tiles, args.stall_s};

@@ -15,17 +15,20 @@ namespace {
 std::string FirstDifference(const std::string& theirs, const std::string& ours) {
   size_t a = 0, b = 0;
   auto line = [](const std::string& text, size_t at) {
+    if (at >= text.size()) return std::string();
     const size_t end = text.find('\n', at);
     std::string l = text.substr(at, end == std::string::npos ? std::string::npos : end - at);
     return l.size() > 120 ? l.substr(0, 117) + "..." : l;
   };
+  // Line by line; a record that ends before the other (with or without its last newline)
+  // differs at the other's next line, shown against "".
   while (a < theirs.size() || b < ours.size()) {
     const size_t ea = std::min(theirs.find('\n', a), theirs.size());
     const size_t eb = std::min(ours.find('\n', b), ours.size());
     if (theirs.compare(a, ea - a, ours, b, eb - b) != 0)
       return "checkpoint: '" + line(theirs, a) + "'; this run: '" + line(ours, b) + "'";
-    a = ea + 1;
-    b = eb + 1;
+    a = std::min(ea + 1, theirs.size());
+    b = std::min(eb + 1, ours.size());
   }
   return "their records differ";
 }

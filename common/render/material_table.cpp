@@ -66,8 +66,12 @@ Material MaterialFromMtl(const store::MaterialRecord& record, std::string* note)
                       "mirror of Ks)", double{kd.x}, double{kd.y}, double{kd.z}, illum);
   } else if (record.d < 1 || (glass_illum && record.ni != 1.0f)) {
     m.type = MaterialType::kGlass;
-    // Ni < 1 (or not given, NaN) cannot be glass in air; 1.5 is common glass.
-    m.ior = record.ni >= 1 ? std::min(record.ni, kMaxIor) : 1.5f;
+    // Ni < 1 (or NaN) cannot be glass in air; 1.5 is common glass. A transparent material
+    // without Ni (d < 1: a window of one face, as SketchUp writes them) stays a clear sheet of
+    // index 1, as before Ni's absence was told apart: one face refracting at 1.5 would bend all
+    // that is seen through it.
+    const bool clear_sheet = record.d < 1 && record.ni == 0;
+    m.ior = record.ni >= 1 ? std::min(record.ni, kMaxIor) : clear_sheet ? 1.0f : 1.5f;
     m.albedo = NonZero(ks) ? ks : Vec3f{1, 1, 1};
   } else {
     m.type = MaterialType::kDiffuse;
@@ -83,7 +87,7 @@ Material MaterialFromMtl(const store::MaterialRecord& record, std::string* note)
 }
 
 MaterialTable MaterialTable::Build(std::span<const store::MaterialRecord> records,
-                                   const Scene& scene) {
+                                   const Scene& scene, bool say) {
   MaterialTable table;
   table.default_ = scene.default_material;
   table.materials_.reserve(records.size());
@@ -104,25 +108,25 @@ MaterialTable MaterialTable::Build(std::span<const store::MaterialRecord> record
     } else {
       std::string note;
       table.materials_.push_back(MaterialFromMtl(record, &note));
-      if (!note.empty() && ++noted <= kNamedNotes)
+      if (say && !note.empty() && ++noted <= kNamedNotes)
         LOG_INFO(kComponent, "material '%s' renders as %s: %s", name.c_str(),
                  TypeName(table.materials_.back().type), note.c_str());
     }
   }
   if (noted > kNamedNotes)
-    LOG_INFO(kComponent, "%zu more materials are not what their MTL illum asks for "
-             "(raystack-info lists each)", noted - kNamedNotes);
-  WarnAboutSharedOverrides(matched, scene.source);
+    LOG_INFO(kComponent, "%zu more materials have a note on how they render (raystack-info "
+             "lists each)", noted - kNamedNotes);
+  if (say) WarnAboutSharedOverrides(matched, scene.source);
   constexpr size_t kNamedUnused = 8;  // then a count: a scene may list thousands
   size_t unused = 0;
   for (const auto& [name, material] : scene.overrides) {
-    if (matched.count(name) || ++unused > kNamedUnused) continue;
+    if (!say || matched.count(name) || ++unused > kNamedUnused) continue;
     LOG_WARNING(kComponent,
                 "%s: materials.%s: the store has no material of that name; the override is "
                 "unused",
                 scene.source.c_str(), name.c_str());
   }
-  if (unused > kNamedUnused)
+  if (say && unused > kNamedUnused)
     LOG_WARNING(kComponent, "%s: %zu more material overrides name no material of the store",
                 scene.source.c_str(), unused - kNamedUnused);
   table.any_specular_ = table.default_.specular();

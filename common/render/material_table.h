@@ -16,7 +16,8 @@ namespace raystack::render {
 
 // Material for an MTL record: Ke > 0 -> emission = Ke; illum 3 or 5 with Ks > 0 -> mirror with
 // albedo Ks; d < 1, or illum 4, 6, 7 or 9 with an Ni other than 1 -> glass with ior Ni (1.5 if
-// Ni < 1 or not given) and albedo = Ks if nonzero else [1,1,1]; otherwise diffuse with albedo
+// Ni < 1 or not given, 1 if not given with d < 1: a clear sheet) and albedo = Ks if nonzero else
+// [1,1,1]; otherwise diffuse with albedo
 // Kd. The first rule that matches wins, in this order. Exporters write these illums for
 // materials that are neither (CityEngine: illum 3 with Ks 0 for its Lambert materials, a black
 // mirror; Maya: illum 4 with Ni 1 and d 1 for every Lambert, an invisible glass), hence the
@@ -34,7 +35,9 @@ class MaterialTable {
   // the scene's default for triangles without a material (store::kNoMaterial). An override
   // naming a material the store does not have is logged as a warning (a scene may be shared
   // by stores with different materials).
-  static MaterialTable Build(std::span<const store::MaterialRecord> records, const Scene& scene);
+  // `say` false builds silently: the slaves of a job but one, so that a job says it once.
+  static MaterialTable Build(std::span<const store::MaterialRecord> records, const Scene& scene,
+                             bool say = true);
 
   // kNoMaterial or out of range -> the default.
   const Material& Get(uint32_t material_id) const {

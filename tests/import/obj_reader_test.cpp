@@ -138,12 +138,15 @@ TEST(ObjReader, ToleratesCrlfTabsCommentsGroupsAndContinuations) {
 TEST(ObjReader, ExportersLibraryNamesAndCommentsAreReadAsTheyMeanThem) {
   ScratchFiles files;
   files.Write("my model.mtl", "newmtl Red Paint\nKd 1 0 0\n");
+  testing::internal::CaptureStderr();
   ObjResult r = ReadObjText(files,
-                            "# Exported from D:\\Projects\\\n"
                             "mtllib my model.mtl\nmtllib my model.mtl\n"
+                            "# Exported from D:\\Projects\\\n"
                             "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 5 5 5\n"
                             "usemtl Red Paint\nf 1 2 3\n");
+  const std::string err = testing::internal::GetCapturedStderr();
   ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(err.find("defined again"), std::string::npos) << err;
   EXPECT_EQ(r.info.vertices, 4u);
   ASSERT_EQ(r.sink.triangles.size(), 1u);
   EXPECT_EQ(r.sink.triangles[0].p[0], (Vec3f{0, 0, 0}));
@@ -173,8 +176,10 @@ TEST(ObjReader, NonFiniteNormalsAndUvsAreDroppedNotFatal) {
   EXPECT_EQ(r.sink.triangles[2].n[0], (Vec3f{0, 0, 1}));
   EXPECT_TRUE(r.sink.triangles[2].has_uvs);
   EXPECT_FALSE(r.sink.triangles[3].has_uvs);
-  // Positions stay strict: a vertex that is not finite is an error naming its line.
+  // Positions stay strict: a vertex that is not finite is an error naming its line, in MSVC's
+  // spelling too (it was read as "-1." and a comment: z = -1).
   ExpectErrorMentions(ReadObjText(files, "v nan 0 0\n").status, {"model.obj:1:", "not finite"});
+  ExpectErrorMentions(ReadObjText(files, "v 0 1 -1.#IND\n").status, {"model.obj:1:", "-1.#IND"});
 }
 
 TEST(ObjReader, MaterialsComeFromSeveralLibrariesNextToTheObj) {

@@ -11,7 +11,8 @@
 namespace raystack::render {
 namespace {
 
-// An MTL record with the converter's defaults (illum 2, Ni 1, d 1, Kd 0.8).
+// An MTL record with the converter's defaults (illum 2, d 1, Kd 0.8) and Ni 1 as given by an
+// MTL (the converter stores 0 when the MTL has no Ni).
 store::MaterialRecord Record(const std::string& name) {
   store::MaterialRecord r{};
   std::strncpy(r.name, name.c_str(), sizeof r.name - 1);
@@ -63,7 +64,7 @@ TEST(MaterialFromMtl, GlassIllumsAndTransparency) {
   }
   store::MaterialRecord r = Record("see-through");
   r.d = 0.5f;  // illum 2, but transparent
-  r.ni = 0;
+  r.ni = 0.5f;
   Set(r.ks, {0.2f, 0.9f, 0.2f});
   const Material m = MaterialFromMtl(r);
   EXPECT_EQ(m.type, MaterialType::kGlass);
@@ -116,6 +117,11 @@ TEST(MaterialFromMtl, IllumsThatExportersWriteForLambertsAreDiffuse) {
   maya.ni = 1.0f;
   maya.d = 0.9f;  // transparent: glass whatever its index
   EXPECT_EQ(MaterialFromMtl(maya).type, MaterialType::kGlass);
+  // Transparent without Ni (a one-face window): a clear sheet of index 1, as stores converted
+  // before Ni's absence was told apart had it; 1.5 would bend all that is seen through it.
+  maya.ni = 0;
+  EXPECT_EQ(MaterialFromMtl(maya).type, MaterialType::kGlass);
+  EXPECT_EQ(MaterialFromMtl(maya).ior, 1.0f);
 
   // A mirror whose Kd is stronger than its Ks stays a mirror (the MTL says so), and says so.
   store::MaterialRecord metal = Record("metal");

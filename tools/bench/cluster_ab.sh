@@ -10,7 +10,7 @@
 #   tools/bench/cluster_ab.sh PAIRS N BLOCKS BEFORE_BIN AFTER_BIN [SCENE] [QUOTA] [-- render options]
 #
 # BLOCKS is loc or rem; SCENE defaults to scenes/default2.json (two frames of one view), QUOTA
-# to 20. Extra render options follow `--` (e.g. -- --reference ref.exr). Run it under
+# to 20. Extra render options follow `--` (e.g. -- --convergence-log log.csv --reference ref.exr). Run it under
 # `flock /tmp/raystack-bench.lock`.
 set -euo pipefail
 cd "$(dirname "$0")/../.."

@@ -107,12 +107,13 @@ Status ObjReader::ReadStatement(std::string_view line) {
   std::string_view rest = StripComment(line);
   std::string_view keyword = NextToken(&rest);
   if (keyword.empty()) return OkStatus();
-  if (keyword == "v") return ReadPosition(rest);
   if (keyword == "f") return ReadFace(rest);
-  if (keyword == "vt" || keyword == "vn") {
+  if (keyword == "v" || keyword == "vt" || keyword == "vn") {
+    // "-1.#IND" is a number that is not finite, not "-1." and a comment (a position written
+    // so must be an error, not -1).
     rest = StripCommentKeepingMsvcNonFinite(line);
     NextToken(&rest);  // the keyword
-    return keyword == "vt" ? ReadTexCoord(rest) : ReadNormal(rest);
+    return keyword == "v" ? ReadPosition(rest) : keyword == "vt" ? ReadTexCoord(rest) : ReadNormal(rest);
   }
   if (keyword == "usemtl") {
     std::string_view name = Trim(rest);

@@ -24,13 +24,25 @@ bool PolygonSplitter::Split(std::span<const Vec3f> corners, std::vector<Triangle
     fan();
     return true;
   }
+  // A corner written twice in a row turns by 0 at both copies, which would hide a notch from
+  // the convexity test: the ring holds each run of equal corners once (their triangles would
+  // have no area anyway).
+  ring_.clear();
+  for (uint32_t i = 0; i < n; ++i)
+    if (ring_.empty() || !(corners[i] == corners[ring_.back()])) ring_.push_back(i);
+  while (ring_.size() > 1 && corners[ring_.back()] == corners[ring_.front()]) ring_.pop_back();
+  const auto m = static_cast<uint32_t>(ring_.size());
+  if (m < 3) {
+    fan();
+    return true;
+  }
   // Newell's normal, from the first corner (the face's coordinates may be far from the origin).
   const auto at = [&](uint32_t i, int axis) {
-    return double{corners[i][axis]} - double{corners[0][axis]};
+    return double{corners[ring_[i]][axis]} - double{corners[ring_[0]][axis]};
   };
   double normal[3] = {0, 0, 0};
-  for (uint32_t i = 0; i < n; ++i) {
-    const uint32_t j = i + 1 == n ? 0 : i + 1;
+  for (uint32_t i = 0; i < m; ++i) {
+    const uint32_t j = i + 1 == m ? 0 : i + 1;
     for (int k = 0; k < 3; ++k) {
       const int a = (k + 1) % 3, b = (k + 2) % 3;
       normal[k] += (at(i, a) - at(j, a)) * (at(i, b) + at(j, b));
@@ -46,56 +58,75 @@ bool PolygonSplitter::Split(std::span<const Vec3f> corners, std::vector<Triangle
   // The plane of the other two axes, taken in the order that makes the face counter-clockwise.
   int a = (k + 1) % 3, b = (k + 2) % 3;
   if (normal[k] < 0) std::swap(a, b);
-  u_.resize(n);
-  v_.resize(n);
-  for (uint32_t i = 0; i < n; ++i) {
+  u_.resize(m);
+  v_.resize(m);
+  for (uint32_t i = 0; i < m; ++i) {
     u_[i] = at(i, a);
     v_[i] = at(i, b);
   }
   bool convex = true;
-  for (uint32_t i = 0; i < n && convex; ++i) {
-    const uint32_t p = i == 0 ? n - 1 : i - 1, q = i + 1 == n ? 0 : i + 1;
+  for (uint32_t i = 0; i < m && convex; ++i) {
+    const uint32_t p = i == 0 ? m - 1 : i - 1, q = i + 1 == m ? 0 : i + 1;
     convex = Turn(u_[p], v_[p], u_[i], v_[i], u_[q], v_[q]) >= 0;
   }
-  if (convex) {
+  if (convex && m == n) {
     fan();
     return true;
   }
-  if (n > kMaxClippedCorners) {
+  if (m > kMaxClippedCorners) {
     fan();
     return false;
   }
-  next_.resize(n);
-  prev_.resize(n);
-  for (uint32_t i = 0; i < n; ++i) {
-    next_[i] = i + 1 == n ? 0 : i + 1;
-    prev_[i] = i == 0 ? n - 1 : i - 1;
+  next_.resize(m);
+  prev_.resize(m);
+  for (uint32_t i = 0; i < m; ++i) {
+    next_[i] = i + 1 == m ? 0 : i + 1;
+    prev_[i] = i == 0 ? m - 1 : i - 1;
   }
-  uint32_t left = n, corner = 0, misses = 0;
+  const auto emit = [&](uint32_t x, uint32_t y, uint32_t z) {
+    triangles->push_back({ring_[x], ring_[y], ring_[z]});
+  };
+  if (convex) {  // repeated corners dropped: a fan of the rest
+    for (uint32_t i = 1; i + 1 < m; ++i) emit(0, i, i + 1);
+    return true;
+  }
+  // Ear clipping with a list of ears (Eberly): clipping a corner changes whether its two
+  // neighbours are ears and no other corner's, so each clip re-tests two corners, and the whole
+  // split takes time quadratic in the corners, not cubic.
+  removed_.assign(m, 0);
+  ears_.clear();
+  for (uint32_t i = 0; i < m; ++i)
+    if (IsEar(i)) ears_.push_back(i);
+  uint32_t left = m, last = 0;
+  bool rescanned = false;
   while (left > 3) {
-    if (!IsEar(corner)) {
-      corner = next_[corner];
-      if (++misses > left) {  // no ear in a whole turn: the rest crosses itself
-        Fan(corner, triangles);
-        return true;
-      }
+    if (ears_.empty()) {
+      // No ear left: the rest crosses itself (or the update missed one, in rounding): look at
+      // every corner once more, then fan what is left.
+      if (rescanned) break;
+      rescanned = true;
+      for (uint32_t i = next_[last], j = 0; j < left; i = next_[i], ++j)
+        if (IsEar(i)) ears_.push_back(i);
       continue;
     }
+    const uint32_t corner = ears_.back();
+    ears_.pop_back();
+    if (removed_[corner] || !IsEar(corner)) continue;  // listed before a neighbour was clipped
     const uint32_t p = prev_[corner], q = next_[corner];
-    triangles->push_back({p, corner, q});
+    emit(p, corner, q);
     next_[p] = q;
     prev_[q] = p;
+    removed_[corner] = 1;
     --left;
-    misses = 0;
-    corner = q;
+    last = p;
+    rescanned = false;
+    if (left > 3) {
+      if (IsEar(p)) ears_.push_back(p);
+      if (IsEar(q)) ears_.push_back(q);
+    }
   }
-  Fan(corner, triangles);
+  for (uint32_t j = next_[last]; next_[j] != last; j = next_[j]) emit(last, j, next_[j]);
   return true;
-}
-
-void PolygonSplitter::Fan(uint32_t first, std::vector<Triangle>* triangles) const {
-  for (uint32_t j = next_[first]; next_[j] != first; j = next_[j])
-    triangles->push_back({first, j, next_[j]});
 }
 
 // A corner that turns left, and whose triangle with its two neighbours holds no other corner

@@ -4,8 +4,8 @@
 // what they always were), and ear clipping otherwise (an L-shaped face from Blender, SketchUp or
 // FreeCAD, whose fan would fill its notch). The face is projected on the plane its Newell normal
 // is closest to, in double precision from its first corner. Triangles keep the face's winding.
-// A face whose projection has no ear left (it crosses itself, or has no area) ends as a fan of
-// what is left, as before; so does a non-convex face of more than kMaxClippedCorners corners,
+// Runs of equal corners count once. A face whose projection has no ear left (it crosses itself,
+// or has no area) ends as a fan of what is left, as before; so does a non-convex face of more than kMaxClippedCorners corners,
 // since ear clipping takes time quadratic in them (the caller says so).
 // Not thread-safe; one per reader, reused face to face without allocating.
 
@@ -28,12 +28,15 @@ class PolygonSplitter {
   bool Split(std::span<const Vec3f> corners, std::vector<Triangle>* triangles);
 
  private:
-  void Fan(uint32_t first, std::vector<Triangle>* triangles) const;
   bool IsEar(uint32_t corner) const;
 
-  // The projected face, a ring of the corners not clipped yet.
+  // The face's corners, each run of equal ones once (indices into the face), projected on its
+  // plane, as a ring of the corners not clipped yet; and the corners known to be ears.
+  std::vector<uint32_t> ring_;
   std::vector<double> u_, v_;
   std::vector<uint32_t> next_, prev_;
+  std::vector<uint8_t> removed_;
+  std::vector<uint32_t> ears_;
 };
 
 }  // namespace raystack::import
