@@ -32,6 +32,9 @@ void RayThread::BeginFrame(FrameShared* shared) {
   counters_ = ThreadCounters{};
   tiles_.clear();
   newest_tile_ = 0;
+  feed_next_ = feed_end_ = 0;
+  feed_first_chunk_ = 0;
+  feed_total_ = feed_done_ = 0;
   open_tiles_ = 0;
   ahead_asked_ = false;
   tiles_exhausted_ = false;
@@ -94,6 +97,10 @@ RayRecord RayThread::PrimaryRay(int x, int y, uint32_t sample, uint32_t slot,
 }
 
 bool RayThread::FeedNextTile(bool may_wait) {
+  if (feed_next_ < feed_end_) {  // the rest of the tile being fed comes first
+    FeedChunk();
+    return true;
+  }
   if (may_wait) {
     FlushResults();
   } else if (!shared_->tiles->Ready(index_)) {
@@ -119,13 +126,34 @@ bool RayThread::FeedNextTile(bool may_wait) {
   render::ForEachTilePixel(tile, by_priority, [&](int x, int y) {
     feed_pixels_.push_back({by_priority ? render::PixelPriority(x, y) : uint16_t{0}, x, y});
   });
-  const uint32_t local = static_cast<uint32_t>(tiles_.size());
   const uint32_t samples = sample_end > sample_begin ? sample_end - sample_begin : 0;
-  tiles_.push_back({tile, static_cast<uint32_t>(feed_pixels_.size()) * samples, 0});
-  newest_tile_ = local;
-  if (tiles_.back().total == 0) return true;  // nothing in it (an empty rank range)
-  ++open_tiles_;
+  feed_tile_ = tile;
+  feed_first_chunk_ = static_cast<uint32_t>(tiles_.size());
+  feed_total_ = uint64_t{feed_pixels_.size()} * samples;
+  feed_done_ = 0;
+  if (feed_total_ == 0) {  // nothing in it (an empty rank range)
+    newest_tile_ = feed_first_chunk_;
+    tiles_.push_back({tile, 0, 0});
+    feed_next_ = feed_end_ = 0;
+    return true;
+  }
   ahead_asked_ = false;
+  feed_next_ = sample_begin;
+  feed_end_ = sample_end;
+  FeedChunk();
+  return true;
+}
+
+void RayThread::FeedChunk() {
+  const auto pixels = static_cast<uint32_t>(feed_pixels_.size());
+  const uint32_t per_chunk = std::max(1u, kMaxFeedSamples / pixels);
+  const uint32_t sample_begin = feed_next_;
+  const uint32_t sample_end = std::min(feed_end_, sample_begin + per_chunk);
+  feed_next_ = sample_end;
+  const uint32_t local = static_cast<uint32_t>(tiles_.size());
+  tiles_.push_back({feed_tile_, pixels * (sample_end - sample_begin), 0});
+  newest_tile_ = local;
+  ++open_tiles_;
   AskAhead();
   // Sample by sample, each over all the pixels; pending_ is a LIFO, so push in reverse.
   const int width = shared_->camera->width();
@@ -138,7 +166,7 @@ bool RayThread::FeedNextTile(bool may_wait) {
       ++counters_.rays[static_cast<int>(RayType::kPrimary)];
     }
   }
-  if (shared_->bvh) PretraceBvh(first_fed, sample_begin, sample_end, tile);
+  if (shared_->bvh) PretraceBvh(first_fed, sample_begin, sample_end, feed_tile_);
   if (shared_->stack) {
     while (!pending_.empty()) {
       RayRecord r = pending_.back();
@@ -146,7 +174,6 @@ bool RayThread::FeedNextTile(bool may_wait) {
       Route(r, kInvalidId);
     }
   }
-  return true;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -182,7 +209,10 @@ void RayThread::RayDone(uint32_t slot) {
   ++counters_.samples;
   const bool tile_done = ++tiles_[tile].done == tiles_[tile].total;
   if (tile_done) --open_tiles_;
-  if (tile == newest_tile_) AskAhead();
+  if (tile >= feed_first_chunk_) {  // a chunk of the tile being fed
+    ++feed_done_;
+    AskAhead();
+  }
   results_.push_back(result);
   // A finished tile's samples go out at once rather than when a batch fills, so a progressive
   // frame's sparse first rounds reach the film (and the preview, and the log) as they are done.
@@ -191,8 +221,9 @@ void RayThread::RayDone(uint32_t slot) {
 
 void RayThread::AskAhead() {
   if (ahead_asked_ || tiles_exhausted_) return;
-  const ActiveTile& t = tiles_[newest_tile_];
-  if (static_cast<double>(t.done) < shared_->tile_ahead * static_cast<double>(t.total)) return;
+  // Of the whole tile being fed (all its chunks, fed or not), as when a tile was fed at once.
+  if (static_cast<double>(feed_done_) < shared_->tile_ahead * static_cast<double>(feed_total_))
+    return;
   ahead_asked_ = true;
   shared_->tiles->Ahead(index_);
 }
