@@ -44,9 +44,9 @@ class ObjReader {
   // Returns the next logical line (continuation lines joined); false at the end.
   bool NextStatement(std::string_view* line);
   Status ReadStatement(std::string_view line);
-  Status ReadFloats(std::string_view* rest, float* out, int required, int optional);
+  Status ReadFloats(std::string_view* rest, float* out, int required, int optional,
+                    bool* finite = nullptr);
   Status ReadPosition(std::string_view rest);
-  Status ReadAttributeFloats(std::string_view* rest, float* out, int required, int optional);
   Status ReadTexCoord(std::string_view rest);
   Status ReadNormal(std::string_view rest);
   Status ReadFace(std::string_view rest);
@@ -128,7 +128,12 @@ Status ObjReader::ReadStatement(std::string_view line) {
   return OkStatus();
 }
 
-Status ObjReader::ReadFloats(std::string_view* rest, float* out, int required, int optional) {
+// `required` numbers, then up to `optional` more. With `finite` given (texture coordinates and
+// normals, optional data), a number that is not finite is kept as NaN and *finite cleared, so
+// the faces that use it go without (a warning counts them) rather than the whole model being
+// refused for it; positions (`finite` null) must be finite.
+Status ObjReader::ReadFloats(std::string_view* rest, float* out, int required, int optional,
+                             bool* finite) {
   for (int i = 0; i < required + optional; ++i) {
     std::string_view token = NextToken(rest);
     if (token.empty()) {
@@ -136,8 +141,12 @@ Status ObjReader::ReadFloats(std::string_view* rest, float* out, int required, i
         return input_.LineError(StrFormat("expected %d numbers, found %d", required, i));
       break;
     }
-    if (const char* why = ParseFloat(token, &out[i]))
-      return input_.LineError(std::string(why) + ": '" + std::string(token) + "'");
+    if (const char* why = ParseFloat(token, &out[i])) {
+      if (!finite || (!SpellsNonFinite(token) && std::strcmp(why, "number out of float range") != 0))
+        return input_.LineError(std::string(why) + ": '" + std::string(token) + "'");
+      out[i] = std::numeric_limits<float>::quiet_NaN();
+      *finite = false;
+    }
   }
   return OkStatus();
 }
@@ -162,39 +171,19 @@ Status ObjReader::ReadPosition(std::string_view rest) {
   return positions_.Append(xyz);
 }
 
-// Texture coordinates and normals are optional data: one that is not a finite number is kept as
-// NaN, and the faces that use it go without (a warning counts them), rather than the whole model
-// being refused for it.
-Status ObjReader::ReadAttributeFloats(std::string_view* rest, float* out, int required,
-                                      int optional) {
-  bool finite = true;
-  for (int i = 0; i < required + optional; ++i) {
-    std::string_view token = NextToken(rest);
-    if (token.empty()) {
-      if (i < required)
-        return input_.LineError(StrFormat("expected %d numbers, found %d", required, i));
-      break;
-    }
-    if (const char* why = ParseFloat(token, &out[i])) {
-      if (!SpellsNonFinite(token) && std::strcmp(why, "number out of float range") != 0)
-        return input_.LineError(std::string(why) + ": '" + std::string(token) + "'");
-      out[i] = std::numeric_limits<float>::quiet_NaN();
-      finite = false;
-    }
-  }
-  if (!finite) ++info_->attributes_not_finite;
-  return OkStatus();
-}
-
 Status ObjReader::ReadTexCoord(std::string_view rest) {
   float uv[2] = {0, 0};
-  RAYSTACK_RETURN_IF_ERROR(ReadAttributeFloats(&rest, uv, 1, 1));  // a third (w) may follow
+  bool finite = true;
+  RAYSTACK_RETURN_IF_ERROR(ReadFloats(&rest, uv, 1, 1, &finite));  // a third (w) may follow
+  if (!finite) ++info_->attributes_not_finite;
   return uvs_.Append(uv);
 }
 
 Status ObjReader::ReadNormal(std::string_view rest) {
   float n[3];
-  RAYSTACK_RETURN_IF_ERROR(ReadAttributeFloats(&rest, n, 3, 0));
+  bool finite = true;
+  RAYSTACK_RETURN_IF_ERROR(ReadFloats(&rest, n, 3, 0, &finite));
+  if (!finite) ++info_->attributes_not_finite;
   return normals_.Append(n);
 }
 
