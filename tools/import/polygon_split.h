@@ -28,6 +28,9 @@ class PolygonSplitter {
   bool Split(std::span<const Vec3f> corners, std::vector<Triangle>* triangles);
 
  private:
+  bool Project(std::span<const Vec3f> corners);
+  bool ProjectedIsConvex() const;
+  void ClipEars(bool convex, std::vector<Triangle>* triangles);
   bool IsEar(uint32_t corner) const;
 
   // The face's corners, each run of equal ones once (indices into the face), projected on its
