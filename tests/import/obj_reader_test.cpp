@@ -182,6 +182,41 @@ TEST(ObjReader, NonFiniteNormalsAndUvsAreDroppedNotFatal) {
   ExpectErrorMentions(ReadObjText(files, "v 0 1 -1.#IND\n").status, {"model.obj:1:", "-1.#IND"});
 }
 
+// --shift: a georeferenced model (a 3 cm triangle at UTM coordinates, whose float steps are
+// 0.5 m) keeps its shape when its positions are shifted in double before they become floats;
+// automatic takes the first vertex, rounded, and keeps it for the rest.
+TEST(ObjReader, AShiftKeepsTheDetailOfAModelFarFromTheOrigin) {
+  ScratchFiles files;
+  const std::string far =
+      "v 500123.25 5400456.50 312.00\nv 500123.28 5400456.50 312.00\nv 500123.25 5400456.53 312.00\n"
+      "f 1 2 3\n";
+  ObjResult flat = ReadObjText(files, far);
+  ASSERT_TRUE(flat.status.ok()) << flat.status.message();
+  EXPECT_TRUE(flat.sink.triangles.empty());  // without a shift: no area left
+  PositionShift automatic;
+  automatic.automatic = true;
+  ReadOptions options;
+  options.shift = &automatic;
+  ObjResult kept = ReadObjText(files, far, options);
+  ASSERT_TRUE(kept.status.ok()) << kept.status.message();
+  ASSERT_EQ(kept.sink.triangles.size(), 1u);
+  EXPECT_EQ(automatic.by[0], 500123.0);
+  EXPECT_EQ(automatic.by[1], 5400457.0);  // 5400456.5 rounded away from zero
+  EXPECT_EQ(automatic.by[2], 312.0);
+  EXPECT_NEAR(kept.sink.triangles[0].p[1].x - kept.sink.triangles[0].p[0].x, 0.03f, 1e-6f);
+  EXPECT_NEAR(kept.sink.triangles[0].p[0].y, -0.5f, 1e-6f);
+  // A shift given is used as it is.
+  PositionShift given;
+  given.set = true;
+  given.by[0] = 500000;
+  given.by[1] = 5400000;
+  options.shift = &given;
+  kept = ReadObjText(files, far, options);
+  ASSERT_EQ(kept.sink.triangles.size(), 1u);
+  EXPECT_NEAR(kept.sink.triangles[0].p[0].x, 123.25f, 1e-4f);
+  EXPECT_NEAR(kept.sink.triangles[0].p[0].z, 312.0f, 1e-4f);
+}
+
 TEST(ObjReader, MaterialsComeFromSeveralLibrariesNextToTheObj) {
   ScratchFiles files;
   files.Write("a.mtl", "newmtl red\nKd 1 0 0\n");

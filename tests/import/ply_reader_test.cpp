@@ -269,6 +269,31 @@ TEST(PlyReader, ANonFiniteNormalOrUvIsDroppedAndAPositionNamesItsVertex) {
   }
 }
 
+// --shift in PLY: double coordinates (as scanners write them) shifted before they are floats.
+TEST(PlyReader, AShiftKeepsDoubleCoordinatesFarFromTheOrigin) {
+  ScratchFiles files;
+  const std::vector<TestPlyProperty> xyz = {{"double", "x", ""}, {"double", "y", ""},
+                                            {"double", "z", ""}};
+  const std::vector<TestPlyElement> model = {
+      {"vertex", xyz,
+       {{500123.25, 5400456.5, 312}, {500123.28, 5400456.5, 312}, {500123.25, 5400456.53, 312}}},
+      {"face", {{"int", "vertex_indices", "uchar"}}, {{3, 0, 1, 2}}}};
+  for (const char* format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
+    SCOPED_TRACE(format);
+    PositionShift automatic;
+    automatic.automatic = true;
+    PlyResult r;
+    ReadOptions options;
+    options.shift = &automatic;
+    r.status = ReadFile(files.Write("m.ply", TestPlyWriter::Build(format, model)), &r.sink, &r.info,
+                        options);
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
+    ASSERT_EQ(r.sink.triangles.size(), 1u);
+    EXPECT_NEAR(r.sink.triangles[0].p[1].x - r.sink.triangles[0].p[0].x, 0.03f, 1e-6f);
+    EXPECT_NEAR(r.sink.triangles[0].p[2].y - r.sink.triangles[0].p[0].y, 0.03f, 1e-6f);
+  }
+}
+
 TEST(PlyReader, BinaryErrorsNameFileAndByteOffset) {
   ScratchFiles files;
   for (const char* format : {"binary_little_endian", "binary_big_endian"}) {

@@ -257,10 +257,21 @@ TEST_F(PrepCliTest, AModelFarFromTheOriginForItsSizeIsWarnedOfItsLostDetail) {
   ProcessResult r = Prep({square("far.obj", 5.4e6), "-o", dir_->File("far"), "-q"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("the model is 3 across but lies 5.4e+06 from the origin, where floats (what the store keeps) have steps of 0.5: 6 steps"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("Move the model near the origin"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("Convert it with --shift auto (or --shift 5400001.5,5400001.5,0)"),
+            std::string::npos) << r.err;
   r = Prep({square("near.obj", 1000), "-o", dir_->File("near"), "-q"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(r.err.find("Move the model near the origin"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("--shift auto"), std::string::npos) << r.err;
+  // --shift auto moves it before its coordinates become floats: no warning, and the summary
+  // says the shift.
+  r = Prep({square("far.obj", 5.4e6), "-o", dir_->File("shifted"), "--shift", "auto", "-q"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find("--shift auto"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("shift          (5400000, 5400000, 0) subtracted from every position"),
+            std::string::npos) << r.out;
+  for (const char* bad : {"1,2", "a,b,c", "1,2,3,4", "nan,0,0"})
+    ExpectFailsNaming(Prep({square("far.obj", 5.4e6), "-o", dir_->File("x"), "--shift", bad}),
+                      {"--shift wants auto or X,Y,Z", bad});
 }
 
 // Found by a helper converting exporters' files: vertex colours were dropped without a word,

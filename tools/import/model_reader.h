@@ -66,11 +66,32 @@ class TriangleSink {
   virtual Status Consume(std::span<const SourceTriangle> batch) = 0;
 };
 
+// raystack-prep --shift: a translation subtracted from every position in double precision,
+// before the position becomes a float, so that a model far from the origin for its size (a
+// georeferenced scan) keeps its detail. `automatic`: the shift is set from the first position
+// read, rounded to whole units, and then kept for every later one (and every later file).
+struct PositionShift {
+  bool automatic = false;
+  bool set = false;   // `by` is known (given, or taken from the first position)
+  double by[3] = {0, 0, 0};
+
+  // The shifted position as floats; a position shifted past the float range is still caught
+  // by PositionOutOfRange.
+  void Apply(const double in[3], float out[3]) {
+    if (automatic && !set) {
+      for (int a = 0; a < 3; ++a) by[a] = std::round(in[a]);
+      set = true;
+    }
+    for (int a = 0; a < 3; ++a) out[a] = static_cast<float>(in[a] - by[a]);
+  }
+};
+
 struct ReadOptions {
   uint64_t vertex_memory_bytes = 256ull << 20;  // vertex table budget before spilling to disk
   std::string temp_dir;                         // where the spill file goes ("" = $TMPDIR or /tmp)
   ProgressReporter* progress = nullptr;         // fed with input bytes consumed, if set
   uint64_t max_triangles = 0xffffffffull;       // more is an error: triangle ids are 32-bit
+  PositionShift* shift = nullptr;               // --shift (shared by a run's files), if any
 };
 
 struct ModelInfo {

@@ -33,7 +33,7 @@ class ObjReader {
  public:
   ObjReader(BufferedInput& input, const ReadOptions& options, TriangleSink& sink,
             ModelInfo* info)
-      : input_(input), info_(info), budget_(options.vertex_memory_bytes),
+      : input_(input), info_(info), shift_(options.shift), budget_(options.vertex_memory_bytes),
         positions_(3, &budget_, options.temp_dir), uvs_(2, &budget_, options.temp_dir),
         normals_(3, &budget_, options.temp_dir),
         batcher_(sink, info, options.max_triangles) {}
@@ -60,6 +60,7 @@ class ObjReader {
 
   BufferedInput& input_;
   ModelInfo* info_;
+  PositionShift* shift_;  // --shift, or null
   MemoryBudget budget_;
   VertexTable positions_;
   VertexTable uvs_;
@@ -153,7 +154,19 @@ Status ObjReader::ReadFloats(std::string_view* rest, float* out, int required, i
 
 Status ObjReader::ReadPosition(std::string_view rest) {
   float xyz[3];
-  RAYSTACK_RETURN_IF_ERROR(ReadFloats(&rest, xyz, 3, 0));  // w or vertex colours may follow
+  if (shift_) {  // in double, shifted, then float
+    double wide[3];
+    for (int a = 0; a < 3; ++a) {
+      const std::string_view token = NextToken(&rest);
+      if (token.empty())
+        return input_.LineError(StrFormat("expected 3 numbers, found %d", a));
+      if (const char* why = ParseDouble(token, &wide[a]))
+        return input_.LineError(std::string(why) + ": '" + std::string(token) + "'");
+    }
+    shift_->Apply(wide, xyz);
+  } else {
+    RAYSTACK_RETURN_IF_ERROR(ReadFloats(&rest, xyz, 3, 0));  // w or vertex colours may follow
+  }
   if (const char* why = PositionOutOfRange(xyz)) return input_.LineError(why);
   if (!colours_noted_) {  // "v x y z r g b" (MeshLab, scanners): the model would come out grey
     std::string_view after = rest;

@@ -140,6 +140,7 @@ Status PlyReader::ReadVertices(const PlyElement& element) {
   RAYSTACK_RETURN_IF_ERROR(MakeVertexLayout(element, &layout_));
   vertices_ = std::make_unique<VertexTable>(layout_.floats, &budget_, options_.temp_dir);
   float record[VertexTable::kMaxFloatsPerVertex];
+  double position[3];  // --shift: x, y, z in double, shifted into record[0 .. 3)
   // `element.count` comes from the file: it bounds the loop, never an allocation.
   for (uint64_t i = 0; i < element.count; ++i) {
     RAYSTACK_RETURN_IF_ERROR(values_->BeginRecord(element.name));
@@ -152,12 +153,15 @@ Status PlyReader::ReadVertices(const PlyElement& element) {
       }
       // Normals and texture coordinates (slots past x, y, z) are optional data: one that is
       // not a finite number reads as NaN and its faces go without it (a warning counts them).
-      Status read = values_->ReadFloat(property.type, &record[slot], slot >= 3);
+      Status read = options_.shift && slot < 3
+                        ? values_->ReadDouble(property.type, &position[slot])
+                        : values_->ReadFloat(property.type, &record[slot], slot >= 3);
       if (!read.ok())
         return Status::Error(read.message() + StrFormat(" (vertex %llu, property '%s')",
                                                         static_cast<unsigned long long>(i),
                                                         property.name.c_str()));
     }
+    if (options_.shift) options_.shift->Apply(position, record);
     for (int slot = 3; slot < layout_.floats; ++slot)
       if (!std::isfinite(record[slot])) {
         ++info_->attributes_not_finite;

@@ -129,6 +129,26 @@ Status PlyValueReader::ReadFloat(PlyType type, float* out, bool non_finite_as_na
   return OkStatus();
 }
 
+Status PlyValueReader::ReadDouble(PlyType type, double* out) {
+  if (ascii()) {
+    std::string_view token;
+    RAYSTACK_RETURN_IF_ERROR(NextToken(&token));
+    if (IsIntegerType(type)) {
+      int64_t value = 0;
+      RAYSTACK_RETURN_IF_ERROR(ParseAsciiInteger(token, type, &value));
+      *out = static_cast<double>(value);
+      return OkStatus();
+    }
+    if (const char* why = ParseDouble(token, out))
+      return Error(std::string(why) + ": '" + std::string(token) + "'");
+    return OkStatus();
+  }
+  int64_t integer = 0;
+  RAYSTACK_RETURN_IF_ERROR(ReadBinary(type, out, &integer));
+  if (!std::isfinite(*out)) return Error("value is not a finite number");
+  return OkStatus();
+}
+
 Status PlyValueReader::ReadInteger(PlyType type, int64_t* out) {
   if (!ascii()) {
     double real = 0;

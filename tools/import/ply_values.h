@@ -23,6 +23,8 @@ class PlyValueReader {
   // A value of any type as a finite float; with `non_finite_as_nan`, a value that is not one
   // (NaN, inf, beyond the float range) reads as NaN instead of being an error.
   Status ReadFloat(PlyType type, float* out, bool non_finite_as_nan = false);
+  // A value of any type as a finite double (positions read for --shift).
+  Status ReadDouble(PlyType type, double* out);
   // A value of an integer type (the header guarantees lists counts are).
   Status ReadInteger(PlyType type, int64_t* out);
   // Reads past one value or one whole list.

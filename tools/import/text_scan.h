@@ -72,6 +72,23 @@ inline const char* ParseFloat(std::string_view token, float* out) {
   return nullptr;
 }
 
+// A finite double (positions read for --shift, whose digits a float would round away).
+inline const char* ParseDouble(std::string_view token, double* out) {
+  if (!token.empty() && token.front() == '+') {
+    token.remove_prefix(1);
+    if (!token.empty() && token.front() == '-') return "not a number";
+  }
+  if (token.empty()) return "missing number";
+  const char* end = token.data() + token.size();
+  double value = 0;
+  auto [ptr, ec] = std::from_chars(token.data(), end, value);
+  if (ec == std::errc::result_out_of_range) return "number out of range";
+  if (ec != std::errc() || ptr != end) return "not a number";
+  if (!std::isfinite(value)) return "number is not finite";
+  *out = value;
+  return nullptr;
+}
+
 // How programs print a number that is not finite: "nan", "-inf", "Infinity", and MSVC's
 // "-1.#IND", "1.#INF00", "1.#QNAN0" (3ds Max writes these for a degenerate face's normal).
 inline bool SpellsNonFinite(std::string_view token) {

@@ -132,8 +132,9 @@ void WarnAboutFloatSteps(const Bounds3f& bounds) {
   const Vec3f centre = bounds.Center();
   LOG_WARNING("prep", "the model is %g across but lies %g from the origin, where floats (what "
               "the store keeps) have steps of %g: %.0f steps across it, and detail finer than a "
-              "step is lost (flattened triangles are dropped as zero-area). Move the model near "
-              "the origin before converting (subtract about (%.9g, %.9g, %.9g))",
+              "step is lost (flattened triangles are dropped as zero-area). Convert it with "
+              "--shift auto (or --shift %.9g,%.9g,%.9g), which moves it near the origin before "
+              "its coordinates become floats",
               double{size}, double{reach}, double{step}, double{size / step},
               double{centre.x}, double{centre.y}, double{centre.z});
 }
@@ -190,6 +191,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     report.source_triangles += info.triangles;
     report.zero_area_dropped += info.zero_area_dropped;
   }
+  import::PositionShift shift = args.shift_by;  // one for every file: `automatic` sets it once
   for (const std::string& input : args.inputs) {
     RAYSTACK_RETURN_IF_ERROR(CheckReadable(input));
     std::error_code ec;
@@ -199,6 +201,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     options.vertex_memory_bytes = budget * 3 / 20;
     options.temp_dir = temp->path();
     options.progress = &progress;
+    options.shift = args.shift ? &shift : nullptr;
     import::ModelInfo info;
     sink.set_material_offset(static_cast<uint32_t>(materials.size()));
     RAYSTACK_RETURN_IF_ERROR(import::ReadModel(input, options, sink, &info));
@@ -209,6 +212,10 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     report.zero_area_dropped += info.zero_area_dropped;
     vertices += info.vertices;
     read_bounds.Extend(info.bounds);
+  }
+  if (args.shift && shift.set) {
+    report.shifted = true;
+    for (int a = 0; a < 3; ++a) report.shift[a] = shift.by[a];
   }
   WarnAboutFloatSteps(read_bounds);
   RAYSTACK_RETURN_IF_ERROR(spool.Close());

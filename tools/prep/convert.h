@@ -10,6 +10,7 @@
 
 #include "common/base/status.h"
 #include "common/geometry/bvh.h"
+#include "tools/import/model_reader.h"
 
 namespace raystack::prep {
 
@@ -35,6 +36,9 @@ struct ConvertOptions {
   bool shuffle = true;
   BvhBuildOptions bvh = DefaultBlockBvh();  // each block's own BVH
   bool quiet = false;  // no progress output
+  // --shift: subtracted from every position read, in double precision (import::PositionShift).
+  bool shift = false;
+  import::PositionShift shift_by;
 };
 
 struct ConvertReport {
@@ -46,6 +50,8 @@ struct ConvertReport {
   uint32_t largest_raw_bytes = 0, max_depth = 0, partition_passes = 0, multi_block_leaves = 0;
   uint64_t octree_nodes = 0;
   uint64_t emitters = 0;  // emissive triangles listed in lights.bin
+  bool shifted = false;   // --shift: positions were shifted by -shift[] (set or automatic)
+  double shift[3] = {0, 0, 0};
   double seconds = 0, read_seconds = 0;
 };
 

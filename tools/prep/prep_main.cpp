@@ -3,6 +3,7 @@
 #include <sys/resource.h>
 
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <optional>
@@ -40,6 +41,10 @@ options:
   --no-shuffle            plain lz4 without the byte shuffle (for measurement)
   --bvh-leaf N            most triangles per leaf of a block's BVH (default 8)
   --bvh-traversal-cost X  SAH cost of a BVH node relative to a triangle test (default 4)
+  --shift auto|X,Y,Z      subtract X,Y,Z (auto: the first vertex, rounded) from every position
+                          before it becomes a float: a model far from the origin for its
+                          size (a georeferenced scan) keeps its detail; the summary says the
+                          shift, and scenes place cameras and lights in the shifted frame
   --stats-json FILE       also write the run's figures as JSON
   --version               this build's version and git commit
   -q, --quiet             no progress or information lines (the summary, warnings and
@@ -116,6 +121,21 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       if (n != 3 || static_cast<size_t>(end) != v.size() || a->convert.replicate[0] < 1 || a->convert.replicate[1] < 1 || a->convert.replicate[2] < 1 ||
           a->convert.replicate[0] > 4096 || a->convert.replicate[1] > 4096 || a->convert.replicate[2] > 4096)
         return Status::Error("--replicate wants NX,NY,NZ with each from 1 to 4096, got '" + v + "'");
+    } else if (arg == "--shift") {
+      std::string v;
+      RAYSTACK_RETURN_IF_ERROR(value(&v));
+      a->convert.shift = true;
+      import::PositionShift& by = a->convert.shift_by;
+      if (v == "auto") {
+        by.automatic = true;
+      } else {
+        int end = 0;
+        if (std::sscanf(v.c_str(), "%lf,%lf,%lf%n", &by.by[0], &by.by[1], &by.by[2], &end) != 3 ||
+            static_cast<size_t>(end) != v.size() || !std::isfinite(by.by[0]) ||
+            !std::isfinite(by.by[1]) || !std::isfinite(by.by[2]))
+          return Status::Error("--shift wants auto or X,Y,Z (three numbers), got '" + v + "'");
+        by.set = true;
+      }
     } else if (arg == "--bvh-leaf") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->convert.bvh.max_leaf_size, 1, 64));
     } else if (arg == "--bvh-traversal-cost") {
@@ -194,6 +214,10 @@ int Run(const Args& args) {
   if (r.emitters > 0)
     std::printf("  lights         %llu emissive triangles (lights.bin, for path tracing)\n",
                 static_cast<unsigned long long>(r.emitters));
+  if (r.shifted)
+    std::printf("  shift          (%.17g, %.17g, %.17g) subtracted from every position: cameras "
+                "and lights go in the shifted frame (their coordinates minus this)\n",
+                r.shift[0], r.shift[1], r.shift[2]);
   if (!args.stats_json.empty()) {
     std::FILE* f = std::fopen(args.stats_json.c_str(), "w");
     if (!f) {
