@@ -33,8 +33,9 @@ void RayThread::BeginFrame(FrameShared* shared) {
   tiles_.clear();
   newest_tile_ = 0;
   feed_next_ = feed_end_ = 0;
-  feed_first_chunk_ = 0;
+  feed_seq_ = 0;
   feed_total_ = feed_done_ = 0;
+  free_chunks_.clear();
   open_tiles_ = 0;
   ahead_asked_ = false;
   tiles_exhausted_ = false;
@@ -128,12 +129,12 @@ bool RayThread::FeedNextTile(bool may_wait) {
   });
   const uint32_t samples = sample_end > sample_begin ? sample_end - sample_begin : 0;
   feed_tile_ = tile;
-  feed_first_chunk_ = static_cast<uint32_t>(tiles_.size());
+  ++feed_seq_;
   feed_total_ = uint64_t{feed_pixels_.size()} * samples;
   feed_done_ = 0;
-  if (feed_total_ == 0) {  // nothing in it (an empty rank range)
-    newest_tile_ = feed_first_chunk_;
-    tiles_.push_back({tile, 0, 0});
+  if (feed_total_ == 0) {  // nothing in it (an empty rank range): an entry done at once
+    newest_tile_ = NewChunk({tile, 0, 0, feed_seq_});
+    free_chunks_.push_back(newest_tile_);
     feed_next_ = feed_end_ = 0;
     return true;
   }
@@ -144,14 +145,25 @@ bool RayThread::FeedNextTile(bool may_wait) {
   return true;
 }
 
+uint32_t RayThread::NewChunk(const ActiveTile& chunk) {
+  if (free_chunks_.empty()) {
+    tiles_.push_back(chunk);
+    return static_cast<uint32_t>(tiles_.size() - 1);
+  }
+  const uint32_t index = free_chunks_.back();
+  free_chunks_.pop_back();
+  tiles_[index] = chunk;
+  return index;
+}
+
 void RayThread::FeedChunk() {
   const auto pixels = static_cast<uint32_t>(feed_pixels_.size());
-  const uint32_t per_chunk = std::max(1u, kMaxFeedSamples / pixels);
+  const uint32_t per_chunk = std::max(1u, shared_->max_feed_samples / pixels);
   const uint32_t sample_begin = feed_next_;
-  const uint32_t sample_end = std::min(feed_end_, sample_begin + per_chunk);
+  const uint32_t sample_end = feed_end_ - sample_begin > per_chunk ? sample_begin + per_chunk
+                                                                   : feed_end_;
   feed_next_ = sample_end;
-  const uint32_t local = static_cast<uint32_t>(tiles_.size());
-  tiles_.push_back({feed_tile_, pixels * (sample_end - sample_begin), 0});
+  const uint32_t local = NewChunk({feed_tile_, pixels * (sample_end - sample_begin), 0, feed_seq_});
   newest_tile_ = local;
   ++open_tiles_;
   AskAhead();
@@ -208,8 +220,11 @@ void RayThread::RayDone(uint32_t slot) {
   if (!slots_.RayDone(slot, &result)) return;
   ++counters_.samples;
   const bool tile_done = ++tiles_[tile].done == tiles_[tile].total;
-  if (tile_done) --open_tiles_;
-  if (tile >= feed_first_chunk_) {  // a chunk of the tile being fed
+  if (tile_done) {
+    --open_tiles_;
+    free_chunks_.push_back(tile);  // (its entry stays readable until a new chunk takes it)
+  }
+  if (tiles_[tile].feed == feed_seq_) {  // a chunk of the tile being fed
     ++feed_done_;
     AskAhead();
   }

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
+#include <limits>
 #include <mutex>
 #include <vector>
 
@@ -52,6 +53,15 @@ struct FrameShared {
   double feed_fraction = 0.1;
   double tile_ahead = 0.0;
   size_t result_batch = 1024;
+  // The most samples of a tile a thread feeds at once (RayThread::FeedChunk). In core (every
+  // block stays resident) kResidentFeedSamples: a pass of 32 samples over a 32 x 32 tile opened
+  // 32,768 samples (4 MB of slots, past the L2 cache), whose slots missed the cache at every
+  // ray's end (RayThread::Finish was 14.6% of a path-traced Cornell box; a performance
+  // helper's perf). Out of core a tile's samples go in at once, as they did: a block read then
+  // serves all of them (chunks of 4,096 loaded 20-55% more blocks with a small cache; found by
+  // the day's review).
+  static constexpr uint32_t kResidentFeedSamples = 4096;
+  uint32_t max_feed_samples = std::numeric_limits<uint32_t>::max();
 
   // The first error ends the frame on every thread.
   std::atomic<bool> abort{false};
@@ -85,6 +95,7 @@ class RayThread {
   struct ActiveTile {
     Tile tile;
     uint32_t total = 0, done = 0;
+    uint32_t feed = 0;  // which tile fed it (feed_seq_ then)
   };
   bool NeedFeed() const;
   // Starts the next chunk of the tile being fed, else the next tile's first; false when there
@@ -92,8 +103,10 @@ class RayThread {
   // results are sent first, since the master may be waiting for them); otherwise only a tile
   // that is ready is taken.
   bool FeedNextTile(bool may_wait);
-  // Feeds the next samples of the tile being fed, at most kMaxFeedSamples of them.
+  // Feeds the next samples of the tile being fed, at most FrameShared::max_feed_samples.
   void FeedChunk();
+  // The index of a new entry of tiles_ holding `chunk` (a finished one's, else a new one).
+  uint32_t NewChunk(const ActiveTile& chunk);
   RayRecord PrimaryRay(int x, int y, uint32_t sample, uint32_t slot, uint16_t priority) const;
   // Puts a ray where it goes next: its next block's queue, or finished (stack driver).
   // `from_block`: the block the ray has just been traced through (kInvalidId: none yet).
@@ -127,7 +140,9 @@ class RayThread {
   RayQueues queues_;
   SampleSlots slots_;
   ThreadCounters counters_;
-  std::vector<ActiveTile> tiles_;  // tiles fed and not finished, by local index
+  // Chunks fed, by local index; a finished chunk's entry is reused (free_chunks_), so a frame of
+  // many samples keeps as many entries as it has chunks open at once.
+  std::vector<ActiveTile> tiles_;
   uint32_t newest_tile_ = 0;
   uint32_t open_tiles_ = 0;  // fed and not finished
   bool ahead_asked_ = false;  // TileSource::Ahead called for the newest tile
@@ -135,17 +150,15 @@ class RayThread {
   // cut the ray threads' idle time 0.24 -> 0.14 s and the run 1.25 -> 1.16 s (medians of 5);
   // 16 loaded more blocks (the cache thrashes) and took 1.43 s.
   static constexpr uint32_t kMaxOpenTiles = 8;
-  // The most samples a tile feeds at once. A pass of 32 samples over a 32 x 32 tile opened
-  // 32,768 samples (4 MB of slots, past the L2 cache): their slots missed the cache at every
-  // ray's end (RayThread::Finish was 14.6% of a path-traced Cornell box; a performance
-  // helper's perf). Chunks of whole samples over all the tile's pixels keep the feed order.
-  static constexpr uint32_t kMaxFeedSamples = 4096;
-  // The tile being fed: its samples [feed_next_, feed_end_) are still to feed; its chunks are
-  // tiles_[feed_first_chunk_ ..), and feed_done_ of its feed_total_ samples are done.
+  // The tile being fed, in chunks of whole samples over all its pixels (at most
+  // FrameShared::max_feed_samples, which keeps the feed order): its samples [feed_next_,
+  // feed_end_) are still to feed; its chunks are the entries of tiles_ whose `feed` is
+  // feed_seq_, and feed_done_ of its feed_total_ samples are done.
   Tile feed_tile_;
   uint32_t feed_next_ = 0, feed_end_ = 0;
-  uint32_t feed_first_chunk_ = 0;
+  uint32_t feed_seq_ = 0;
   uint64_t feed_total_ = 0, feed_done_ = 0;
+  std::vector<uint32_t> free_chunks_;  // entries of tiles_ whose chunk is done, to reuse
   bool tiles_exhausted_ = false;
   std::vector<render::SampleResult> results_;
   uint64_t rays_reported_ = 0;  // rays counted in the batches handed to the sink

@@ -151,6 +151,8 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   shared.feed_fraction = options_.feed_fraction;
   shared.tile_ahead = options_.tile_ahead;
   shared.result_batch = options_.result_batch;
+  if (cache_->budget() >= store_.summary().raw_bytes)  // every block stays resident
+    shared.max_feed_samples = FrameShared::kResidentFeedSamples;
   shared.stack = options_.mode != TraceMode::kSync && options_.mode != TraceMode::kBvh;
   shared.bvh = bvh_.get();
 
