@@ -269,6 +269,8 @@ TEST_F(PrepCliTest, AModelFarFromTheOriginForItsSizeIsWarnedOfItsLostDetail) {
   EXPECT_EQ(r.err.find("--shift auto"), std::string::npos) << r.err;
   EXPECT_NE(r.out.find("shift          (5400000, 5400000, 0) subtracted from every position"),
             std::string::npos) << r.out;
+  ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("g"), "--shift", "5,5,5"}),
+                    {"--shift applies to positions read from files"});
   for (const char* bad : {"1,2", "a,b,c", "1,2,3,4", "nan,0,0"})
     ExpectFailsNaming(Prep({square("far.obj", 5.4e6), "-o", dir_->File("x"), "--shift", bad}),
                       {"--shift wants auto or X,Y,Z", bad});

@@ -159,6 +159,9 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
   if (a->convert.output.empty()) return Status::Error("no output store given (-o STORE; see --help)");
   if (a->convert.inputs.empty() == a->convert.generate.empty())
     return Status::Error("give input files or --generate KIND:N (not both; see --help)");
+  if (a->convert.shift && !a->convert.generate.empty())
+    return Status::Error("--shift applies to positions read from files; --generate makes its "
+                         "model at the origin");
   if (a->convert.target_block_bytes > a->convert.max_block_bytes)
     return Status::Error(StrFormat("--target-block-kb %u is above --max-block-kb %u",
                                    a->convert.target_block_bytes / 1024,
@@ -230,7 +233,7 @@ int Run(const Args& args) {
                  "\"references\": %llu, \"raw_bytes\": %llu, \"stored_bytes\": %llu, "
                  "\"largest_raw_block_bytes\": %u, \"seconds\": %.3f, \"read_seconds\": %.3f, "
                  "\"mtriangles_per_s\": %.3f, \"peak_rss_mb\": %.1f, \"octree_nodes\": %llu, "
-                 "\"max_depth\": %u, \"emitters\": %llu}\n",
+                 "\"max_depth\": %u, \"emitters\": %llu, \"shift\": [%.17g, %.17g, %.17g]}\n",
                  static_cast<unsigned long long>(r.triangles),
                  static_cast<unsigned long long>(r.zero_area_dropped),
                  static_cast<unsigned long long>(r.blocks),
@@ -238,7 +241,8 @@ int Run(const Args& args) {
                  static_cast<unsigned long long>(r.raw_bytes),
                  static_cast<unsigned long long>(r.stored_bytes), r.largest_raw_bytes, r.seconds,
                  r.read_seconds, mtri_s, PeakRssMb(), static_cast<unsigned long long>(r.octree_nodes),
-                 r.max_depth, static_cast<unsigned long long>(r.emitters));
+                 r.max_depth, static_cast<unsigned long long>(r.emitters), r.shift[0], r.shift[1],
+                 r.shift[2]);
     std::fclose(f);
   }
   return 0;
