@@ -44,6 +44,11 @@ constexpr double kMaxRunGrowth = 4.0;
 // The references the whole build may make, per source triangle (ordinary models need ~1.1):
 // past it, cells stop splitting, so triangles that defeat kNoSeparation cannot fill the disk.
 constexpr uint64_t kMaxReferencesPerTriangle = 4;
+// The references any split may make, per source triangle, separating or not. Slivers long
+// against the blocks (a face with thousands of corners on one long edge and two on the other,
+// whose every split is long and thin) do separate at each level, a little, and took a 2 MB
+// OBJ to 4,606 references per triangle and a 3.2 GB store; the shared models need ~1.1.
+constexpr uint64_t kMaxReferencesPerTriangleEver = 32;
 // Bucket files are written in pieces of this size (one being filled per bucket), with at
 // most this many pieces waiting for the writer thread.
 constexpr size_t kBucketWriteBytes = 64 << 10;
@@ -130,6 +135,7 @@ class Builder {
                              "cube around it overflows); keep coordinates within +-1e18");
     nodes_.push_back({0, 0, store::kOctreeEmpty, 0});
     spare_references_ = (kMaxReferencesPerTriangle - 1) * source.triangles();
+    spare_references_ever_ = (kMaxReferencesPerTriangleEver - 1) * source.triangles();
     if (source.triangles() <= bucket_capacity_) {
       RAYSTACK_RETURN_IF_ERROR(BuildInMemory(source, 0, root_, 0, 1.0));
     } else {
@@ -176,6 +182,22 @@ class Builder {
       return false;
     }
     spare_references_ -= total - parent;
+    return true;
+  }
+
+  // The same for every split (kMaxReferencesPerTriangleEver).
+  bool TakeReferencesEver(uint64_t parent, uint64_t total) {
+    if (total <= parent) return true;
+    if (total - parent > spare_references_ever_) {
+      if (!ever_spent_)
+        LOG_WARNING("prep", "references reached %llu per triangle (triangles long and thin against "
+                    "the blocks): the cells left stop splitting, so some leaves hold many "
+                    "blocks and rays through them are slower",
+                    static_cast<unsigned long long>(kMaxReferencesPerTriangleEver));
+      ever_spent_ = true;
+      return false;
+    }
+    spare_references_ever_ -= total - parent;
     return true;
   }
 
@@ -283,6 +305,7 @@ class Builder {
     // review). Partition passes, which run before they know, draw on it for every split.
     if (next_growth != 1.0 && !TakeReferences(refs.size(), total))
       return MakeLeaf(node, cell, std::move(refs));
+    if (!TakeReferencesEver(refs.size(), total)) return MakeLeaf(node, cell, std::move(refs));
     const int next_stall = largest == refs.size() ? stall + 1 : 0;
     std::vector<Ref>().swap(refs);  // free before recursing
     const uint32_t first = AddChildren();
@@ -359,6 +382,8 @@ class Builder {
   // References splits may still add (see kMaxReferencesPerTriangle); warned once when spent.
   uint64_t spare_references_ = 0;
   bool budget_spent_ = false;
+  uint64_t spare_references_ever_ = 0;  // see kMaxReferencesPerTriangleEver; warned once
+  bool ever_spent_ = false;
   std::vector<OctreeNode> nodes_;
   std::shared_ptr<const Bucket> bucket_;  // the one being subdivided
   // The last two buckets loaded (alive while jobs hold them).
