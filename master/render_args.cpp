@@ -15,9 +15,9 @@ const char* const kRenderUsage = R"(usage: raystack render SCENE.json [options]
 Renders a block store (made by raystack-prep) as the scene file describes (format:
 SCENE_FORMAT.md, in the source's common/render/ or in /usr/share/doc/raystack/) and writes an
 OpenEXR image with layers R G B A, Z, N, albedo, samples and variance, plus a tone-mapped PNG
-beside it. Blocks are loaded on demand into a
-cache of --cache-mb; rays that need a missing block wait in that block's queue while a
-loader thread reads it (the ray stack), so the store may be far larger than the cache.
+beside it. Blocks are loaded on demand into a cache of --cache-mb; rays that need a missing
+block wait in that block's queue while a loader thread reads it (the ray stack), so the store
+may be far larger than the cache.
 
 options:
   --mode stack|sync|incore|bvh
@@ -80,8 +80,8 @@ options:
                             of a pixel, the error estimates, and RMSE and relMSE against
                             --reference (format: README.md, "Error against run time")
   --log-interval S          seconds between convergence-log rows (default 0.5)
-  --reference REF.exr       an image to measure RMSE and relMSE against (same size; with
-                            several cameras REF-0.exr, REF-1.exr, ...)
+  --reference REF.exr       an image to measure the convergence log's RMSE and relMSE against
+                            (same size; with several cameras REF-0.exr, REF-1.exr, ...)
   --output FILE.exr         override the scene's output path (the PNG goes beside it;
                             several cameras: FILE-0.exr, FILE-1.exr, ...)
   --no-png                  do not write the PNG quick-look
