@@ -62,6 +62,39 @@ struct Bucket {
   std::vector<TriangleAttributes> attributes;  // empty when the model has none
 };
 
+// References splits may still add, per source triangle beyond the first; warned of once, when
+// a split would overdraw it (the cell is then a leaf).
+class ReferenceBudget {
+ public:
+  ReferenceBudget(uint64_t per_triangle, const char* why) : per_triangle_(per_triangle), why_(why) {}
+  void Start(uint64_t triangles) {
+    spare_ = (per_triangle_ - 1) * triangles;
+    spent_ = false;
+  }
+  uint64_t spare() const { return spare_; }
+  // Takes the references a split adds (`total` for `parent`); false, taking nothing, when
+  // they would overdraw the budget.
+  bool Take(uint64_t parent, uint64_t total) {
+    if (total <= parent) return true;
+    if (total - parent > spare_) {
+      if (!spent_)
+        LOG_WARNING("prep", "references reached %llu per triangle%s: the cells left stop "
+                    "splitting, so some leaves hold several blocks",
+                    static_cast<unsigned long long>(per_triangle_), why_);
+      spent_ = true;
+      return false;
+    }
+    spare_ -= total - parent;
+    return true;
+  }
+
+ private:
+  uint64_t per_triangle_;
+  const char* why_;
+  uint64_t spare_ = 0;
+  bool spent_ = false;
+};
+
 struct Ref {
   uint32_t tri;
   Bounds3f bounds;  // clipped to the current cell
@@ -134,8 +167,8 @@ class Builder {
         return Status::Error("the model's box is too large for float coordinates (the octree's "
                              "cube around it overflows); keep coordinates within +-1e18");
     nodes_.push_back({0, 0, store::kOctreeEmpty, 0});
-    spare_references_ = (kMaxReferencesPerTriangle - 1) * source.triangles();
-    spare_references_ever_ = (kMaxReferencesPerTriangleEver - 1) * source.triangles();
+    separating_nothing_.Start(source.triangles());
+    every_split_.Start(source.triangles());
     if (source.triangles() <= bucket_capacity_) {
       RAYSTACK_RETURN_IF_ERROR(BuildInMemory(source, 0, root_, 0, 1.0));
     } else {
@@ -167,38 +200,6 @@ class Builder {
  private:
   double EstimateBytes(size_t triangles) const {
     return sizeof(store::BlockHeader) + bytes_per_triangle_ * static_cast<double>(triangles);
-  }
-
-  // Takes the references a split adds (`total` for `parent`) from the build's budget; false,
-  // taking nothing, when they would overdraw it: the cell is then a leaf.
-  bool TakeReferences(uint64_t parent, uint64_t total) {
-    if (total <= parent) return true;
-    if (total - parent > spare_references_) {
-      if (!budget_spent_)
-        LOG_WARNING("prep", "references reached %llu per triangle: the cells left stop splitting, "
-                    "so some leaves hold several blocks",
-                    static_cast<unsigned long long>(kMaxReferencesPerTriangle));
-      budget_spent_ = true;
-      return false;
-    }
-    spare_references_ -= total - parent;
-    return true;
-  }
-
-  // The same for every split (kMaxReferencesPerTriangleEver).
-  bool TakeReferencesEver(uint64_t parent, uint64_t total) {
-    if (total <= parent) return true;
-    if (total - parent > spare_references_ever_) {
-      if (!ever_spent_)
-        LOG_WARNING("prep", "references reached %llu per triangle (triangles long and thin against "
-                    "the blocks): the cells left stop splitting, so some leaves hold many "
-                    "blocks and rays through them are slower",
-                    static_cast<unsigned long long>(kMaxReferencesPerTriangleEver));
-      ever_spent_ = true;
-      return false;
-    }
-    spare_references_ever_ -= total - parent;
-    return true;
   }
 
   uint32_t AddChildren() {
@@ -303,9 +304,9 @@ class Builder {
     // references (large triangles against small blocks) must not spend it in the order its
     // cells come, leaving the last ones unsplit (106x the block visits of a render, found in
     // review). Partition passes, which run before they know, draw on it for every split.
-    if (next_growth != 1.0 && !TakeReferences(refs.size(), total))
+    if (next_growth != 1.0 && !separating_nothing_.Take(refs.size(), total))
       return MakeLeaf(node, cell, std::move(refs));
-    if (!TakeReferencesEver(refs.size(), total)) return MakeLeaf(node, cell, std::move(refs));
+    if (!every_split_.Take(refs.size(), total)) return MakeLeaf(node, cell, std::move(refs));
     const int next_stall = largest == refs.size() ? stall + 1 : 0;
     std::vector<Ref>().swap(refs);  // free before recursing
     const uint32_t first = AddChildren();
@@ -379,11 +380,11 @@ class Builder {
   double aim_bytes_;
   uint64_t bucket_capacity_;
   Bounds3f root_;
-  // References splits may still add (see kMaxReferencesPerTriangle); warned once when spent.
-  uint64_t spare_references_ = 0;
-  bool budget_spent_ = false;
-  uint64_t spare_references_ever_ = 0;  // see kMaxReferencesPerTriangleEver; warned once
-  bool ever_spent_ = false;
+  // What splits that separate nothing (and partition passes) may add, and what every split may.
+  ReferenceBudget separating_nothing_{kMaxReferencesPerTriangle, ""};
+  ReferenceBudget every_split_{kMaxReferencesPerTriangleEver,
+                               " (triangles long and thin against the blocks; rays through "
+                               "those leaves are slower)"};
   std::vector<OctreeNode> nodes_;
   std::shared_ptr<const Bucket> bucket_;  // the one being subdivided
   // The last two buckets loaded (alive while jobs hold them).
@@ -684,7 +685,7 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
   // The buckets may hold the source and what is left of the reference budget. Past that, one
   // level may still do (a triangle reaches at most 8 of its cells, not 512); if even that is
   // over, the cell is a leaf.
-  const uint64_t max_references = source.triangles() + spare_references_;
+  const uint64_t max_references = source.triangles() + separating_nothing_.spare();
   BucketFiles files;
   for (bool over = true; over;) {
     RAYSTACK_RETURN_IF_ERROR(
@@ -707,7 +708,7 @@ Status Builder::Partition(const TriangleSource& source, uint32_t node, const Bou
     return StreamLeaf(source, node, cell, depth);
   }
   // The budget covers `total`: max_references left room for it.
-  const bool taken = TakeReferences(source.triangles(), total);
+  const bool taken = separating_nothing_.Take(source.triangles(), total);
   CHECK(taken);
   auto& pieces = files.pieces;
 
