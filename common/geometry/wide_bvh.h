@@ -65,10 +65,14 @@ class WideBvh {
   uint32_t IntersectPacket(std::span<const Ray> rays, std::span<Hit> hits) const;
   // Bit i set when Occluded(rays[i]).
   uint32_t OccludedPacket(std::span<const Ray> rays) const;
-  // Single rays and packets take AVX2 copies of their walks where the CPU has it (the same
-  // results, faster; wide_bvh_walks.cpp). For tests and benchmarks: false keeps both on the
-  // baseline (SSE2) walks. Returns whether the AVX2 walks are now used.
-  static bool AllowAvx2(bool allowed);
+  // Single rays and packets take the widest copy of their walks the CPU has (the same results,
+  // faster; wide_bvh_walks.cpp): the build's baseline (SSE2 on x86-64), AVX2, or the AVX2 code
+  // with AVX-512's instructions allowed. Narrowest first.
+  enum class WalkIsa { kBaseline, kAvx2, kAvx512 };
+  // For tests and benchmarks: walks take the widest copy up to `widest` (kAvx512: no limit).
+  // Returns the copy now used.
+  static WalkIsa LimitWalks(WalkIsa widest);
+  static const char* WalkIsaName(WalkIsa isa);
 
   size_t triangle_count() const { return triangle_count_; }
   size_t node_count() const { return nodes_.size(); }

@@ -123,8 +123,9 @@ void TraceOneBvh(const StoreReader& store, const std::vector<Ray>& rays) {
     }
     (void)bvh.Occluded(ray);
   }
-  // Packets give every lane the single-ray answer, whatever the geometry and on either walk
-  // (SSE2, and AVX2 where the build and the CPU have it; the clang fuzzing build has SSE2 only):
+  // Packets give every lane the single-ray answer, whatever the geometry and on every walk
+  // (SSE2, and AVX2 and AVX2 with AVX-512 where the build and the CPU have them; the clang
+  // fuzzing build has SSE2 only):
   // the rays above kPacketSize at a time (mostly split apart), and kPacketSize close to the first
   // one (walked together).
   std::vector<Ray> packets = rays;
@@ -133,8 +134,9 @@ void TraceOneBvh(const StoreReader& store, const std::vector<Ray>& rays) {
     packets.push_back({rays[0].origin, rays[0].direction + Vec3f{static_cast<float>(i % 4) * spread,
                                                                  static_cast<float>(i / 4) * spread, 0}});
   }
-  for (bool avx2 : {false, true}) {
-    WideBvh::AllowAvx2(avx2);
+  using Isa = WideBvh::WalkIsa;
+  for (Isa isa : {Isa::kBaseline, Isa::kAvx2, Isa::kAvx512}) {
+    WideBvh::LimitWalks(isa);
     for (size_t i = 0; i < packets.size(); i += WideBvh::kPacketSize) {
       const size_t n = std::min(packets.size() - i, size_t{WideBvh::kPacketSize});
       const std::span<const Ray> packet(packets.data() + i, n);
@@ -155,7 +157,7 @@ void TraceOneBvh(const StoreReader& store, const std::vector<Ray>& rays) {
       }
     }
   }
-  WideBvh::AllowAvx2(true);
+  WideBvh::LimitWalks(Isa::kAvx512);
 }
 
 // The loader's reads: neighbouring ids as one run, each block found at its offset from the

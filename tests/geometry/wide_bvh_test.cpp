@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <limits>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "common/geometry/next_float.h"
@@ -107,17 +109,39 @@ std::vector<Ray> Rays(int n, uint32_t seed) {
 }
 
 // Runs `body` on each copy of the walks (single rays and packets) this machine has: the
-// baseline (SSE2 on x86-64), then AVX2 where the CPU has it. They must agree with brute force
-// alike.
+// baseline (SSE2 on x86-64), then AVX2 and AVX2 with AVX-512 where the CPU has them. They must
+// agree with brute force alike.
 template <typename Body>
 void ForEachWalk(Body&& body) {
-  for (bool avx2 : {false, true}) {
-    const bool used = WideBvh::AllowAvx2(avx2);
-    if (avx2 && !used) continue;  // no AVX2 here: the baseline walk was the only one
-    SCOPED_TRACE(used ? "AVX2 walks" : "baseline walks");
+  using Isa = WideBvh::WalkIsa;
+  for (Isa isa : {Isa::kBaseline, Isa::kAvx2, Isa::kAvx512}) {
+    const Isa used = WideBvh::LimitWalks(isa);
+    if (used != isa) continue;  // the CPU does not have it: a narrower copy was the widest
+    SCOPED_TRACE(std::string(WideBvh::WalkIsaName(used)) + " walks");
     body();
   }
-  WideBvh::AllowAvx2(true);
+  WideBvh::LimitWalks(Isa::kAvx512);
+}
+
+// The walks take the widest copy the CPU has: limited to a copy, they use it or a narrower one,
+// and the AVX-512 copy serves where the CPU has every instruction set it may contain, AVX2
+// where it has AVX2 but not all of those.
+TEST(WideBvh, WalksTakeTheWidestCopyTheCpuHas) {
+  using Isa = WideBvh::WalkIsa;
+  EXPECT_EQ(WideBvh::LimitWalks(Isa::kBaseline), Isa::kBaseline);
+  EXPECT_LE(WideBvh::LimitWalks(Isa::kAvx2), Isa::kAvx2);
+  const Isa widest = WideBvh::LimitWalks(Isa::kAvx512);
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+  const bool avx2 = __builtin_cpu_supports("avx2");
+  const bool avx512 = avx2 && __builtin_cpu_supports("bmi") && __builtin_cpu_supports("bmi2") &&
+                      __builtin_cpu_supports("fma") && __builtin_cpu_supports("avx512f") &&
+                      __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq") &&
+                      __builtin_cpu_supports("avx512bw");
+  EXPECT_EQ(widest, avx512 ? Isa::kAvx512 : (avx2 ? Isa::kAvx2 : Isa::kBaseline));
+  std::printf("walks here: %s\n", WideBvh::WalkIsaName(widest));
+#else
+  EXPECT_EQ(widest, Isa::kBaseline);  // clang or not x86-64: the baseline copy alone
+#endif
 }
 
 TEST(WideBvh, RandomSoupMatchesBruteForceBitForBit) {

@@ -7,7 +7,7 @@
 // checks agreement, it asserts nothing.
 //   embree_bench STORE [--width W] [--height H] [--random N] [--threads 1,2] [--repeats R]
 //                      [--pairs P] [--chunk RAYS] [--cpu-time 0|1] [--ours-only 0|1]
-//                      [--embree-robust 0|1]
+//                      [--embree-robust 0|1] [--walks baseline|avx2|avx512]
 // The table's ratios divide figures measured one after the other; on a VM whose speed drifts
 // by 10-20% within a minute they move with the drift. So each row is followed by paired
 // ratios: ours (one BVH, and packets) and the best Embree API timed alternately P times, the
@@ -48,13 +48,15 @@ struct Options {
   // Embree's robust mode: watertight triangle tests, as ours always are. Off by default: the
   // fastest Embree is the figure the targets are read against; on, the like-for-like one.
   bool embree_robust = false;
+  // The widest copy of our one-BVH walks to use (WideBvh::LimitWalks): the widest the CPU has.
+  WideBvh::WalkIsa walks = WideBvh::WalkIsa::kAvx512;
 };
 
 [[noreturn]] void Usage() {
   std::fprintf(stderr,
                "usage: embree_bench STORE [--width W] [--height H] [--random N] "
                "[--threads 1,2] [--repeats R] [--pairs P] [--chunk RAYS] [--cpu-time 0|1] "
-               "[--ours-only 0|1] [--embree-robust 0|1]\n");
+               "[--ours-only 0|1] [--embree-robust 0|1] [--walks baseline|avx2|avx512]\n");
   std::exit(2);
 }
 
@@ -73,7 +75,13 @@ Options Parse(int argc, char** argv) {
     else if (!std::strcmp(argv[i], "--cpu-time")) o.cpu_time = std::atoi(v) != 0;
     else if (!std::strcmp(argv[i], "--ours-only")) o.ours_only = std::atoi(v) != 0;
     else if (!std::strcmp(argv[i], "--embree-robust")) o.embree_robust = std::atoi(v) != 0;
-    else if (!std::strcmp(argv[i], "--chunk")) o.chunk = static_cast<size_t>(std::atol(v));
+    else if (!std::strcmp(argv[i], "--walks")) {
+      using Isa = WideBvh::WalkIsa;
+      if (!std::strcmp(v, "baseline")) o.walks = Isa::kBaseline;
+      else if (!std::strcmp(v, "avx2")) o.walks = Isa::kAvx2;
+      else if (!std::strcmp(v, "avx512")) o.walks = Isa::kAvx512;
+      else Usage();
+    } else if (!std::strcmp(argv[i], "--chunk")) o.chunk = static_cast<size_t>(std::atol(v));
     else if (!std::strcmp(argv[i], "--threads")) {
       o.threads.clear();
       for (const char* p = v; *p;) {
@@ -179,6 +187,7 @@ int main(int argc, char** argv) {
   std::printf("store %s: %zu blocks, %zu source triangles; Embree %s, robust mode %s\n",
               o.store.c_str(), s.blocks().size(), vertices.size() / 3, embree.Version().c_str(),
               o.embree_robust ? "on" : "off");
+  std::printf("our one-BVH walks: %s\n", WideBvh::WalkIsaName(WideBvh::LimitWalks(o.walks)));
   std::printf("one BVH (StoreBvh): built in %.2f s, %.1f MB\n", build_seconds,
               static_cast<double>(flat.bytes()) / 1e6);
 
