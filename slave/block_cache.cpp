@@ -59,6 +59,12 @@ const store::BlockView* BlockCache::TryAcquire(uint32_t id) {
   return &e.data->view;
 }
 
+const store::BlockView* BlockCache::ResidentView(uint32_t id) const {
+  CHECK(budget_ == kUnlimited);  // a bounded cache may evict it at any time
+  const Entry& e = entries_[id];
+  return e.state.load(std::memory_order_acquire) == kResidentState ? &e.data->view : nullptr;
+}
+
 void BlockCache::Release(uint32_t id) {
   Entry& e = entries_[id];
   e.last_use.store(clock_.fetch_add(1, std::memory_order_relaxed), std::memory_order_relaxed);

@@ -43,6 +43,11 @@ class BlockCache {
   // Lock-free.
   const store::BlockView* TryAcquire(uint32_t id);
   void Release(uint32_t id);
+  // The view of resident block `id` without a pin, for an unlimited cache (incore and bvh
+  // modes, every block loaded first): it never evicts, so the view stays valid and the three
+  // atomic operations of TryAcquire/Release, two on lines every ray thread writes, are saved
+  // (the bvh mode looks a block up on every hit). Null if not resident.
+  const store::BlockView* ResidentView(uint32_t id) const;
 
   // Loader side. BeginLoad claims block `id` for loading and reserves its bytes, evicting
   // least recently used unpinned blocks and waiting while everything resident is pinned.

@@ -599,10 +599,9 @@ void RayThread::TraceBvh(RayRecord ray) {
 }
 
 void RayThread::RecordBvhHit(const Hit& hit, RayRecord* ray) {
-  const store::BlockView* view = shared_->cache->TryAcquire(hit.block_id);
+  const store::BlockView* view = shared_->cache->ResidentView(hit.block_id);
   CHECK(view != nullptr);  // preloaded, and nothing is evicted without a budget
   RecordHit(*view, hit, ray);
-  shared_->cache->Release(hit.block_id);
 }
 
 void RayThread::RunSync() {

@@ -88,5 +88,31 @@ TEST(BlockCache, BlocksDecodeIntoItsArena) {
   EXPECT_LE((*tight)->arena_bytes(), (*tight)->used_bytes());
 }
 
+// An unlimited cache (incore and bvh modes) never evicts, so a resident block's view is handed
+// out without a pin: the one TryAcquire gives, null before the block is loaded. A bounded cache
+// refuses (it may evict the block under the caller).
+TEST(BlockCache, AnUnlimitedCacheHandsOutResidentViewsWithoutAPin) {
+  TestStore s = BuildGenerated("sphere:4000", 4);
+  ASSERT_GE(s.reader->blocks().size(), 2u);
+  auto cache = slave::BlockCache::Create(*s.reader, slave::BlockCache::kUnlimited);
+  ASSERT_TRUE(cache.ok());
+  EXPECT_EQ((*cache)->ResidentView(0), nullptr);
+  std::vector<uint8_t> stored;
+  store::AlignedBuffer scratch;
+  ASSERT_EQ((*cache)->BeginLoad(0), slave::BlockCache::Claim::kLoad);
+  ASSERT_TRUE(s.reader->ReadStored(0, &stored).ok());
+  ASSERT_TRUE((*cache)->FinishLoad(0, stored, 0, &scratch).ok());
+  const store::BlockView* pinned = (*cache)->TryAcquire(0);
+  ASSERT_NE(pinned, nullptr);
+  (*cache)->Release(0);
+  EXPECT_EQ((*cache)->ResidentView(0), pinned);
+  EXPECT_EQ((*cache)->ResidentView(0)->triangle_count(), s.reader->blocks()[0].triangle_count);
+  EXPECT_EQ((*cache)->ResidentView(1), nullptr);
+
+  auto bounded = slave::BlockCache::Create(*s.reader, uint64_t{64} << 20);
+  ASSERT_TRUE(bounded.ok());
+  EXPECT_DEATH((*bounded)->ResidentView(0), "budget_ == kUnlimited");
+}
+
 }  // namespace
 }  // namespace raystack::testing
