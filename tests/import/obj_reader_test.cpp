@@ -319,6 +319,18 @@ TEST(ObjReader, TriangleCapIsAnError) {
 }
 
 // Every malformed input: an error naming the file and the line.
+// Faces of 0-2 corners (edges and points, as some exporters write them) have no surface: they are
+// skipped with a count, and the faces around them are read as usual.
+TEST(ObjReader, FacesOfFewerThanThreeCornersAreSkippedWithACount) {
+  ScratchFiles files;
+  ObjResult r = ReadObjText(files, "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                   "f 1 2\nf 1 2 3\nf 3\nf\nf 2 3\nf 3 2 1\n");
+  ASSERT_TRUE(r.status.ok()) << r.status.message();
+  EXPECT_EQ(r.info.faces, 2u);
+  EXPECT_EQ(r.info.faces_under_three_corners, 4u);
+  EXPECT_EQ(r.sink.triangles.size(), 2u);
+}
+
 TEST(ObjReader, MalformedInputNamesFileAndLine) {
   ScratchFiles files;
   struct Case {
@@ -331,7 +343,7 @@ TEST(ObjReader, MalformedInputNamesFileAndLine) {
       {Square("f 1/9 2/1 3/1"), {"model.obj:10:", "texture index 9"}},
       {Square("f 1//2 2//1 3//1"), {"model.obj:10:", "normal index 2"}},
       {Square("f 1/1/1/1 2 3"), {"model.obj:10:", "'1/1/1/1' has more than 3 indices"}},
-      {Square("f 1 2"), {"model.obj:10:", "2 vertices"}},
+      {Square("f 1 9"), {"model.obj:10:", "face index 9 out of range"}},  // an edge's too
       {Square("f 1 2 x"), {"model.obj:10:", "'x'"}},
       {Square("f 1 2 3.5"), {"model.obj:10:"}},
       {"v 0 0 0\nv nan 0 0\n", {"model.obj:2:", "nan"}},

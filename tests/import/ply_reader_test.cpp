@@ -162,6 +162,24 @@ TEST(PlyReader, PointCloudWithoutFacesIsFine) {
   EXPECT_EQ(r.info.bounds.upper, (Vec3f{1, 2, 3}));
 }
 
+// Faces of 0-2 corners (edges and points, as some exporters write them) have no surface: they are
+// skipped with a count, in every format, and the faces around them are read as usual.
+TEST(PlyReader, FacesOfFewerThanThreeCornersAreSkippedWithACount) {
+  ScratchFiles files;
+  for (const char* format : {"ascii", "binary_little_endian", "binary_big_endian"}) {
+    SCOPED_TRACE(format);
+    TestPlyElement vertex{"vertex", {{"float", "x", ""}, {"float", "y", ""}, {"float", "z", ""}},
+                          {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}};
+    TestPlyElement faces{"face", {{"int", "vertex_indices", "uchar"}},
+                         {{2, 0, 1}, {3, 0, 1, 2}, {0}, {1, 2}, {3, 2, 1, 0}}};
+    PlyResult r = ReadPlyText(files, TestPlyWriter::Build(format, {vertex, faces}));
+    ASSERT_TRUE(r.status.ok()) << r.status.message();
+    EXPECT_EQ(r.info.faces, 2u);
+    EXPECT_EQ(r.info.faces_under_three_corners, 3u);
+    EXPECT_EQ(r.sink.triangles.size(), 2u);
+  }
+}
+
 // A triangle whose vertex data and face data can be damaged one way at a time.
 std::string Triangle(const std::string& format, std::vector<double> face,
                      double y1 = 0, std::optional<uint64_t> declared_faces = std::nullopt,
@@ -187,7 +205,7 @@ TEST(PlyReader, AsciiErrorsNameFileAndLine) {
   } cases[] = {
       {Triangle("ascii", {3, 0, 1, 7}), {"m.ply:14:", "face index 7 out of range", "3 vertices"}},
       {Triangle("ascii", {3, 0, -1, 2}), {"m.ply:14:", "face index -1"}},
-      {Triangle("ascii", {2, 0, 1}), {"m.ply:14:", "face with 2 vertices"}},
+      {Triangle("ascii", {2, 0, 7}), {"m.ply:14:", "face index 7 out of range"}},  // an edge's too
       {Triangle("ascii", {256, 0, 1, 2}), {"m.ply:14:", "out of range for its type"}},
       {head + "3 0 1 2 1\n", {"m.ply:14:", "more values", "for face 0"}},
       // One vertex line fewer than the header says: the face is read as the last vertex.
@@ -308,8 +326,7 @@ TEST(PlyReader, BinaryErrorsNameFileAndByteOffset) {
         {Triangle(format, {3, 0, 1, 9}), faces + 1 + 8, "face index 9 out of range"},
         {Triangle(format, {3, 0, 1, 9}, 0, std::nullopt, "uint"), faces + 9, "index 9"},
         {Triangle(format, {3, 0, 1, 9}, 0, std::nullopt, "short"), faces + 5, "index 9"},
-        {Triangle(format, {2, 0, 1}), faces, "face with 2 vertices"},
-        {Triangle(format, {0}), faces, "face with 0 vertices"},
+        {Triangle(format, {2, 0, 9}), faces + 1 + 4, "face index 9 out of range"},
         {Triangle(format, {3, 0, 1, 2}, std::numeric_limits<double>::quiet_NaN()), 12 + 4,
          "not a finite float"},
         {Triangle(format, {3, 0, 1, 2}, 2e18), 12 + 8, "beyond +-1e18"},  // at its last value

@@ -101,6 +101,9 @@ struct ModelInfo {
   uint64_t triangles = 0;           // triangles after fan triangulation, zero-area included
   uint64_t zero_area_dropped = 0;   // triangles with zero area: counted, not sent to the sink
   uint64_t attributes_not_finite = 0;  // normals or texture coordinates with a NaN or inf
+  // Faces of 0-2 corners: no surface (exporters write edges and points so), skipped with a
+  // count like zero-area triangles. Their indices are still checked.
+  uint64_t faces_under_three_corners = 0;
   bool has_normals = false;         // any triangle had normals
   bool has_uvs = false;             // any triangle had texture coordinates
   Bounds3f bounds;                  // of all vertices, referenced or not

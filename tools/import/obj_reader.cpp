@@ -206,9 +206,10 @@ Status ObjReader::ReadFace(std::string_view rest) {
     corners_.emplace_back();
     RAYSTACK_RETURN_IF_ERROR(ReadCorner(token, &corners_.back()));
   }
-  if (corners_.size() < 3)
-    return input_.LineError(StrFormat("face with %zu vertices (at least 3 needed)",
-                                      corners_.size()));
+  if (corners_.size() < 3) {  // an edge or a point: no surface
+    ++info_->faces_under_three_corners;
+    return OkStatus();
+  }
   ++info_->faces;
   return EmitFace();
 }

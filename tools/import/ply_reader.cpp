@@ -216,6 +216,10 @@ Status PlyReader::ReadFaces(const PlyElement& element) {
   return ReadIndexLists(
       element, [this](const PlyProperty& list) { return ReadFaceCorners(list); },
       [this] {
+        if (corners_.size() < 3) {  // an edge or a point: no surface (its indices were checked)
+          ++info_->faces_under_three_corners;
+          return OkStatus();
+        }
         ++info_->faces;
         if (batcher_.WouldExceedLimit(corners_.size() - 2))
           return values_->Error(StrFormat("more than %llu triangles",
@@ -227,8 +231,8 @@ Status PlyReader::ReadFaces(const PlyElement& element) {
 Status PlyReader::ReadFaceCorners(const PlyProperty& list) {
   int64_t count = 0;
   RAYSTACK_RETURN_IF_ERROR(values_->ReadInteger(list.count_type, &count));
-  if (count < 3 || count > kMaxFaceVertices)
-    return values_->Error(StrFormat("face with %lld vertices (3 to %lld supported)",
+  if (count < 0 || count > kMaxFaceVertices)
+    return values_->Error(StrFormat("face with %lld vertices (0 to %lld supported)",
                                     static_cast<long long>(count),
                                     static_cast<long long>(kMaxFaceVertices)));
   corners_.resize(static_cast<size_t>(count));

@@ -68,6 +68,10 @@ Status TriangleBatcher::Finish(const std::string& path) {
     LOG_WARNING("import", "%s: dropped %llu zero-area triangles (of %llu)", path.c_str(),
                 static_cast<unsigned long long>(info_->zero_area_dropped),
                 static_cast<unsigned long long>(info_->triangles));
+  if (info_->faces_under_three_corners > 0)
+    LOG_WARNING("import", "%s: skipped %llu faces of fewer than 3 corners (edges or points: no "
+                "surface)", path.c_str(),
+                static_cast<unsigned long long>(info_->faces_under_three_corners));
   if (info_->attributes_not_finite > 0)
     LOG_WARNING("import", "%s: %llu normals or texture coordinates are not finite numbers (NaN, "
                 "inf, -1.#IND): the faces that use them are shaded without them", path.c_str(),
