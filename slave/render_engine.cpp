@@ -123,7 +123,10 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   const uint64_t reads_before = source_->reads();
   const uint64_t evictions_before = cache_->evictions();
   if ((options_.mode == TraceMode::kIncore || options_.mode == TraceMode::kBvh) && !preloaded_) {
-    RAYSTACK_RETURN_IF_ERROR(Preload(&s.preload_seconds));
+    // A failed preload fails the engine: a later frame would find blocks missing (and the bvh
+    // mode's tree, built from every block, could not be).
+    failed_ = Preload(&s.preload_seconds);
+    if (!failed_.ok()) return failed_;
     preloaded_ = true;
   }
   if (options_.mode == TraceMode::kBvh && !bvh_) BuildBvh(&s.bvh_build_seconds);

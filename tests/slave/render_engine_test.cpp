@@ -378,7 +378,8 @@ TEST_P(Faults, AFailedEngineRendersNoMoreFrames) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Modes, Faults,
-                         ::testing::Values(TraceMode::kStack, TraceMode::kSync, TraceMode::kIncore));
+                         ::testing::Values(TraceMode::kStack, TraceMode::kSync, TraceMode::kIncore,
+                                           TraceMode::kBvh));
 
 }  // namespace
 }  // namespace raystack::testing
