@@ -2,8 +2,9 @@
 // the process first walks: AVX2 puts a node's 8 boxes, and 8 rays of a packet, in one register
 // where SSE2 needs two (packets of 8 gained 17-20% on the dragon's primary rays, and packets of
 // 16 in two registers a further 9-17%; single rays: see wide_bvh_ray_walk.inc). With AVX-512's
-// instructions (and BMI) allowed, the same code gained 2-8% on packets (AMD Zen 4, embree_bench
-// --walks avx2 against avx512, alternated; tools/bench/RESULTS.md).
+// instructions (and BMI) allowed, the same code's packets gained 1-2% on the dragon and 1-11% on
+// the conference room (AMD Zen 4, embree_bench --walks avx2 against avx512, alternated;
+// tools/bench/RESULTS.md).
 //
 // Packets' results equal the single-ray walk's bit for bit: the bounds meet every box any of
 // the rays meets there, the leaf tests are the single-ray ones lane by lane (the same float

@@ -171,19 +171,21 @@ TEST(WideBvh, RandomSoupMatchesBruteForceBitForBit) {
 }
 
 TEST(WideBvh, EqualDistanceGoesToTheSmallerIdWhateverTheOrder) {
-  for (bool smaller_first : {true, false}) {
-    Mesh m;
-    const Vec3f a{-1, -1, 2}, b{1, -1, 2}, c{0, 1, 2};
-    m.Add(a, b, c, smaller_first ? 5 : 9);
-    m.Add(a, b, c, smaller_first ? 9 : 5);
-    const WideBvh bvh(m.vertices, m.ids, m.origins);
-    Hit h;
-    ASSERT_TRUE(bvh.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
-    EXPECT_EQ(h.t, 2.0f);
-    EXPECT_EQ(h.triangle_id, 5u);
-    EXPECT_EQ(h.local_triangle, smaller_first ? 0u : 1u);
-    EXPECT_EQ(h.block_id, smaller_first ? 1u : 8u);
-  }
+  ForEachWalk([] {
+    for (bool smaller_first : {true, false}) {
+      Mesh m;
+      const Vec3f a{-1, -1, 2}, b{1, -1, 2}, c{0, 1, 2};
+      m.Add(a, b, c, smaller_first ? 5 : 9);
+      m.Add(a, b, c, smaller_first ? 9 : 5);
+      const WideBvh bvh(m.vertices, m.ids, m.origins);
+      Hit h;
+      ASSERT_TRUE(bvh.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
+      EXPECT_EQ(h.t, 2.0f);
+      EXPECT_EQ(h.triangle_id, 5u);
+      EXPECT_EQ(h.local_triangle, smaller_first ? 0u : 1u);
+      EXPECT_EQ(h.block_id, smaller_first ? 1u : 8u);
+    }
+  });
 }
 
 TEST(WideBvh, StartsFromTheHitItIsGiven) {
@@ -191,34 +193,38 @@ TEST(WideBvh, StartsFromTheHitItIsGiven) {
   m.Add({-1, -1, 2}, {1, -1, 2}, {0, 1, 2}, 8);
   m.Add({-1, -1, 3}, {1, -1, 3}, {0, 1, 3}, 2);
   const WideBvh bvh(m.vertices, m.ids, m.origins);
-  const Ray ray{{0, 0, 0}, {0, 0, 1}};
-  Hit h;
-  h.t = 1.5f;  // found elsewhere, closer than both
-  EXPECT_FALSE(bvh.Intersect(ray, &h));
-  h.t = 2.0f;  // a tie at t = 2 with a larger id: triangle 8 wins it
-  h.triangle_id = 9;
-  ASSERT_TRUE(bvh.Intersect(ray, &h));
-  EXPECT_EQ(h.triangle_id, 8u);
-  h.triangle_id = 7;  // a tie with a smaller id keeps it
-  EXPECT_FALSE(bvh.Intersect(ray, &h));
-  EXPECT_FALSE(bvh.Occluded(Ray{{0, 0, 0}, {0, 0, 1}, 0, 2.0f}));  // open at tmax
-  EXPECT_TRUE(bvh.Occluded(Ray{{0, 0, 0}, {0, 0, 1}, 0, 2.5f}));
-  EXPECT_FALSE(bvh.Occluded(Ray{{0, 0, 0}, {0, 0, 1}, 3.0f, kInf}));  // open at tmin
+  ForEachWalk([&] {
+    const Ray ray{{0, 0, 0}, {0, 0, 1}};
+    Hit h;
+    h.t = 1.5f;  // found elsewhere, closer than both
+    EXPECT_FALSE(bvh.Intersect(ray, &h));
+    h.t = 2.0f;  // a tie at t = 2 with a larger id: triangle 8 wins it
+    h.triangle_id = 9;
+    ASSERT_TRUE(bvh.Intersect(ray, &h));
+    EXPECT_EQ(h.triangle_id, 8u);
+    h.triangle_id = 7;  // a tie with a smaller id keeps it
+    EXPECT_FALSE(bvh.Intersect(ray, &h));
+    EXPECT_FALSE(bvh.Occluded(Ray{{0, 0, 0}, {0, 0, 1}, 0, 2.0f}));  // open at tmax
+    EXPECT_TRUE(bvh.Occluded(Ray{{0, 0, 0}, {0, 0, 1}, 0, 2.5f}));
+    EXPECT_FALSE(bvh.Occluded(Ray{{0, 0, 0}, {0, 0, 1}, 3.0f, kInf}));  // open at tmin
+  });
 }
 
 TEST(WideBvh, EmptyAndSingleTriangleMeshes) {
   const WideBvh empty(std::vector<Vec3f>{}, std::vector<uint32_t>{}, std::vector<TriangleOrigin>{});
-  Hit h;
-  EXPECT_FALSE(empty.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
-  EXPECT_FALSE(empty.Occluded(Ray{{0, 0, 0}, {0, 0, 1}}));
   Mesh m;
   m.Add({-1, -1, 2}, {1, -1, 2}, {0, 1, 2}, 4);
   const WideBvh one(m.vertices, m.ids, m.origins);
-  ASSERT_TRUE(one.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
-  EXPECT_EQ(h.triangle_id, 4u);
-  EXPECT_EQ(h.block_id, 1u);
-  EXPECT_EQ(h.local_triangle, 0u);
-  EXPECT_FALSE(one.Occluded(Ray{{5, 0, 0}, {0, 0, 1}}));
+  ForEachWalk([&] {
+    Hit h;
+    EXPECT_FALSE(empty.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
+    EXPECT_FALSE(empty.Occluded(Ray{{0, 0, 0}, {0, 0, 1}}));
+    ASSERT_TRUE(one.Intersect(Ray{{0, 0, 0}, {0, 0, 1}}, &h));
+    EXPECT_EQ(h.triangle_id, 4u);
+    EXPECT_EQ(h.block_id, 1u);
+    EXPECT_EQ(h.local_triangle, 0u);
+    EXPECT_FALSE(one.Occluded(Ray{{5, 0, 0}, {0, 0, 1}}));
+  });
 }
 
 // Found on the conference room: IntersectTriangle, deciding in float relative to a far
