@@ -14,11 +14,16 @@ constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
 // JSON has no NaN: unknown figures are null, which the page shows as "—".
 std::string Number(double v) { return std::isfinite(v) ? StrFormat("%.6g", v) : "null"; }
 
+// A tile is done when each of its pixels (those of its ranks: a coarse round's tile has a few
+// of its rectangle's) has the samples the tile brings it to: its pass's end, not the frame's
+// spp, or every tile of a progressive render would stay "in flight" until the last pass.
 bool TileDone(const render::Tile& t, int width, const std::vector<uint32_t>& counts, int spp) {
+  const uint32_t target = t.sample_end > 0 ? t.sample_end : static_cast<uint32_t>(spp);
   for (int y = t.y0; y < t.y1; ++y)
     for (int x = t.x0; x < t.x1; ++x) {
+      if (!t.HasRank(x, y)) continue;
       const size_t i = static_cast<size_t>(y) * static_cast<size_t>(width) + static_cast<size_t>(x);
-      if (i >= counts.size() || counts[i] < static_cast<uint32_t>(spp)) return false;
+      if (i >= counts.size() || counts[i] < target) return false;
     }
   return true;
 }

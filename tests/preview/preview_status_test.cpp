@@ -1,6 +1,9 @@
 #include "master/preview/preview_status.h"
 
 #include <gtest/gtest.h>
+
+#include <algorithm>
+#include <vector>
 #include <nlohmann/json.hpp>
 
 namespace raystack::master::preview {
@@ -41,6 +44,36 @@ TEST(StatusJson, UnknownFiguresAreNullAndFinishedTilesLeaveTheList) {
   EXPECT_DOUBLE_EQ(done["rays_per_second"].get<double>(), 1e6);
   EXPECT_DOUBLE_EQ(done["seconds_left"].get<double>(), 0.0);
   EXPECT_TRUE(done["tiles"][0]["tiles"].empty());  // nothing is in flight once done
+}
+
+// A progressive render hands out each tile once a pass: a tile is no longer in flight when its
+// pixels have its pass's samples (not yet the frame's spp), and a coarse round's tile (a range
+// of pixel ranks) only looks at its own pixels.
+TEST(StatusJson, ATileIsDoneAtItsOwnPassEndOnItsOwnPixels) {
+  PreviewStatus s;
+  s.spp = 16;
+  s.samples_total = 16 * 16 * 16;
+  render::Tile first_pass{0, 0, 16, 16};
+  first_pass.sample_end = 4;
+  render::Tile second_pass = first_pass;
+  second_pass.sample_begin = 4;
+  second_pass.sample_end = 8;
+  render::Tile coarse{0, 0, 16, 16};
+  coarse.sample_end = 1;
+  coarse.rank_begin = 0;
+  coarse.rank_end = 1;  // one pixel in each 16x16 square
+  s.tiles = {{0, {first_pass, second_pass, coarse}}};
+  std::vector<uint32_t> counts(16 * 16, 4);  // every pixel has its first pass
+  nlohmann::json j = nlohmann::json::parse(StatusJson(s, 16, counts));
+  ASSERT_EQ(j["tiles"][0]["tiles"].size(), 1u);  // the second pass's, still in flight
+  EXPECT_EQ(j["tiles"][0]["tiles"][0], nlohmann::json({0, 0, 16, 16}));
+
+  std::fill(counts.begin(), counts.end(), 0u);
+  for (int y = 0; y < 16; ++y)
+    for (int x = 0; x < 16; ++x)
+      if (coarse.HasRank(x, y)) counts[static_cast<size_t>(y * 16 + x)] = 1;
+  j = nlohmann::json::parse(StatusJson(s, 16, counts));
+  EXPECT_EQ(j["tiles"][0]["tiles"].size(), 2u);  // the coarse tile is done with its one pixel
 }
 
 TEST(StatusJson, NothingDoneYetHasNoTimeLeft) {
