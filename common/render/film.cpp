@@ -213,6 +213,21 @@ void Film::ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts,
     for (int c = 0; c < 3; ++c)
       (*rgb)[3 * i + static_cast<size_t>(c)] = p.count > 0 ? static_cast<float>(p.rgb[c].Value() / n) : 0.0f;
   }
+  // As Resolve: a resumed run's restored pixels as the checkpoint has them (the preview showed
+  // them as not computed, and its progress stopped short of 100%).
+  for (const uint32_t i : restored_pixels_) {
+    if (i >= pixels_.size()) continue;
+    for (size_t c = 0; c < 3; ++c) (*rgb)[3 * i + c] = restored_.rgba[4 * i + c];
+    (*counts)[i] = restored_.samples.empty() ? 1 : restored_.samples[i];
+  }
+}
+
+uint64_t Film::samples_restored() const {
+  std::lock_guard lock(mu_);
+  uint64_t sum = 0;
+  for (const uint32_t i : restored_pixels_)
+    if (i < pixels_.size()) sum += restored_.samples.empty() ? 1 : restored_.samples[i];
+  return sum;
 }
 
 }  // namespace raystack::render

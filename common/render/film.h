@@ -38,6 +38,8 @@ class Film {
   // of a resumed run equals an uninterrupted run's bit for bit. `from` must be this film's size.
   void Restore(const image::ImageLayers& from, std::span<const uint32_t> pixels);
   uint64_t pixels_restored() const;
+  // The samples the restored pixels hold (their sample counts), for progress.
+  uint64_t samples_restored() const;
 
   // Back to the state of a new film of the same size (no sample, nothing restored). Between
   // frames of one size: a new film is ~55 MB touched for the first time (960x540: ~20 ms of
@@ -60,8 +62,8 @@ class Film {
   // The same into `out`, whose layers' memory is used again where large enough (an image
   // written earlier: new memory costs a page fault a page, see ImageLayers::Resize).
   void ResolveInto(image::ImageLayers* out) const;
-  // Only the mean radiance (3 floats per pixel, 0 without samples) and the sample counts, into
-  // the caller's buffers (resized): the light copy the live preview takes several times a
+  // Only the mean radiance (3 floats per pixel, 0 without samples) and the sample counts
+  // (restored pixels as Resolve gives them), into the caller's buffers (resized): the light copy the live preview takes several times a
   // second, holding the lock far shorter than Resolve. Thread-safe.
   // `held` (optional): how long the film's lock was held, the copy without the allocation.
   void ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts,

@@ -34,6 +34,7 @@ void LivePreview::BeginFrame(const render::Film* film, uint32_t frame, uint32_t 
   status_.spp = spp;
   status_.samples_total = static_cast<uint64_t>(film->width()) * static_cast<uint64_t>(film->height()) *
                           static_cast<uint64_t>(spp);
+  status_.samples_restored = film->samples_restored();  // --resume: set before the frame starts
   start_ = std::chrono::steady_clock::now();
   server_->AttachFilm(film, frame);
   server_->Publish(status_);

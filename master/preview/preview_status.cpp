@@ -31,13 +31,14 @@ bool TileDone(const render::Tile& t, int width, const std::vector<uint32_t>& cou
 }  // namespace
 
 std::string StatusJson(const PreviewStatus& s, int width, const std::vector<uint32_t>& counts) {
+  const uint64_t done = s.samples_done + s.samples_restored;
   const double progress =
-      s.samples_total > 0 ? static_cast<double>(s.samples_done) / static_cast<double>(s.samples_total) : 0.0;
+      s.samples_total > 0 ? static_cast<double>(std::min(done, s.samples_total)) / static_cast<double>(s.samples_total) : 0.0;
   const double per_second = s.elapsed_seconds > 0 ? static_cast<double>(s.samples_done) / s.elapsed_seconds : kUnknown;
   // Time left at the mean rate so far; unknown until the first samples are in.
   const double left = s.finished ? 0.0
                       : s.samples_done > 0 && per_second > 0
-                          ? static_cast<double>(s.samples_total - std::min(s.samples_done, s.samples_total)) / per_second
+                          ? static_cast<double>(s.samples_total - std::min(done, s.samples_total)) / per_second
                           : kUnknown;
   std::string json = StrFormat(
       "{\"type\":\"status\",\"frame\":%u,\"frames\":%u,\"samples_done\":%llu,\"samples_total\":%llu,"

@@ -21,6 +21,7 @@ struct RankTiles {
 struct PreviewStatus {
   uint32_t frame = 0, frames = 1;  // frame index, and how many the job has
   uint64_t samples_done = 0;       // samples merged into the film so far
+  uint64_t samples_restored = 0;   // from a checkpoint (--resume): done, but not in the rate
   uint64_t samples_total = 0;      // width * height * spp
   int spp = 1;                     // samples per pixel the frame asks for
   double elapsed_seconds = 0;      // since the frame started

@@ -76,6 +76,31 @@ TEST(TakeSnapshot, HasTheBitsOfResolve) {
       ASSERT_EQ(std::bit_cast<uint32_t>(s.rgb[3 * i + c]), std::bit_cast<uint32_t>(layers.rgba[4 * i + c])) << i;
 }
 
+// --resume: the pixels a checkpoint held finished are shown as it has them (they were shown as
+// not computed, and the page's progress stopped short of 100%).
+TEST(TakeSnapshot, ShowsAResumedRunsRestoredPixels) {
+  render::Film before(5, 3);
+  std::vector<render::SampleResult> batch;
+  for (uint32_t k = 0; k < 4; ++k) batch.push_back(Sample(k % 2, k, 0.25f * k, 1.0f, 2.0f));
+  before.Merge(batch);
+  const image::ImageLayers checkpoint = before.Resolve();  // pixels 0 and 1: 2 samples each
+  render::Film film(5, 3);
+  const uint32_t restored[] = {0, 1};
+  film.Restore(checkpoint, restored);
+  const render::SampleResult fresh[] = {Sample(7, 0, 3.0f, 3.0f, 3.0f)};
+  film.Merge(fresh);
+  EXPECT_EQ(film.samples_restored(), 4u);
+  const image::ImageLayers layers = film.Resolve();
+  const FilmSnapshot s = TakeSnapshot(film, 0);
+  ASSERT_EQ(s.counts, layers.samples);
+  EXPECT_EQ(s.counts[0], 2u);
+  EXPECT_EQ(s.counts[7], 1u);
+  EXPECT_EQ(s.samples_merged, 5u);
+  for (size_t i = 0; i < layers.pixel_count(); ++i)
+    for (size_t c = 0; c < 3; ++c)
+      ASSERT_EQ(std::bit_cast<uint32_t>(s.rgb[3 * i + c]), std::bit_cast<uint32_t>(layers.rgba[4 * i + c])) << i;
+}
+
 TEST(EncodeFrame, HeaderThenToneMappedPixelsWithComputedInAlpha) {
   render::Film film(3, 2);
   const render::SampleResult samples[] = {Sample(0, 0, 0.5f, 0.25f, 2.0f), Sample(0, 1, 0.5f, 0.25f, 0.0f),

@@ -76,6 +76,19 @@ TEST(StatusJson, ATileIsDoneAtItsOwnPassEndOnItsOwnPixels) {
   EXPECT_EQ(j["tiles"][0]["tiles"].size(), 2u);  // the coarse tile is done with its one pixel
 }
 
+// A resumed run's restored samples count as done, not as rendered at the frame's rate.
+TEST(StatusJson, RestoredSamplesAreDoneButNotInTheRate) {
+  PreviewStatus s;
+  s.samples_total = 100;
+  s.samples_restored = 60;
+  s.samples_done = 20;
+  s.elapsed_seconds = 2;
+  const nlohmann::json j = nlohmann::json::parse(StatusJson(s, 0, {}));
+  EXPECT_DOUBLE_EQ(j["progress"].get<double>(), 0.8);
+  EXPECT_DOUBLE_EQ(j["samples_per_second"].get<double>(), 10.0);
+  EXPECT_DOUBLE_EQ(j["seconds_left"].get<double>(), 2.0);  // 20 left at 10/s
+}
+
 TEST(StatusJson, NothingDoneYetHasNoTimeLeft) {
   PreviewStatus s;
   s.samples_total = 100;
