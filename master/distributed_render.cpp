@@ -145,16 +145,18 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
       monitor.Finish(resolved);
       preview->SetErrorEstimate(monitor.last().error_estimate);  // the last pass's
       ReportStop(args, monitor);
+      if (monitor.stopped()) preview->SetNote("stopped: " + monitor.stop_reason());
+      uint64_t rays = 0;
+      for (const SlaveFigures& s : figures.slaves) rays += s.done.rays;
+      preview->EndFrame(figures.seconds > 0 ? static_cast<double>(rays) / figures.seconds
+                                            : std::numeric_limits<double>::quiet_NaN());
     }
-    uint64_t rays = 0;
-    for (const SlaveFigures& s : figures.slaves) rays += s.done.rays;
-    preview->EndFrame(status.ok() && figures.seconds > 0 ? static_cast<double>(rays) / figures.seconds
-                                                         : std::numeric_limits<double>::quiet_NaN());
     Expected<std::string> exr =
         status.ok() ? WriteFrame(args, scene, f, film, std::move(resolved), &writer)
                     : Expected<std::string>(status);
     if (!exr.ok()) {  // every rank ends, none is left waiting
       master.Shutdown(1);
+      preview->Fail(exr.status());  // then the page says why, for the hold time
       return exr.status();
     }
     if (!args.quiet) {

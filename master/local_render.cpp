@@ -165,17 +165,21 @@ Status RenderLocally(const RenderArgs& args) {
       if (!status.ok()) progress.Abandon();
     }
     if (!status.ok()) {
-      preview->EndFrame(std::numeric_limits<double>::quiet_NaN());
+      preview->Fail(status);  // says why on the page, for the hold time
       return status;
     }
     image::ImageLayers resolved = writer.TakeSpare();
     film.ResolveInto(&resolved);
     monitor.Finish(resolved);
     preview->SetErrorEstimate(monitor.last().error_estimate);  // the last pass's
+    if (monitor.stopped()) preview->SetNote("stopped: " + monitor.stop_reason());
     preview->EndFrame(stats.rays_per_second);
     ReportStop(args, monitor);
     Expected<std::string> exr = WriteFrame(args, *scene, f, film, std::move(resolved), &writer);
-    if (!exr.ok()) return exr.status();
+    if (!exr.ok()) {
+      preview->Fail(exr.status());
+      return exr.status();
+    }
     if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
     stats_json += stats.ToJson();
     if (f + 1 < frames) stats_json += ",";

@@ -65,10 +65,27 @@ void LivePreview::EndFrame(double rays_per_second) {
   film_ = nullptr;
 }
 
+void LivePreview::Fail(const Status& why) {
+  if (!server_) return;
+  if (film_ != nullptr) {
+    status_.samples_done = film_->samples_merged();
+    status_.elapsed_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    server_->DetachFilm();  // the image so far stays up
+    film_ = nullptr;
+  }
+  status_.failed = true;
+  status_.note = "failed: " + why.message();
+  status_.tiles.clear();
+  server_->Publish(status_);
+  // Said now: the error the job ends with is printed after the hold.
+  if (hold_seconds_ > 0) std::fprintf(stderr, "raystack render: %s\n", status_.note.c_str());
+  Finish();
+}
+
 void LivePreview::Finish() {
   if (!server_) return;
   if (hold_seconds_ > 0) {
-    std::printf("preview: showing the final image for %g s more (Ctrl-C ends it)\n", hold_seconds_);
+    std::printf("preview: showing the last image for %g s more (Ctrl-C ends it)\n", hold_seconds_);
     std::fflush(stdout);
     server_->Hold(hold_seconds_);
   }

@@ -40,9 +40,14 @@ class LivePreview {
   // The current error estimate of the image (from per-pixel variance), shown until replaced;
   // NaN (the default) shows as "—".
   void SetErrorEstimate(double error) { status_.error_estimate = error; }
+  // What ended the frame early ("stopped: ..."), shown on the page with the frame.
+  void SetNote(std::string note) { status_.note = std::move(note); }
   // The frame is complete: its final image, and its rays per second from the engines' own
   // counts (NaN if unknown).
   void EndFrame(double rays_per_second);
+  // The job failed in this frame: the page says why (and shows the image so far) for the hold
+  // time, as after a job that ends well, then the server closes.
+  void Fail(const Status& why);
   // The job is over: serve the final image for the hold time, then close.
   void Finish();
 

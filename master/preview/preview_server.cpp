@@ -198,7 +198,7 @@ class PreviewServer::Impl {
       status_ = status;
       status_dirty_ = true;
     }
-    if (status.finished) asio::post(ioc_, [this] { Refresh(); });
+    if (status.finished || status.failed) asio::post(ioc_, [this] { Refresh(); });
   }
 
   void Hold(double seconds) {

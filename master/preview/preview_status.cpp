@@ -14,6 +14,39 @@ constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
 // JSON has no NaN: unknown figures are null, which the page shows as "—".
 std::string Number(double v) { return std::isfinite(v) ? StrFormat("%.6g", v) : "null"; }
 
+// The length of the UTF-8 sequence at text[i], or 0 if none is there (a WebSocket text message
+// must be valid UTF-8, or the browser drops the connection; a path in an error may not be).
+size_t Utf8Length(const std::string& text, size_t i) {
+  const auto c = static_cast<unsigned char>(text[i]);
+  const size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xe ? 3 : (c >> 3) == 0x1e ? 4 : 0;
+  if (n == 0 || i + n > text.size() || (n == 2 && c < 0xc2) || (n == 4 && c > 0xf4)) return 0;
+  for (size_t k = 1; k < n; ++k)
+    if ((static_cast<unsigned char>(text[i + k]) >> 6) != 0x2) return 0;
+  return n;
+}
+
+// A JSON string: quotes, backslashes and control characters escaped, bytes that are not UTF-8
+// as '?'.
+std::string Quoted(const std::string& text) {
+  std::string out = "\"";
+  for (size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    const size_t n = Utf8Length(text, i);
+    if (n == 0) {
+      out += '?';
+      ++i;
+      continue;
+    }
+    if (c == '"' || c == '\\') out += '\\';
+    if (c < 0x20)
+      out += StrFormat("\\u%04x", c);
+    else
+      out.append(text, i, n);
+    i += n;
+  }
+  return out + "\"";
+}
+
 // A tile is done when each of its pixels (those of its ranks: a coarse round's tile has a few
 // of its rectangle's) has the samples the tile brings it to: its pass's end, not the frame's
 // spp, or every tile of a progressive render would stay "in flight" until the last pass.
@@ -37,25 +70,27 @@ std::string StatusJson(const PreviewStatus& s, int width, const std::vector<uint
   const double per_second = s.elapsed_seconds > 0 ? static_cast<double>(s.samples_done) / s.elapsed_seconds : kUnknown;
   // Time left at the mean rate so far; unknown until the first samples are in.
   const double left = s.finished ? 0.0
+                      : s.failed ? kUnknown
                       : s.samples_done > 0 && per_second > 0
                           ? static_cast<double>(s.samples_total - std::min(done, s.samples_total)) / per_second
                           : kUnknown;
   std::string json = StrFormat(
       "{\"type\":\"status\",\"frame\":%u,\"frames\":%u,\"samples_done\":%llu,\"samples_total\":%llu,"
       "\"progress\":%s,\"elapsed_seconds\":%s,\"samples_per_second\":%s,\"rays_per_second\":%s,"
-      "\"seconds_left\":%s,\"error_estimate\":%s,\"finished\":%s,\"tiles\":[",
+      "\"seconds_left\":%s,\"error_estimate\":%s,\"finished\":%s,\"failed\":%s,\"note\":%s,"
+      "\"tiles\":[",
       s.frame, s.frames, static_cast<unsigned long long>(s.samples_done),
       static_cast<unsigned long long>(s.samples_total), Number(progress).c_str(),
       Number(s.elapsed_seconds).c_str(), Number(per_second).c_str(),
       Number(s.rays_per_second).c_str(), Number(left).c_str(), Number(s.error_estimate).c_str(),
-      s.finished ? "true" : "false");
+      s.finished ? "true" : "false", s.failed ? "true" : "false", Quoted(s.note).c_str());
   bool first_rank = true;
   for (const RankTiles& r : s.tiles) {
     json += StrFormat("%s{\"rank\":%d,\"tiles\":[", first_rank ? "" : ",", r.rank);
     first_rank = false;
     bool first = true;
     for (const render::Tile& t : r.tiles) {
-      if (s.finished || (!counts.empty() && TileDone(t, width, counts, s.spp))) continue;
+      if (s.finished || s.failed || (!counts.empty() && TileDone(t, width, counts, s.spp))) continue;
       json += StrFormat("%s[%d,%d,%d,%d]", first ? "" : ",", t.x0, t.y0, t.x1, t.y1);
       first = false;
     }

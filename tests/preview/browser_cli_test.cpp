@@ -113,7 +113,7 @@ TEST_P(PreviewCliRanks, TheCanvasMatchesTheFilmAfterTheRender) {
                               "preview.status.finished && preview.frame !== null && "
                               "preview.frame.samples === preview.status.samples_total",
                               kPatience, &error)) << error;
-  ASSERT_TRUE(render.WaitForOutput("showing the final image", kPatience)) << render.out() << render.err();
+  ASSERT_TRUE(render.WaitForOutput("showing the last image", kPatience)) << render.out() << render.err();
   EXPECT_EQ(browser.Evaluate("preview.frame.exposure", &error), 1.0);
   EXPECT_EQ(browser.Evaluate("document.getElementById('rays').textContent === '—'", &error), false)
       << "rays/s is known once the frame is done";
