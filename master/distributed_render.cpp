@@ -89,8 +89,10 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
   const auto assigned = [&] {
     std::vector<preview::RankTiles> ranks;
     std::vector<std::vector<render::Tile>> by_slave = master.TilesAssigned();
+    const std::vector<std::string> dropped = master.SlavesDropped();
     for (size_t i = 0; i < by_slave.size(); ++i)
-      ranks.push_back({static_cast<int>(i) + 1, std::move(by_slave[i])});
+      ranks.push_back({static_cast<int>(i) + 1, std::move(by_slave[i]),
+                       i < dropped.size() ? dropped[i] : std::string()});
     return ranks;
   };
   const InterruptsHeld held;  // to the last write (declared before `writer`: outlives it)

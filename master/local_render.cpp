@@ -46,7 +46,7 @@ class WatchedTileSource final : public slave::TileSource {
   }
   std::vector<preview::RankTiles> Given() const {
     std::lock_guard lock(mu_);
-    return {preview::RankTiles{0, given_}};
+    return {preview::RankTiles{0, given_, {}}};
   }
   void Stop() { tiles_.Stop(); }  // a stop rule holds
 

@@ -147,6 +147,11 @@ std::vector<std::vector<render::Tile>> MasterNode::TilesAssigned() const {
   return assigned_;
 }
 
+std::vector<std::string> MasterNode::SlavesDropped() const {
+  std::lock_guard lock(assigned_mu_);
+  return dropped_;
+}
+
 // The next tile for `rank`: a returned one first, then the current sweep's, then the next
 // sweep's; false once a stop rule holds or every sweep is out.
 bool MasterNode::NextTile(Frame* f, int rank, render::Tile* t) {
@@ -237,6 +242,12 @@ Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
   if (!f->done[static_cast<size_t>(rank)]) {
     f->done[static_cast<size_t>(rank)] = true;
     --f->remaining;
+  }
+  {
+    // The preview: its tiles are no longer its own (the others take them), and it is gone.
+    std::lock_guard lock(assigned_mu_);
+    assigned_[static_cast<size_t>(rank - 1)].clear();
+    dropped_[static_cast<size_t>(rank - 1)] = (lost ? "lost: " : "failed: ") + why;
   }
   std::vector<render::SampleResult> merged;
   const std::vector<render::Tile> back = f->ledger.Release(rank, &merged);
@@ -419,6 +430,7 @@ Status MasterNode::RunFrame(uint32_t frame, const render::FramePlan& plan, rende
   {
     std::lock_guard lock(assigned_mu_);
     assigned_.assign(static_cast<size_t>(slaves), {});
+    dropped_.resize(static_cast<size_t>(slaves));
   }
   for (int r = 1; r <= slaves; ++r) {
     SlaveFigures& s = figures->slaves[static_cast<size_t>(r - 1)];

@@ -110,6 +110,9 @@ class MasterNode {
   // The tiles handed out so far in the current (or last) frame, per slave (index = rank - 1),
   // in the order given. Thread-safe: the live preview reads it while RunFrame runs.
   std::vector<std::vector<render::Tile>> TilesAssigned() const;
+  // Why each slave (index = rank - 1) was dropped from the job, empty while it works.
+  // Thread-safe, as TilesAssigned.
+  std::vector<std::string> SlavesDropped() const;
 
  private:
   struct SlaveState {
@@ -144,6 +147,7 @@ class MasterNode {
   std::deque<transport::Envelope> early_;
   mutable std::mutex assigned_mu_;
   std::vector<std::vector<render::Tile>> assigned_;  // guarded by assigned_mu_
+  std::vector<std::string> dropped_;  // guarded by assigned_mu_; for the whole job
   std::mutex beat_mu_;
   std::condition_variable beat_stop_;
   bool beating_ = false;  // guarded by beat_mu_

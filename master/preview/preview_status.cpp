@@ -86,7 +86,8 @@ std::string StatusJson(const PreviewStatus& s, int width, const std::vector<uint
       s.finished ? "true" : "false", s.failed ? "true" : "false", Quoted(s.note).c_str());
   bool first_rank = true;
   for (const RankTiles& r : s.tiles) {
-    json += StrFormat("%s{\"rank\":%d,\"tiles\":[", first_rank ? "" : ",", r.rank);
+    json += StrFormat("%s{\"rank\":%d,\"dropped\":%s,\"tiles\":[", first_rank ? "" : ",", r.rank,
+                      Quoted(r.dropped).c_str());
     first_rank = false;
     bool first = true;
     for (const render::Tile& t : r.tiles) {

@@ -16,6 +16,7 @@ namespace raystack::master::preview {
 struct RankTiles {
   int rank = 0;  // 0 in a one-process run (the local engine)
   std::vector<render::Tile> tiles;
+  std::string dropped;  // why the slave was dropped from the job ("lost: ..."); empty: working
 };
 
 struct PreviewStatus {

@@ -62,6 +62,7 @@ struct JobOutcome {
   std::vector<image::ImageLayers> frames;
   std::vector<master::FrameFigures> figures;
   std::vector<std::vector<std::vector<render::Tile>>> assigned;  // per frame, per slave
+  std::vector<std::string> dropped;  // MasterNode::SlavesDropped at the end, per slave
 };
 
 // What goes wrong in a job, on purpose.
@@ -159,6 +160,7 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
     out.figures.push_back(figures);
     out.assigned.push_back(node.TilesAssigned());
   }
+  out.dropped = node.SlavesDropped();
   EXPECT_TRUE(node.Shutdown(out.master.ok() ? 0 : 1));
   for (std::thread& t : threads) t.join();
   return out;
@@ -307,6 +309,16 @@ TEST(Distributed, ALostOrFailedSlaveCostsTimeNeverPixels) {
       const master::SlaveFigures& lost = job.figures[f].slaves[static_cast<size_t>(dropped - 1)];
       EXPECT_TRUE(lost.dropped) << c.name;
       EXPECT_NE(lost.failure.find(c.why), std::string::npos) << c.name << ": " << lost.failure;
+      // The live preview lists none of its tiles (the others took them) and says it is gone.
+      EXPECT_TRUE(job.assigned[f][static_cast<size_t>(dropped - 1)].empty()) << c.name;
+    }
+    ASSERT_EQ(job.dropped.size(), 3u) << c.name;
+    EXPECT_NE(job.dropped[static_cast<size_t>(dropped - 1)].find(c.why), std::string::npos)
+        << c.name << ": " << job.dropped[static_cast<size_t>(dropped - 1)];
+    for (int r = 1; r <= 3; ++r) {
+      if (r != dropped) {
+        EXPECT_EQ(job.dropped[static_cast<size_t>(r - 1)], "") << c.name;
+      }
     }
     for (int r = 1; r <= 3; ++r)
       if (r != dropped) {

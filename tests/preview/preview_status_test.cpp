@@ -17,7 +17,7 @@ TEST(StatusJson, UnknownFiguresAreNullAndFinishedTilesLeaveTheList) {
   s.samples_total = 4 * 2 * 2;
   s.samples_done = 8;
   s.elapsed_seconds = 2;
-  s.tiles = {{1, {{0, 0, 2, 2}, {2, 0, 4, 2}}}, {2, {}}};
+  s.tiles = {{1, {{0, 0, 2, 2}, {2, 0, 4, 2}}, ""}, {2, {}, "lost: silent for 10 s"}};
   // A 4x2 image: the left tile has all its samples, the right one lacks one.
   const std::vector<uint32_t> counts = {2, 2, 2, 1, 2, 2, 0, 0};
   const nlohmann::json j = nlohmann::json::parse(StatusJson(s, 4, counts));
@@ -35,6 +35,8 @@ TEST(StatusJson, UnknownFiguresAreNullAndFinishedTilesLeaveTheList) {
   ASSERT_EQ(j["tiles"][0]["tiles"].size(), 1u);
   EXPECT_EQ(j["tiles"][0]["tiles"][0], nlohmann::json({2, 0, 4, 2}));
   EXPECT_TRUE(j["tiles"][1]["tiles"].empty());
+  EXPECT_EQ(j["tiles"][0]["dropped"], "");
+  EXPECT_EQ(j["tiles"][1]["dropped"], "lost: silent for 10 s");  // the legend says so
 
   s.error_estimate = 0.125;
   s.rays_per_second = 1e6;
@@ -62,7 +64,7 @@ TEST(StatusJson, ATileIsDoneAtItsOwnPassEndOnItsOwnPixels) {
   coarse.sample_end = 1;
   coarse.rank_begin = 0;
   coarse.rank_end = 1;  // one pixel in each 16x16 square
-  s.tiles = {{0, {first_pass, second_pass, coarse}}};
+  s.tiles = {{0, {first_pass, second_pass, coarse}, ""}};
   std::vector<uint32_t> counts(16 * 16, 4);  // every pixel has its first pass
   nlohmann::json j = nlohmann::json::parse(StatusJson(s, 16, counts));
   ASSERT_EQ(j["tiles"][0]["tiles"].size(), 1u);  // the second pass's, still in flight
