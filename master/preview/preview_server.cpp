@@ -135,8 +135,12 @@ class PreviewServer::Impl {
     if (!ec) acceptor_.listen(asio::socket_base::max_listen_connections, ec);
     if (ec)
       // The address asked for (not this machine's name): that is what could not be bound.
-      return Status::Error(StrFormat("preview: cannot listen on %s:%u: %s", address_text_.c_str(),
-                                     options_.port, ec.message().c_str()));
+      return Status::Error(StrFormat("preview: cannot listen on %s:%u: %s%s", address_text_.c_str(),
+                                     options_.port, ec.message().c_str(),
+                                     ec == asio::error::address_in_use
+                                         ? " (another program has the port: pick another, or "
+                                           "--preview any for a free one)"
+                                         : ""));
     port_ = acceptor_.local_endpoint().port();
     return OkStatus();
   }
@@ -245,12 +249,23 @@ class PreviewServer::Impl {
   // Checks a request's right to be served: the token when one is set, else a loopback Host
   // (and Origin, for the stream) so that a web page elsewhere cannot read the image through
   // a DNS name that resolves to 127.0.0.1.
-  bool Allowed(const http::request<http::empty_body>& req, std::string_view query) const {
-    if (!token_.empty()) return SameToken(QueryValue(query, "token"), token_);
+  // Why the request is refused (the body of the 403, so whoever opened the page knows what to
+  // do), or empty when it is allowed.
+  std::string Refusal(const http::request<http::empty_body>& req, std::string_view query) const {
+    if (!token_.empty())
+      return SameToken(QueryValue(query, "token"), token_)
+                 ? std::string()
+                 : "forbidden: this preview needs its token, as in the address the render printed "
+                   "when it started (...?token=...)\n";
     if (!IsLoopbackHost(std::string_view(req[http::field::host].data(), req[http::field::host].size())))
-      return false;
+      return StrFormat("forbidden: this preview serves loopback names only: open "
+                       "http://127.0.0.1:%u/ or http://localhost:%u/ (from another machine through "
+                       "the ssh -L tunnel the render printed), or render with --preview-bind and "
+                       "the token it prints\n", port_, port_);
     const auto origin = req.find(http::field::origin);
-    return origin == req.end() || IsLoopbackHost(std::string_view(origin->value().data(), origin->value().size()));
+    if (origin != req.end() && !IsLoopbackHost(std::string_view(origin->value().data(), origin->value().size())))
+      return "forbidden: requests from another site's page are refused\n";
+    return std::string();
   }
 
   void CountRefused() { refused_.fetch_add(1); }
@@ -485,7 +500,8 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
     const std::string_view query = q == std::string_view::npos ? std::string_view() : target.substr(q + 1);
     if (req.method() != http::verb::get)
       return Respond(http::status::method_not_allowed, "only GET\n");
-    if (!server_->Allowed(req, query)) return Respond(http::status::forbidden, "forbidden\n");
+    if (std::string why = server_->Refusal(req, query); !why.empty())
+      return Respond(http::status::forbidden, std::move(why));
     if (path == "/") return Respond(http::status::ok, std::string(PageHtml()), "text/html; charset=utf-8");
     if (path == "/ws" && websocket::is_upgrade(req)) {
       Slot viewer = server_->TakeViewerSlot();
@@ -663,7 +679,11 @@ void PreviewServer::Impl::Refresh() {
 Expected<std::unique_ptr<PreviewServer>> PreviewServer::Start(const ServerOptions& options) {
   error_code ec;
   const asio::ip::address address = asio::ip::make_address(options.bind, ec);
-  if (ec) return Status::Error("--preview-bind: '" + options.bind + "' is not an IP address");
+  if (ec)
+    return Status::Error("--preview-bind: '" + options.bind + "' is not an IP address (" +
+                         (options.bind == "localhost" ? std::string("127.0.0.1 or ::1")
+                                                      : std::string("e.g. 127.0.0.1, 0.0.0.0 or ::")) +
+                         ")");
   auto impl = std::make_unique<Impl>(options, address);
   RAYSTACK_RETURN_IF_ERROR(impl->Listen(address));
   impl->Run();

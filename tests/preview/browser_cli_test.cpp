@@ -263,6 +263,37 @@ TEST_F(PreviewCli, MessagesNameWhatWasAsked) {
   EXPECT_NE(v6.out.find("ssh -L " + port + ":[::1]:" + port + " "), std::string::npos) << v6.out;
 }
 
+// A render that fails says so on the page, with the error, and keeps it up for the hold time
+// (it showed "(done)" and closed at once); the exposure slider reaches an --exposure beyond
+// its range.
+TEST_F(PreviewCli, AFailedRenderSaysWhyOnThePageForTheHoldTime) {
+  SKIP_WITHOUT_CHROMIUM();
+  BackgroundProcess render(Command(0, Scene(64, 48, 4),
+                                   {"--fault-fail-read", "2", "--exposure", "12", "--preview", "any",
+                                    "--preview-hold", "600"}),
+                           dir_->path());
+  ASSERT_TRUE(render.WaitForOutput("preview: http", kPatience)) << render.out() << render.err();
+  const std::string url = render.LineAfter("preview: ");
+  ASSERT_TRUE(render.WaitForOutput("showing the last image", kPatience)) << render.out() << render.err();
+  HeadlessChromium browser;
+  std::string error;
+  ASSERT_TRUE(browser.Start(Profile(), &error)) << error;
+  ASSERT_TRUE(browser.Open(url, &error)) << error;
+  ASSERT_TRUE(browser.WaitFor("window.preview !== undefined && preview.status !== null && "
+                              "preview.status.failed && preview.frame !== null",
+                              kPatience, &error)) << error;
+  const nlohmann::json note = browser.Evaluate("document.getElementById('note').textContent", &error);
+  ASSERT_TRUE(note.is_string()) << error;
+  EXPECT_NE(note.get<std::string>().find("failed: "), std::string::npos) << note;
+  EXPECT_NE(note.get<std::string>().find("read failed (injected fault)"), std::string::npos) << note;
+  EXPECT_EQ(browser.Evaluate("document.getElementById('frame').textContent", &error), "1/1 (failed)");
+  EXPECT_EQ(browser.Evaluate("document.getElementById('left').textContent", &error), "—");
+  EXPECT_EQ(browser.Evaluate("Number(document.getElementById('exposure').value)", &error), 12);
+  render.Signal(SIGTERM);  // ends the hold
+  EXPECT_EQ(render.Wait(), 1) << render.err();
+  EXPECT_NE(render.err().find("read failed (injected fault)"), std::string::npos) << render.err();
+}
+
 // Clients that open connections and send nothing, more of them than the render may open
 // files (ulimit -n): the preview holds only kMaxConnections of them, so the render still
 // writes its image (it failed with "Too many open files" when the server kept them all).

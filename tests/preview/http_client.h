@@ -20,7 +20,7 @@ using tcp = asio::ip::tcp;
 
 // Sends `raw` (a whole request, as bytes) to 127.0.0.1:port and returns the response's status
 // code, or -1 when the server closed without one.
-inline int StatusOf(uint16_t port, const std::string& raw) {
+inline int StatusOf(uint16_t port, const std::string& raw, std::string* body = nullptr) {
   asio::io_context ioc;
   tcp::socket socket(ioc);
   beast::error_code ec;
@@ -30,13 +30,14 @@ inline int StatusOf(uint16_t port, const std::string& raw) {
   beast::flat_buffer buffer;
   http::response<http::string_body> res;
   http::read(socket, buffer, res, ec);
+  if (body) *body = res.body();
   return ec ? -1 : static_cast<int>(res.result_int());
 }
 
 inline int Get(uint16_t port, const std::string& target, const std::string& host = "127.0.0.1",
-               const std::string& extra_headers = "") {
+               const std::string& extra_headers = "", std::string* body = nullptr) {
   return StatusOf(port, "GET " + target + " HTTP/1.1\r\nHost: " + host + "\r\n" + extra_headers +
-                            "Connection: close\r\n\r\n");
+                            "Connection: close\r\n\r\n", body);
 }
 
 // A WebSocket viewer on 127.0.0.1:port/ws (+ query). Open() false when the upgrade is refused.

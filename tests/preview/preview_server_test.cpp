@@ -94,8 +94,12 @@ TEST(PreviewServer, OnLoopbackRefusesForeignHostsAndOrigins) {
   const uint16_t port = server->port();
   EXPECT_EQ(Get(port, "/", "localhost:8080"), 200);  // e.g. through an SSH tunnel
   EXPECT_EQ(Get(port, "/", "[::1]:80"), 200);
-  EXPECT_EQ(Get(port, "/", "attacker.example"), 403);  // DNS rebinding
-  EXPECT_EQ(Get(port, "/", "127.0.0.1", "Origin: http://attacker.example\r\n"), 403);
+  std::string body;
+  EXPECT_EQ(Get(port, "/", "attacker.example", "", &body), 403);  // DNS rebinding
+  // The refusal says what to open instead (this machine's name is not a loopback name).
+  EXPECT_NE(body.find("http://127.0.0.1:" + std::to_string(port) + "/"), std::string::npos) << body;
+  EXPECT_EQ(Get(port, "/", "127.0.0.1", "Origin: http://attacker.example\r\n", &body), 403);
+  EXPECT_NE(body.find("another site"), std::string::npos) << body;
   EXPECT_EQ(Get(port, "/", "127.0.0.1", "Origin: http://127.0.0.1:1234\r\n"), 200);
 }
 
@@ -106,7 +110,9 @@ TEST(PreviewServer, ExposedItRequiresTheToken) {
   const std::string token = server->token();
   ASSERT_EQ(token.size(), 32u);
   EXPECT_NE(server->Url().find("?token=" + token), std::string::npos);
-  EXPECT_EQ(Get(port, "/"), 403);
+  std::string body;
+  EXPECT_EQ(Get(port, "/", "127.0.0.1", "", &body), 403);
+  EXPECT_NE(body.find("needs its token"), std::string::npos) << body;
   EXPECT_EQ(Get(port, "/?token="), 403);
   EXPECT_EQ(Get(port, "/?token=" + std::string(32, '0')), 403);
   EXPECT_EQ(Get(port, "/?token=" + token + "x"), 403);
@@ -136,6 +142,13 @@ TEST(PreviewServer, BadAddressesAreErrorsNamingThem) {
   ASSERT_FALSE(taken.ok());
   EXPECT_NE(taken.status().message().find("127.0.0.1:" + std::to_string(first->port())),
             std::string::npos) << taken.status().message();
+  EXPECT_NE(taken.status().message().find("--preview any"), std::string::npos)
+      << taken.status().message();
+  options.bind = "localhost";  // a name, not an address: the error says which address it means
+  options.port = 0;
+  Expected<std::unique_ptr<PreviewServer>> named = PreviewServer::Start(options);
+  ASSERT_FALSE(named.ok());
+  EXPECT_NE(named.status().message().find("127.0.0.1"), std::string::npos) << named.status().message();
   // Not this machine's name (what the URL shows for 0.0.0.0): the address asked for.
   auto any = StartOn("0.0.0.0");
   ASSERT_TRUE(any);
