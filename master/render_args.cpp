@@ -91,7 +91,8 @@ options:
                             free port; the address is printed at start); default off
   --preview-bind ADDR       the preview's address (default 127.0.0.1, this machine only; any
                             other, e.g. 0.0.0.0, requires the random token printed at start)
-  --preview-hold S          keep the preview up S seconds after the render (Ctrl-C ends it)
+  --preview-hold S          keep the preview up S seconds after the render, also after a
+                            failure (Ctrl-C ends it)
   --lost-after S            under mpirun, the master drops a slave it has not heard from for
                             S seconds (default 5; slaves send a heartbeat every 0.5 s); its
                             unfinished tiles go to the others, and the image stays exact.
