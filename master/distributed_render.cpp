@@ -109,6 +109,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     if (status.ok()) status = LoadReference(args, f, frames, camera, &reference);
     if (!status.ok()) {
       master.Shutdown(1);
+      preview->Fail(status);  // the page says why, for the hold time
       return status;
     }
     ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log,
@@ -197,12 +198,16 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     }
     json += FiguresJson(f, figures) + (f + 1 < frames ? ",\n" : "\n");
   }
-  if (const Status written = writer.Finish(); !written.ok()) {
+  if (const Status written = writer.Finish(); !written.ok()) {  // the last frame's write
     master.Shutdown(1);
+    preview->Fail(written);
     return written;
   }
   if (!master.Shutdown(0)) LOG_WARNING("master", "a slave did not acknowledge the end of the job");
-  RAYSTACK_RETURN_IF_ERROR(WriteStats(args.stats, json + "]\n"));
+  if (Status s = WriteStats(args.stats, json + "]\n"); !s.ok()) {
+    preview->Fail(s);
+    return s;
+  }
   preview->Finish();
   return OkStatus();
 }

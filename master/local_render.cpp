@@ -33,27 +33,34 @@
 namespace raystack::master {
 namespace {
 
-// The frame plan's tiles, as PlanTileSource, remembering which were handed out (the live
-// preview shows the ones still in flight).
+// The frame plan's tiles, as PlanTileSource, remembering the latest handed to each ray thread
+// (the live preview shows those still in flight; a thread holds its current tile and the next,
+// and the preview scans each listed tile's pixels on every refresh).
 class WatchedTileSource final : public slave::TileSource {
  public:
+  static constexpr size_t kKeptPerThread = 4;
   explicit WatchedTileSource(const render::FramePlan& plan) : tiles_(plan) {}
   bool Next(uint32_t thread, slave::Tile* tile) override {
     if (!tiles_.Next(thread, tile)) return false;
     std::lock_guard lock(mu_);
-    given_.push_back(*tile);
+    if (thread >= given_.size()) given_.resize(thread + 1);
+    std::vector<render::Tile>& mine = given_[thread];
+    if (mine.size() >= kKeptPerThread) mine.erase(mine.begin());
+    mine.push_back(*tile);
     return true;
   }
   std::vector<preview::RankTiles> Given() const {
     std::lock_guard lock(mu_);
-    return {preview::RankTiles{0, given_, {}}};
+    preview::RankTiles all{0, {}, {}};
+    for (const std::vector<render::Tile>& mine : given_) all.tiles.insert(all.tiles.end(), mine.begin(), mine.end());
+    return {all};
   }
   void Stop() { tiles_.Stop(); }  // a stop rule holds
 
  private:
   slave::PlanTileSource tiles_;
   mutable std::mutex mu_;
-  std::vector<render::Tile> given_;
+  std::vector<std::vector<render::Tile>> given_;  // by ray thread
 };
 
 }  // namespace
@@ -97,6 +104,11 @@ Status RenderLocally(const RenderArgs& args) {
   WarnIfUnlit(*scene, materials, **store);
   Expected<preview::LivePreview> preview = preview::LivePreview::Start(args.preview);
   if (!preview.ok()) return preview.status();
+  // From here a failure is also said on the page, for the hold time.
+  const auto failed = [&](Status why) {
+    preview->Fail(why);
+    return why;
+  };
 
   std::string why;
   const bool coarse_rounds = CoarseRounds(args, store->get(), 0, &why);
@@ -111,9 +123,10 @@ Status RenderLocally(const RenderArgs& args) {
     render::Film& film = FilmFor(camera, &reused_film);
     render::FilmSink sink(&film);
     render::FramePlan plan = PlanOf(args, *scene, camera, coarse_rounds);
-    RAYSTACK_RETURN_IF_ERROR(ResumeInto(args, *scene, f, &plan, &film));
+    if (Status s = ResumeInto(args, *scene, f, &plan, &film); !s.ok()) return failed(std::move(s));
     WatchedTileSource tiles(plan);
-    RAYSTACK_RETURN_IF_ERROR(LoadReference(args, f, frames, camera, &reference));
+    if (Status s = LoadReference(args, f, frames, camera, &reference); !s.ok())
+      return failed(std::move(s));
     slave::RenderStats stats;
     Status status;
     const uint64_t total = plan.total_samples();
@@ -164,10 +177,7 @@ Status RenderLocally(const RenderArgs& args) {
       progress.Update(film.samples_merged() - shown);
       if (!status.ok()) progress.Abandon();
     }
-    if (!status.ok()) {
-      preview->Fail(status);  // says why on the page, for the hold time
-      return status;
-    }
+    if (!status.ok()) return failed(std::move(status));
     image::ImageLayers resolved = writer.TakeSpare();
     film.ResolveInto(&resolved);
     monitor.Finish(resolved);
@@ -176,16 +186,13 @@ Status RenderLocally(const RenderArgs& args) {
     preview->EndFrame(stats.rays_per_second);
     ReportStop(args, monitor);
     Expected<std::string> exr = WriteFrame(args, *scene, f, film, std::move(resolved), &writer);
-    if (!exr.ok()) {
-      preview->Fail(exr.status());
-      return exr.status();
-    }
+    if (!exr.ok()) return failed(exr.status());
     if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
     stats_json += stats.ToJson();
     if (f + 1 < frames) stats_json += ",";
   }
-  RAYSTACK_RETURN_IF_ERROR(writer.Finish());
-  RAYSTACK_RETURN_IF_ERROR(WriteStats(args.stats, stats_json + "]\n"));
+  if (Status s = writer.Finish(); !s.ok()) return failed(std::move(s));  // the last frame's write
+  if (Status s = WriteStats(args.stats, stats_json + "]\n"); !s.ok()) return failed(std::move(s));
   preview->Finish();
   return OkStatus();
 }

@@ -196,7 +196,11 @@ Status MasterNode::Answer(Frame* f, int rank, uint32_t thread) {
     a.rank_begin = t.rank_begin, a.rank_end = t.rank_end;
     f->ledger.Assign(t, rank);
     std::lock_guard lock(assigned_mu_);
-    assigned_[static_cast<size_t>(rank - 1)].push_back(t);
+    // Its latest tiles only: a slave holds a few per ray thread (the current one and those
+    // asked ahead), and the preview scans each listed tile's pixels on every refresh.
+    std::vector<render::Tile>& mine = assigned_[static_cast<size_t>(rank - 1)];
+    if (mine.size() >= kPreviewTilesPerSlave) mine.erase(mine.begin());
+    mine.push_back(t);
   } else if (!f->stopped && f->ledger.unfinished() > 0) {
     f->held.emplace_back(rank, thread);  // a lost slave's tiles may still come back
     return OkStatus();

@@ -107,8 +107,10 @@ class MasterNode {
   // Tells every slave the job failed and this rank ends now, without waiting for anything (the
   // master was interrupted): they end at once too, rather than find the master silent later.
   void Abandon();
-  // The tiles handed out so far in the current (or last) frame, per slave (index = rank - 1),
-  // in the order given. Thread-safe: the live preview reads it while RunFrame runs.
+  // The tiles handed out in the current (or last) frame, per slave (index = rank - 1), in the
+  // order given: the latest kPreviewTilesPerSlave of them, which hold those in flight.
+  // Thread-safe: the live preview reads it while RunFrame runs.
+  static constexpr size_t kPreviewTilesPerSlave = 32;
   std::vector<std::vector<render::Tile>> TilesAssigned() const;
   // Why each slave (index = rank - 1) was dropped from the job, empty while it works.
   // Thread-safe, as TilesAssigned.

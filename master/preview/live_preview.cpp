@@ -73,6 +73,7 @@ void LivePreview::Fail(const Status& why) {
     server_->DetachFilm();  // the image so far stays up
     film_ = nullptr;
   }
+  status_.finished = false;  // a write may fail after the frame ended
   status_.failed = true;
   status_.note = "failed: " + why.message();
   status_.tiles.clear();

@@ -22,6 +22,12 @@ size_t Utf8Length(const std::string& text, size_t i) {
   if (n == 0 || i + n > text.size() || (n == 2 && c < 0xc2) || (n == 4 && c > 0xf4)) return 0;
   for (size_t k = 1; k < n; ++k)
     if ((static_cast<unsigned char>(text[i + k]) >> 6) != 0x2) return 0;
+  // The second byte's range where the lead allows less: no overlong form, no surrogate, nothing
+  // past U+10FFFF (RFC 3629).
+  const auto second = static_cast<unsigned char>(n > 1 ? text[i + 1] : 0);
+  if ((c == 0xe0 && second < 0xa0) || (c == 0xed && second > 0x9f) || (c == 0xf0 && second < 0x90) ||
+      (c == 0xf4 && second > 0x8f))
+    return 0;
   return n;
 }
 

@@ -275,6 +275,8 @@ TEST_F(PreviewCli, AFailedRenderSaysWhyOnThePageForTheHoldTime) {
   ASSERT_TRUE(render.WaitForOutput("preview: http", kPatience)) << render.out() << render.err();
   const std::string url = render.LineAfter("preview: ");
   ASSERT_TRUE(render.WaitForOutput("showing the last image", kPatience)) << render.out() << render.err();
+  // Said at the terminal before the hold, not only as the job ends.
+  EXPECT_NE(render.err().find("raystack render: failed: "), std::string::npos) << render.err();
   HeadlessChromium browser;
   std::string error;
   ASSERT_TRUE(browser.Start(Profile(), &error)) << error;

@@ -91,6 +91,20 @@ TEST(StatusJson, RestoredSamplesAreDoneButNotInTheRate) {
   EXPECT_DOUBLE_EQ(j["seconds_left"].get<double>(), 2.0);  // 20 left at 10/s
 }
 
+// The note (what ended the frame early) is one JSON string, valid UTF-8 whatever bytes the
+// error held (a WebSocket text message must be UTF-8): quotes, backslashes and control
+// characters escaped, every byte of an overlong form, a surrogate or a code point past U+10FFFF
+// replaced, and real UTF-8 kept.
+TEST(StatusJson, TheNoteIsValidJsonAndUtf8WhateverTheBytes) {
+  PreviewStatus s;
+  s.note = "stopped: a\xe0\x80\xaf" "b\xed\xa0\x80" "c\xf4\x90\x80\x80" "d\xf0\x9f\x98\x80" "e\"\\\x01\xc3";
+  const nlohmann::json j = nlohmann::json::parse(StatusJson(s, 0, {}));  // throws on bad UTF-8
+  EXPECT_EQ(j["note"], "stopped: a???b???c????d\xf0\x9f\x98\x80" "e\"\\\x01?");
+  EXPECT_EQ(j["failed"], false);
+  s.note.clear();
+  EXPECT_EQ(nlohmann::json::parse(StatusJson(s, 0, {}))["note"], "");
+}
+
 TEST(StatusJson, NothingDoneYetHasNoTimeLeft) {
   PreviewStatus s;
   s.samples_total = 100;
