@@ -8,9 +8,12 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <memory>
+#include <vector>
 
 #include "common/image/exr_io.h"
 #include "common/image/srgb8.h"
+#include "master/preview/preview_server.h"
 #include "tests/preview/background_process.h"
 #include "tests/preview/headless_chromium.h"
 #include "tests/preview/http_client.h"
@@ -294,6 +297,30 @@ TEST_F(PreviewCli, AFailedRenderSaysWhyOnThePageForTheHoldTime) {
   render.Signal(SIGTERM);  // ends the hold
   EXPECT_EQ(render.Wait(), 1) << render.err();
   EXPECT_NE(render.err().find("read failed (injected fault)"), std::string::npos) << render.err();
+}
+
+// A 17th viewer's page is told that the viewers may be too many, not that the render may be
+// over (the server's 503 is invisible to a page's WebSocket).
+TEST_F(PreviewCli, APageRefusedAStreamSaysTheViewersMayBeTooMany) {
+  SKIP_WITHOUT_CHROMIUM();
+  BackgroundProcess render(Command(0, Scene(32, 24, 1), {"--preview", "any", "--preview-hold", "600"}),
+                           dir_->path());
+  ASSERT_TRUE(render.WaitForOutput("showing the last image", kPatience)) << render.out() << render.err();
+  const std::string url = render.LineAfter("preview: ");
+  std::vector<std::unique_ptr<WsViewer>> watching;
+  for (int i = 0; i < kMaxViewers; ++i) {
+    watching.push_back(std::make_unique<WsViewer>());
+    ASSERT_TRUE(watching.back()->Open(PortOf(url))) << "viewer " << i;
+  }
+  HeadlessChromium browser;
+  std::string error;
+  ASSERT_TRUE(browser.Start(Profile(), &error)) << error;
+  ASSERT_TRUE(browser.Open(url, &error)) << error;
+  ASSERT_TRUE(browser.WaitFor("document.getElementById('connection') !== null && "
+                              "document.getElementById('connection').textContent.includes('16 viewers')",
+                              kPatience, &error)) << error;
+  render.Signal(SIGTERM);
+  EXPECT_EQ(render.Wait(), 0) << render.err();
 }
 
 // Clients that open connections and send nothing, more of them than the render may open
