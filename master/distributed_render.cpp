@@ -115,7 +115,12 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log,
                                reference.get(), args.log_interval_s);
     FrameFigures figures;
-    EndIfInterruptedBetweenFrames(f, frames, &writer, [&] { master.Abandon(); });
+    // The page first: once the slaves are told, mpirun may end this process at any moment.
+    const AfterInterrupt interrupted = [&](const std::string& said) {
+      preview->Interrupted(said);
+      master.Abandon();
+    };
+    EndIfInterruptedBetweenFrames(f, frames, &writer, interrupted);
     {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
@@ -129,7 +134,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                                  if (const int signal = InterruptSignal())
                                    EndInterrupted(signal, &checkpoints, film,
                                                   FramePath(output, f, frames, ".exr"), plan.spp(),
-                                                  [&] { master.Abandon(); });
+                                                  interrupted);
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);
                                  shown = done;

@@ -179,40 +179,43 @@ InterruptsHeld::InterruptsHeld() { HoldInterrupts(true); }
 InterruptsHeld::~InterruptsHeld() { HoldInterrupts(false); }
 
 void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,
-                                   const std::function<void()>& then) {
+                                   const AfterInterrupt& then) {
   const int signal = InterruptSignal();
   if (signal == 0) return;
   const Status s = writer->Finish();
-  then();
   const char* name = InterruptName(signal);
-  if (frame == 0)
-    std::fprintf(stderr, "raystack render: interrupted (%s) before the first frame\n", name);
-  else
-    std::fprintf(stderr, "raystack render: interrupted (%s) as frame %zu ended: %s; frames %zu "
-                 "to %zu are not rendered\n", name, frame - 1,
-                 s.ok() ? "it is written" : s.message().c_str(), frame, frames - 1);
+  const std::string said =
+      frame == 0 ? StrFormat("interrupted (%s) before the first frame", name)
+                 : StrFormat("interrupted (%s) as frame %zu ended: %s; frames %zu to %zu are not "
+                             "rendered", name, frame - 1,
+                             s.ok() ? "it is written" : s.message().c_str(), frame, frames - 1);
+  std::fprintf(stderr, "raystack render: %s\n", said.c_str());
+  std::fflush(nullptr);
+  then(said);
   std::fflush(nullptr);
   std::_Exit(128 + signal);
 }
 
 void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& film,
-                    const std::string& path, uint32_t spp, const std::function<void()>& then) {
+                    const std::string& path, uint32_t spp, const AfterInterrupt& then) {
   const char* name = InterruptName(signal);
   Expected<uint64_t> finished = checkpoints->Final(film, spp);
-  then();
   const uint64_t pixels = static_cast<uint64_t>(film.width()) * static_cast<uint64_t>(film.height());
-  if (!finished.ok())
-    std::fprintf(stderr, "raystack render: interrupted (%s); the frame's samples so far could "
-                 "not be written: %s\n", name, finished.status().message().c_str());
-  else if (*finished == 0)
-    std::fprintf(stderr, "raystack render: interrupted (%s): the frame so far is in %s, but no "
-                 "pixel has all its %u samples yet (each pass covers every pixel a little), so "
-                 "--resume would render the frame again\n", name, path.c_str(), spp);
-  else
-    std::fprintf(stderr, "raystack render: interrupted (%s): the frame so far is in %s, %llu of "
-                 "%llu pixels with all their samples; the same command with --resume keeps those "
-                 "and renders the rest\n", name, path.c_str(),
-                 static_cast<unsigned long long>(*finished), static_cast<unsigned long long>(pixels));
+  const std::string said =
+      !finished.ok()
+          ? StrFormat("interrupted (%s); the frame's samples so far could not be written: %s",
+                      name, finished.status().message().c_str())
+      : *finished == 0
+          ? StrFormat("interrupted (%s): the frame so far is in %s, but no pixel has all its %u "
+                      "samples yet (each pass covers every pixel a little), so --resume would "
+                      "render the frame again", name, path.c_str(), spp)
+          : StrFormat("interrupted (%s): the frame so far is in %s, %llu of %llu pixels with all "
+                      "their samples; the same command with --resume keeps those and renders "
+                      "the rest", name, path.c_str(), static_cast<unsigned long long>(*finished),
+                      static_cast<unsigned long long>(pixels));
+  std::fprintf(stderr, "raystack render: %s\n", said.c_str());
+  std::fflush(nullptr);
+  then(said);
   std::fflush(nullptr);
   std::_Exit(128 + signal);
 }

@@ -92,18 +92,22 @@ struct InterruptsHeld {
   InterruptsHeld(const InterruptsHeld&) = delete;
   InterruptsHeld& operator=(const InterruptsHeld&) = delete;
 };
+// What EndIfInterruptedBetweenFrames and EndInterrupted run before the process ends, given
+// what they printed (without the "raystack render: " prefix): tell the live preview, then the
+// slaves.
+using AfterInterrupt = std::function<void(const std::string& said)>;
 // A signal noted before frame `frame` began to render: the frames before it are written (or
 // their writes finished here), the others are not rendered, and the process ends.
 void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,
-                                   const std::function<void()>& then = [] {});
+                                   const AfterInterrupt& then = [](const std::string&) {});
 // SIGINT or SIGTERM while frame `frame` renders (Ctrl-C; Slurm's time limit, through mpirun,
 // which sends SIGKILL a second later): writes the frame's samples so far where --resume finds
 // them (the frame's EXR, with its provenance), says so, and ends the process with the shell's
 // code for the signal. Without it the run left nothing, unless --checkpoint-s had written some.
-// `then`: run once the frame is written (tell the slaves: not before, since mpirun ends the
-// job, this process included, as soon as a rank ends early).
+// `then`: run once the frame is written and the outcome printed (tell the slaves: not before,
+// since mpirun ends the job, this process included, as soon as a rank ends early).
 [[noreturn]] void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& film,
                                  const std::string& path, uint32_t spp,
-                                 const std::function<void()>& then = [] {});
+                                 const AfterInterrupt& then = [](const std::string&) {});
 
 }  // namespace raystack::master

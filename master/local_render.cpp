@@ -132,7 +132,8 @@ Status RenderLocally(const RenderArgs& args) {
     const uint64_t total = plan.total_samples();
     ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log->get(),
                                reference.get(), args.log_interval_s);
-    EndIfInterruptedBetweenFrames(f, frames, &writer);
+    const AfterInterrupt interrupted = [&](const std::string& said) { preview->Interrupted(said); };
+    EndIfInterruptedBetweenFrames(f, frames, &writer, interrupted);
     {
       ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
                                 args.quiet);
@@ -164,7 +165,8 @@ Status RenderLocally(const RenderArgs& args) {
           if (finish_cv.wait_for(lock, poll, [&] { return finished; })) break;
         }
         if (const int signal = InterruptSignal())
-          EndInterrupted(signal, &checkpoints, film, FramePath(output, f, frames, ".exr"), plan.spp());
+          EndInterrupted(signal, &checkpoints, film, FramePath(output, f, frames, ".exr"), plan.spp(),
+                         interrupted);
         const uint64_t done = film.samples_merged();
         progress.Update(done - shown);
         shown = done;

@@ -65,14 +65,17 @@ void LivePreview::EndFrame(double rays_per_second) {
   film_ = nullptr;
 }
 
+void LivePreview::KeepImageSoFar() {
+  if (film_ == nullptr) return;
+  status_.samples_done = film_->samples_merged();
+  status_.elapsed_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  server_->DetachFilm();  // the image so far stays up
+  film_ = nullptr;
+}
+
 void LivePreview::Fail(const Status& why) {
   if (!server_) return;
-  if (film_ != nullptr) {
-    status_.samples_done = film_->samples_merged();
-    status_.elapsed_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
-    server_->DetachFilm();  // the image so far stays up
-    film_ = nullptr;
-  }
+  KeepImageSoFar();
   status_.finished = false;  // a write may fail after the frame ended
   status_.failed = true;
   status_.note = "failed: " + why.message();
@@ -83,12 +86,26 @@ void LivePreview::Fail(const Status& why) {
   Finish();
 }
 
+void LivePreview::Interrupted(const std::string& said) {
+  if (!server_) return;
+  KeepImageSoFar();
+  status_.finished = false;  // between frames: the last one ended, the job did not
+  status_.interrupted = true;
+  status_.note = said;
+  status_.tiles.clear();
+  server_->Publish(status_);
+  server_->Drain(kLastWordSeconds);
+  server_->Stop();
+}
+
 void LivePreview::Finish() {
   if (!server_) return;
   if (hold_seconds_ > 0) {
     std::printf("preview: showing the last image for %g s more (Ctrl-C ends it)\n", hold_seconds_);
     std::fflush(stdout);
     server_->Hold(hold_seconds_);
+  } else {
+    server_->Drain(kLastWordSeconds);  // closed at once, the page could miss the final image
   }
   server_->Stop();
   const ServerCounters c = server_->counters();

@@ -48,10 +48,22 @@ class LivePreview {
   // The job failed in this frame: the page says why (and shows the image so far) for the hold
   // time, as after a job that ends well, then the server closes.
   void Fail(const Status& why);
-  // The job is over: serve the final image for the hold time, then close.
+  // SIGINT or SIGTERM ends the job now (Ctrl-C; a scheduler's time limit, which leaves a second
+  // at most): the page says `said` ("interrupted (SIGINT): the frame so far is in ...") with the
+  // image so far, sent within kLastWordSeconds, then the server closes; no hold.
+  void Interrupted(const std::string& said);
+  // The job is over: serve the final image for the hold time, then close (with no hold, once
+  // the viewers have it, within kLastWordSeconds).
   void Finish();
 
+  // The longest the job's end waits for its last status and image to reach the viewers.
+  static constexpr double kLastWordSeconds = 0.5;
+
  private:
+  // Ends the frame's live view with the film's last copy (if a frame is on), for Fail and
+  // Interrupted.
+  void KeepImageSoFar();
+
   std::unique_ptr<PreviewServer> server_;
   double hold_seconds_ = 0;
   const render::Film* film_ = nullptr;

@@ -202,8 +202,10 @@ class PreviewServer::Impl {
       status_ = status;
       status_dirty_ = true;
     }
-    if (status.finished || status.failed) asio::post(ioc_, [this] { Refresh(); });
+    if (status.finished || status.failed || status.interrupted) asio::post(ioc_, [this] { Refresh(); });
   }
+
+  void Drain(double seconds);
 
   void Hold(double seconds) {
     if (seconds <= 0) return;
@@ -386,6 +388,8 @@ class PreviewServer::Impl::Viewer : public std::enable_shared_from_this<Viewer> 
     pending_frame_ = shown_;
     Pump();
   }
+  // Nothing is being written or waits to be (or the stream is closed).
+  bool Sent() const { return !open_ || (!writing_ && !pending_status_ && !pending_frame_); }
   void Close() {
     open_ = false;
     error_code ec;
@@ -674,6 +678,24 @@ void PreviewServer::Impl::Refresh() {
   }
 }
 
+void PreviewServer::Impl::Drain(double seconds) {
+  if (!thread_.joinable()) return;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  asio::post(ioc_, [this] { Refresh(); });  // what was published last is queued first
+  for (;;) {
+    // Shared: a server thread that is gone (or late) must not answer into a finished call.
+    auto sent = std::make_shared<std::promise<bool>>();
+    std::future<bool> answer = sent->get_future();
+    asio::post(ioc_, [this, sent] {
+      sent->set_value(std::all_of(viewers_list_.begin(), viewers_list_.end(),
+                                  [](const std::shared_ptr<Viewer>& v) { return v->Sent(); }));
+    });
+    if (answer.wait_until(deadline) != std::future_status::ready || answer.get()) return;
+    if (std::chrono::steady_clock::now() >= deadline) return;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 
 Expected<std::unique_ptr<PreviewServer>> PreviewServer::Start(const ServerOptions& options) {
@@ -700,6 +722,7 @@ void PreviewServer::AttachFilm(const render::Film* film, uint32_t frame) { impl_
 void PreviewServer::DetachFilm() { impl_->DetachFilm(); }
 void PreviewServer::Publish(const PreviewStatus& status) { impl_->Publish(status); }
 void PreviewServer::Hold(double seconds) { impl_->Hold(seconds); }
+void PreviewServer::Drain(double seconds) { impl_->Drain(seconds); }
 void PreviewServer::Stop() { impl_->Stop(); }
 ServerCounters PreviewServer::counters() const { return impl_->counters(); }
 

@@ -81,6 +81,9 @@ class PreviewServer {
   void Publish(const PreviewStatus& status);
   // Keeps serving for `seconds`, or until SIGINT or SIGTERM (to leave the final image up).
   void Hold(double seconds);
+  // Waits until every viewer has been sent the latest status and image, or `seconds` at most
+  // (a slow viewer is not waited for longer): before Stop, so the end reaches the pages.
+  void Drain(double seconds);
   // Closes every connection and joins the server's thread. Idempotent.
   void Stop();
 

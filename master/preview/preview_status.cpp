@@ -76,20 +76,21 @@ std::string StatusJson(const PreviewStatus& s, int width, const std::vector<uint
   const double per_second = s.elapsed_seconds > 0 ? static_cast<double>(s.samples_done) / s.elapsed_seconds : kUnknown;
   // Time left at the mean rate so far; unknown until the first samples are in.
   const double left = s.finished ? 0.0
-                      : s.failed ? kUnknown
+                      : s.failed || s.interrupted ? kUnknown
                       : s.samples_done > 0 && per_second > 0
                           ? static_cast<double>(s.samples_total - std::min(done, s.samples_total)) / per_second
                           : kUnknown;
   std::string json = StrFormat(
       "{\"type\":\"status\",\"frame\":%u,\"frames\":%u,\"samples_done\":%llu,\"samples_total\":%llu,"
       "\"progress\":%s,\"elapsed_seconds\":%s,\"samples_per_second\":%s,\"rays_per_second\":%s,"
-      "\"seconds_left\":%s,\"error_estimate\":%s,\"finished\":%s,\"failed\":%s,\"note\":%s,"
-      "\"tiles\":[",
+      "\"seconds_left\":%s,\"error_estimate\":%s,\"finished\":%s,\"failed\":%s,\"interrupted\":%s,"
+      "\"note\":%s,\"tiles\":[",
       s.frame, s.frames, static_cast<unsigned long long>(s.samples_done),
       static_cast<unsigned long long>(s.samples_total), Number(progress).c_str(),
       Number(s.elapsed_seconds).c_str(), Number(per_second).c_str(),
       Number(s.rays_per_second).c_str(), Number(left).c_str(), Number(s.error_estimate).c_str(),
-      s.finished ? "true" : "false", s.failed ? "true" : "false", Quoted(s.note).c_str());
+      s.finished ? "true" : "false", s.failed ? "true" : "false", s.interrupted ? "true" : "false",
+      Quoted(s.note).c_str());
   bool first_rank = true;
   for (const RankTiles& r : s.tiles) {
     json += StrFormat("%s{\"rank\":%d,\"dropped\":%s,\"tiles\":[", first_rank ? "" : ",", r.rank,
@@ -97,7 +98,8 @@ std::string StatusJson(const PreviewStatus& s, int width, const std::vector<uint
     first_rank = false;
     bool first = true;
     for (const render::Tile& t : r.tiles) {
-      if (s.finished || s.failed || (!counts.empty() && TileDone(t, width, counts, s.spp))) continue;
+      const bool over = s.finished || s.failed || s.interrupted;
+      if (over || (!counts.empty() && TileDone(t, width, counts, s.spp))) continue;
       json += StrFormat("%s[%d,%d,%d,%d]", first ? "" : ",", t.x0, t.y0, t.x1, t.y1);
       first = false;
     }

@@ -34,8 +34,9 @@ struct PreviewStatus {
   double error_estimate = std::numeric_limits<double>::quiet_NaN();
   bool finished = false;           // the frame is complete (the image is final)
   bool failed = false;             // the job failed in this frame (see note): no time left
+  bool interrupted = false;        // SIGINT or SIGTERM ended the job in this frame (see note)
   // What ended the frame early or went wrong, as the terminal says it ("stopped: ...",
-  // "failed: ..."); empty for none. Shown on the page until replaced.
+  // "failed: ...", "interrupted (SIGINT): ..."); empty for none. Shown on the page until replaced.
   std::string note;
   std::vector<RankTiles> tiles;    // by rank
 };

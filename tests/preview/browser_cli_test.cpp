@@ -137,6 +137,48 @@ TEST_P(PreviewCliRanks, TheCanvasMatchesTheFilmAfterTheRender) {
   EXPECT_EQ(render.Wait(), 0) << render.err();
 }
 
+// Ctrl-C mid-render: the page says the job was interrupted and where the frame so far is (as
+// the terminal does), keeps the image so far, and says so when the stream closes; it did not
+// change at all before (the last progress stayed up, as if the render had stalled).
+TEST_P(PreviewCliRanks, CtrlCSaysOnThePageWhereTheFrameSoFarIs) {
+  SKIP_WITHOUT_CHROMIUM();
+  const int np = GetParam();
+  // Slow on purpose (one thread, many samples): interrupted long before its end.
+  BackgroundProcess render(Command(np, Scene(160, 120, 512), {"--threads", "1", "--preview", "any",
+                                                              "--preview-hold", "600", "--no-png"}),
+                           dir_->path());
+  ASSERT_TRUE(render.WaitForOutput("preview: http", kPatience)) << render.out() << render.err();
+  HeadlessChromium browser;
+  std::string error;
+  ASSERT_TRUE(browser.Start(Profile(), &error)) << error;
+  ASSERT_TRUE(browser.Open(render.LineAfter("preview: "), &error)) << error;
+  ASSERT_TRUE(browser.WaitFor("window.preview !== undefined && preview.frames > 0 && "
+                              "preview.status !== null && preview.status.samples_done > 0",
+                              kPatience, &error)) << error;
+  if (np == 0) {
+    render.Signal(SIGINT);
+  } else {
+    ASSERT_TRUE(render.SignalRank(0, SIGINT));  // see TheCanvasMatchesTheFilmAfterTheRender
+  }
+  ASSERT_TRUE(browser.WaitFor("preview.status.interrupted === true", kPatience, &error))
+      << error << "\n" << render.err();
+  EXPECT_EQ(browser.Evaluate("document.getElementById('frame').textContent", &error), "1/1 (interrupted)");
+  const nlohmann::json note = browser.Evaluate("document.getElementById('note').textContent", &error);
+  ASSERT_TRUE(note.is_string()) << error;
+  EXPECT_NE(note.get<std::string>().find("interrupted (SIGINT): the frame so far is in "), std::string::npos)
+      << note;
+  EXPECT_NE(note.get<std::string>().find("--resume"), std::string::npos) << note;
+  EXPECT_EQ(browser.Evaluate("document.getElementById('left').textContent", &error), "—");
+  EXPECT_TRUE(browser.WaitFor("document.getElementById('connection').textContent.includes("
+                              "'the job was interrupted')", kPatience, &error)) << error;
+  const int code = render.Wait();
+  if (np == 0) {
+    EXPECT_EQ(code, 128 + SIGINT) << render.err();
+  }
+  EXPECT_NE(render.err().find("raystack render: interrupted (SIGINT)"), std::string::npos) << render.err();
+  EXPECT_TRUE(std::filesystem::exists(dir_->File("out.exr"))) << "the frame so far is written";
+}
+
 INSTANTIATE_TEST_SUITE_P(OneProcessAndMpirun, PreviewCliRanks, ::testing::Values(0, 3),
                          [](const ::testing::TestParamInfo<int>& p) { return p.param ? "mpirun_np3" : "one_process"; });
 

@@ -48,6 +48,26 @@ TEST(StatusJson, UnknownFiguresAreNullAndFinishedTilesLeaveTheList) {
   EXPECT_TRUE(done["tiles"][0]["tiles"].empty());  // nothing is in flight once done
 }
 
+// Ctrl-C (or a scheduler's SIGTERM) ended the job: no time left to show, nothing in flight.
+TEST(StatusJson, AnInterruptedJobHasNoTimeLeftAndNoTilesInFlight) {
+  PreviewStatus s;
+  s.spp = 2;
+  s.samples_total = 4 * 2 * 2;
+  s.samples_done = 8;
+  s.elapsed_seconds = 2;
+  s.tiles = {{1, {{0, 0, 2, 2}, {2, 0, 4, 2}}, ""}};
+  EXPECT_EQ(nlohmann::json::parse(StatusJson(s, 4, {}))["interrupted"], false);
+  s.interrupted = true;
+  s.note = "interrupted (SIGINT): the frame so far is in out.exr";
+  const nlohmann::json j = nlohmann::json::parse(StatusJson(s, 4, {}));
+  EXPECT_EQ(j["interrupted"], true);
+  EXPECT_EQ(j["finished"], false);
+  EXPECT_EQ(j["failed"], false);
+  EXPECT_TRUE(j["seconds_left"].is_null());
+  EXPECT_EQ(j["note"], "interrupted (SIGINT): the frame so far is in out.exr");
+  EXPECT_TRUE(j["tiles"][0]["tiles"].empty());
+}
+
 // A progressive render hands out each tile once a pass: a tile is no longer in flight when its
 // pixels have its pass's samples (not yet the frame's spp), and a coarse round's tile (a range
 // of pixel ranks) only looks at its own pixels.
