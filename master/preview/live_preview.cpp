@@ -2,6 +2,9 @@
 
 #include <cstdio>
 
+#include "common/base/log.h"
+#include "master/preview/preview_frame.h"
+
 namespace raystack::master::preview {
 
 Expected<LivePreview> LivePreview::Start(const LivePreviewOptions& options) {
@@ -35,6 +38,10 @@ void LivePreview::BeginFrame(const render::Film* film, uint32_t frame, uint32_t 
   status_.samples_total = static_cast<uint64_t>(film->width()) * static_cast<uint64_t>(film->height()) *
                           static_cast<uint64_t>(spp);
   status_.samples_restored = film->samples_restored();  // --resume: set before the frame starts
+  if (!Streamed(film->width(), film->height()))
+    // The server warns at the terminal; the page has no image to show, so it says why.
+    status_.note = StrFormat("a %dx%d frame is larger than the preview streams (4096 x 4096 "
+                             "pixels): only its progress is shown here", film->width(), film->height());
   start_ = std::chrono::steady_clock::now();
   server_->AttachFilm(film, frame);
   server_->Publish(status_);

@@ -33,6 +33,9 @@ inline constexpr uint32_t kFrameVersion = 1;
 inline constexpr size_t kFrameHeaderBytes = 32;
 // Larger frames are not streamed (the message would exceed the bound every viewer accepts).
 inline constexpr uint64_t kMaxFramePixels = uint64_t{4096} * 4096;
+inline bool Streamed(int width, int height) {
+  return static_cast<uint64_t>(width) * static_cast<uint64_t>(height) <= kMaxFramePixels;
+}
 
 struct FrameHeader {
   uint32_t magic, version, width, height, frame;

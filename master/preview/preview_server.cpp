@@ -175,7 +175,7 @@ class PreviewServer::Impl {
   }
 
   void AttachFilm(const render::Film* film, uint32_t frame) {
-    if (static_cast<uint64_t>(film->width()) * static_cast<uint64_t>(film->height()) > kMaxFramePixels) {
+    if (!Streamed(film->width(), film->height())) {
       LOG_WARNING("preview", "a %dx%d frame is larger than the preview streams (%llu pixels); "
                   "only its status is shown", film->width(), film->height(),
                   static_cast<unsigned long long>(kMaxFramePixels));

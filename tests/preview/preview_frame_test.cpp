@@ -22,6 +22,16 @@ render::SampleResult Sample(uint32_t pixel, uint32_t index, float r, float g, fl
   return s;
 }
 
+// The largest frame streamed is 4096 x 4096 pixels, whatever its shape; past it the page says
+// so (LivePreview::BeginFrame) and shows the progress only.
+TEST(Streamed, UpTo4096By4096PixelsWhateverTheShape) {
+  EXPECT_TRUE(Streamed(4096, 4096));
+  EXPECT_TRUE(Streamed(16384, 1024));
+  EXPECT_FALSE(Streamed(4097, 4096));
+  EXPECT_FALSE(Streamed(65536, 257));
+  EXPECT_FALSE(Streamed(1 << 30, 1 << 30));  // no overflow
+}
+
 TEST(Srgb8Encoder, EqualsThePngToneMapForEveryCodeBoundaryAndASweep) {
   const Srgb8Encoder encoder;
   // Every 4099th float from 0 to 1.5, every 257th from 2^-13 to 1 (where the table is).
