@@ -225,6 +225,39 @@ TEST_F(PreviewCli, AViewerConnectingMidRenderGetsTheCurrentImage) {
             true) << "the tiles in flight are listed";
 }
 
+// A frame wider than the window is shown scaled down to fit it (it was shown 1:1, most of it
+// off the page); unchecking "fit to window" shows it 1:1. The canvas keeps every pixel.
+TEST_F(PreviewCli, AFrameWiderThanTheWindowIsFittedToIt) {
+  SKIP_WITHOUT_CHROMIUM();
+  constexpr int kWidth = 2000, kHeight = 60;
+  BackgroundProcess render(Command(0, Scene(kWidth, kHeight, 1), {"--preview", "any", "--preview-hold", "600",
+                                                                  "--no-png"}),
+                           dir_->path());
+  ASSERT_TRUE(render.WaitForOutput("showing the last image", kPatience)) << render.out() << render.err();
+  HeadlessChromium browser;
+  std::string error;
+  ASSERT_TRUE(browser.Start(Profile(), &error)) << error;
+  ASSERT_TRUE(browser.Open(render.LineAfter("preview: "), &error)) << error;
+  ASSERT_TRUE(browser.WaitFor("window.preview !== undefined && preview.frame !== null && "
+                              "preview.frame.width === 2000", kPatience, &error)) << error;
+  const auto shown_width = [&] {
+    return browser.Evaluate("document.getElementById('image').getBoundingClientRect().width", &error)
+        .get<double>();
+  };
+  const double window_width = browser.Evaluate("window.innerWidth", &error).get<double>();
+  ASSERT_LT(window_width, kWidth) << "the test needs a window narrower than the frame";
+  EXPECT_LE(shown_width(), window_width);
+  EXPECT_GT(shown_width(), window_width / 2) << "fitted, not shrunk further";
+  // The overlay of tiles stays on the image.
+  EXPECT_EQ(browser.Evaluate("document.getElementById('tiles').getBoundingClientRect().width", &error),
+            shown_width());
+  browser.Evaluate("document.getElementById('fit').click()", &error);
+  EXPECT_EQ(shown_width(), kWidth);
+  EXPECT_EQ(Canvas(&browser, &error).size(), 4u * kWidth * kHeight) << error;
+  render.Signal(SIGTERM);  // ends the hold
+  EXPECT_EQ(render.Wait(), 0) << render.err();
+}
+
 // Bound to another address than loopback, the preview needs the token printed at start.
 TEST_F(PreviewCli, AnExposedPreviewRefusesRequestsWithoutTheToken) {
   SKIP_WITHOUT_CHROMIUM();
