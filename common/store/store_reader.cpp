@@ -27,8 +27,14 @@ std::string NoStoreThere(const std::string& dir) {
   if (!fs::is_directory(st))
     return "is a file, not a block store (a store is the folder raystack-prep writes: "
            "raystack-prep " + dir + " -o STORE)";
-  if (!fs::exists(fs::path(dir) / kIndexFile, ec))
+  if (!fs::exists(fs::path(dir) / kIndexFile, ec)) {
+    // A conversion under way (or one that ended without finishing) writes its files as .tmp.
+    for (const char* file : {kBlocksFile, kIndexFile})
+      if (fs::exists(fs::path(dir) / (std::string(file) + ".tmp"), ec))
+        return "holds no complete block store: raystack-prep is writing one there (or was "
+               "interrupted: its " + std::string(file) + ".tmp is there; run it again)";
     return "holds no block store (no " + std::string(kIndexFile) + "; " + convert + ")";
+  }
   return "";
 }
 

@@ -15,8 +15,8 @@ namespace {
 
 std::string Tmp(const std::string& path) { return path + ".tmp"; }
 
-Status WriteWhole(const std::string& path, const char (&magic)[8],
-                  const std::vector<uint8_t>& body) {
+// Writes the file's .tmp beside it (renamed into place by Finish, once every file is written).
+Status WriteTmp(const std::string& path, const char (&magic)[8], const std::vector<uint8_t>& body) {
   FileHeader h{};
   std::memcpy(h.magic, magic, 8);
   h.version = kFormatVersion;
@@ -28,9 +28,7 @@ Status WriteWhole(const std::string& path, const char (&magic)[8],
   bool ok = std::fwrite(&h, sizeof h, 1, f) == 1 &&
             (body.empty() || std::fwrite(body.data(), body.size(), 1, f) == 1);
   ok = (std::fclose(f) == 0) && ok;
-  if (!ok) return Status::Error(path + ": write failed (disk full?)");
-  if (std::rename(Tmp(path).c_str(), path.c_str()) != 0)
-    return Status::Error(path + ": cannot rename into place: " + std::strerror(errno));
+  if (!ok) return Status::Error(Tmp(path) + ": write failed (disk full?)");
   return OkStatus();
 }
 
@@ -81,8 +79,8 @@ Expected<std::unique_ptr<StoreWriter>> StoreWriter::Create(const std::string& di
   const bool had_lock = std::filesystem::exists(dir + "/" + kLockFile, ec);
   RAYSTACK_RETURN_IF_ERROR(LockStore(dir, &w->lock_fd_));
   w->created_lock_ = !had_lock;
-  // A half-written store must not look complete: drop the old index first.
-  std::filesystem::remove(dir + "/" + kIndexFile, ec);
+  // A store being replaced stays whole until Finish: the new files are written beside it as
+  // .tmp, and a conversion that fails or is interrupted leaves the old store as it was.
   const std::string path = Tmp(dir + "/" + kBlocksFile);
   w->blocks_ = std::fopen(path.c_str(), "wb");
   if (!w->blocks_) return Status::Error(path + ": cannot create: " + std::strerror(errno));
@@ -124,6 +122,11 @@ StoreWriter::~StoreWriter() {
   if (blocks_) std::fclose(blocks_);
   if (!finished_) RemovePartialStore();
   if (lock_fd_ >= 0) ::close(lock_fd_);
+}
+
+void StoreWriter::Abandon() {
+  const std::lock_guard lock(mu_);
+  if (!finished_) RemovePartialStore();
 }
 
 // A failed write on a full disk left blocks.bin.tmp holding all the free space. The lock file
@@ -179,18 +182,16 @@ Status StoreWriter::Finish(StoreSummary s, std::span<const OctreeNode> octree,
             std::fwrite(&h, sizeof h, 1, blocks_) == 1;
   ok = (std::fclose(blocks_) == 0) && ok;
   blocks_ = nullptr;
-  if (!ok) return Status::Error(blocks_path + ": write failed (disk full?)");
-  if (std::rename(Tmp(blocks_path).c_str(), blocks_path.c_str()) != 0)
-    return Status::Error(blocks_path + ": cannot rename into place: " + std::strerror(errno));
+  if (!ok) return Status::Error(Tmp(blocks_path) + ": write failed (disk full?)");
 
   std::vector<uint8_t> body;
   Append(&body, octree.data(), octree.size());
-  RAYSTACK_RETURN_IF_ERROR(WriteWhole(dir_ + "/" + kOctreeFile, kOctreeMagic, body));
+  RAYSTACK_RETURN_IF_ERROR(WriteTmp(dir_ + "/" + kOctreeFile, kOctreeMagic, body));
   // Always written, empty too, so that an older store's lights.bin never outlives it; index.bin
   // names it by checksum, so a lights.bin of another conversion is never taken for this one's.
   body.clear();
   Append(&body, emitters.data(), emitters.size());
-  RAYSTACK_RETURN_IF_ERROR(WriteWhole(dir_ + "/" + kLightsFile, kLightsMagic, body));
+  RAYSTACK_RETURN_IF_ERROR(WriteTmp(dir_ + "/" + kLightsFile, kLightsMagic, body));
   s.lights_checksum = static_cast<uint32_t>(Checksum(body)) | 1u;
 
   s.block_count = static_cast<uint32_t>(entries_.size());
@@ -206,7 +207,20 @@ Status StoreWriter::Finish(StoreSummary s, std::span<const OctreeNode> octree,
   Append(&body, &s, 1);
   Append(&body, materials.data(), materials.size());
   Append(&body, entries_.data(), entries_.size());
-  RAYSTACK_RETURN_IF_ERROR(WriteWhole(dir_ + "/" + kIndexFile, kIndexMagic, body));
+  RAYSTACK_RETURN_IF_ERROR(WriteTmp(dir_ + "/" + kIndexFile, kIndexMagic, body));
+
+  const std::lock_guard lock(mu_);  // an interrupt's Abandon waits for the renames
+  // Every file is written: now the swap. A folder with an index.bin holds a complete store, so
+  // the old index goes first and the new one comes last; between the two (a few renames) the
+  // folder holds no store, never a mix of two.
+  std::error_code ec;
+  std::filesystem::remove(dir_ + "/" + kIndexFile, ec);
+  if (ec) return Status::Error(dir_ + "/" + kIndexFile + ": cannot remove the old one: " + ec.message());
+  for (const char* file : {kBlocksFile, kOctreeFile, kLightsFile, kIndexFile}) {
+    const std::string to = dir_ + "/" + file;
+    if (std::rename(Tmp(to).c_str(), to.c_str()) != 0)
+      return Status::Error(to + ": cannot rename into place: " + std::strerror(errno));
+  }
   finished_ = true;
   return OkStatus();
 }

@@ -1,12 +1,14 @@
 #pragma once
 // Writes a block store directory: blocks are appended to blocks.bin in the order given (the
 // converter gives them in space-filling-curve order); Finish() writes octree.bin, lights.bin
-// and then index.bin. Each file is written under a temporary name and renamed into place, index.bin
-// last, so a store directory with an index.bin is always complete.
+// and then index.bin. Each file is written under a temporary name, and only once all are are
+// they renamed into place, index.bin last: a store directory with an index.bin is always
+// complete, and a store being replaced stays whole until the new one is.
 
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <string>
 #include <vector>
@@ -30,8 +32,8 @@ struct EncodedBlock {
 class StoreWriter {
  public:
   // Creates `dir` if needed, locks it (the file kLockFile in it: two writers of one store
-  // would share its temporaries and leave it corrupt) and starts blocks.bin. Existing store
-  // files are replaced. The lock goes with the writer. A writer destroyed before Finish()
+  // would share its temporaries and leave it corrupt) and starts blocks.bin. A store there is
+  // replaced only by Finish(), once the new one is complete. The lock goes with the writer. A writer destroyed before Finish()
   // succeeds (a failed conversion: a full disk) removes its temporaries, and the files,
   // folder and lock file it created; not a store's files or lock that were there before.
   static Expected<std::unique_ptr<StoreWriter>> Create(const std::string& dir);
@@ -54,6 +56,10 @@ class StoreWriter {
 
   std::span<const BlockEntry> entries() const { return entries_; }
 
+  // Removes what an unfinished writer wrote, as its destructor would, from any thread (a
+  // converter interrupted: tools/prep/interrupt_cleanup.h); waits for Finish's renames.
+  void Abandon();
+
  private:
   StoreWriter() = default;
   // What the destructor does when Finish() did not succeed.
@@ -62,6 +68,7 @@ class StoreWriter {
   std::string dir_;
   bool created_dir_ = false;   // `dir` did not exist before Create
   bool created_lock_ = false;  // nor did its kLockFile
+  std::mutex mu_;              // Finish's renames against Abandon
   bool finished_ = false;      // Finish() succeeded
   int lock_fd_ = -1;  // kLockFile, locked
   std::FILE* blocks_ = nullptr;

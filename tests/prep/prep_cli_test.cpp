@@ -18,6 +18,7 @@
 #include "common/base/temp_dir.h"
 #include "common/store/store_reader.h"
 #include "common/store/store_writer.h"
+#include "tests/preview/background_process.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/test_dir.h"
 
@@ -398,6 +399,9 @@ TEST_F(PrepCliTest, AFailedWriteRemovesThePartialStore) {
     EXPECT_NE(e.path().extension(), ".tmp") << e.path();
   EXPECT_TRUE(fs::exists(old + "/" + store::kLockFile));
   EXPECT_TRUE(fs::exists(old + "/" + store::kOctreeFile));
+  // And it is still a store, whole: the new one would have replaced it only once complete (a
+  // user found it gone, its index.bin removed as the failed prep started).
+  EXPECT_EQ(Info({old, "--verify"}).exit_code, 0);
 
   // Named through a folder the prep makes on the way ("old/x/.."), it is still the old store
   // (a review found its files deleted).
@@ -406,6 +410,42 @@ TEST_F(PrepCliTest, AFailedWriteRemovesThePartialStore) {
   EXPECT_TRUE(fs::exists(old + "/" + store::kLockFile)) << r.err;
   EXPECT_TRUE(fs::exists(old + "/" + store::kOctreeFile)) << r.err;
   EXPECT_TRUE(fs::exists(old + "/" + store::kBlocksFile)) << r.err;
+}
+
+// Ctrl-C during a conversion that replaces a store: the old store stays whole, the new one's
+// temporaries and the work folder (bucket files) are removed, and the prep says so; it used to
+// end silently, leaving a blocks.bin.tmp and gigabytes of bucket files, the old store unusable.
+TEST_F(PrepCliTest, AnInterruptedPrepLeavesTheOldStoreWholeAndNoTemporaries) {
+  namespace fs = std::filesystem;
+  const std::string old = dir_->File("old"), temp = dir_->File("temp");
+  fs::create_directory(temp);
+  ASSERT_EQ(Prep({"--generate", "sphere:1000", "-o", old, "-q"}).exit_code, 0);
+  // Large enough to be still converting when interrupted (it would take a minute).
+  master::preview::testing::BackgroundProcess prep(
+      {kPrepBinary, "--generate", "spheres:40000000", "--mem-limit", "256", "-o", old,
+       "--temp-dir", temp}, dir_->path());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(5);
+  while (!fs::exists(old + "/" + store::kBlocksFile + ".tmp") && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_TRUE(fs::exists(old + "/" + store::kBlocksFile + ".tmp")) << prep.err();
+  prep.Signal(SIGINT);
+  EXPECT_EQ(prep.Wait(), 128 + SIGINT) << prep.err();
+  EXPECT_NE(prep.err().find("raystack-prep: interrupted (SIGINT): " + old + " is as it was"),
+            std::string::npos) << prep.err();
+  for (const fs::directory_entry& e : fs::directory_iterator(old))
+    EXPECT_NE(e.path().extension(), ".tmp") << e.path();
+  EXPECT_TRUE(fs::is_empty(temp)) << "the work folder is left";
+  const ProcessResult info = Info({old, "--verify"});
+  EXPECT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("triangles"), std::string::npos);
+}
+
+// A folder with a conversion's temporaries and no index is named as such, not as empty.
+TEST_F(PrepCliTest, AStoreBeingWrittenIsNamedAsSuch) {
+  const std::string out = dir_->File("half");
+  std::filesystem::create_directory(out);
+  std::ofstream(out + "/blocks.bin.tmp") << "partial";
+  ExpectFailsNaming(Info({out}), {"raystack-prep is writing one there (or was interrupted"});
 }
 
 // A killed prep leaves its work folder (bucket files: up to gigabytes); the next prep with the

@@ -16,6 +16,7 @@
 #include "common/base/log.h"
 #include "common/base/progress.h"
 #include "common/base/temp_dir.h"
+#include "tools/prep/interrupt_cleanup.h"
 #include "common/store/store_writer.h"
 #include "tools/import/model_reader.h"
 #include "tools/prep/generator.h"
@@ -176,6 +177,10 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   if (!temp.ok()) return temp.status();
   if (stale > 0)
     LOG_INFO("prep", "removed %d work folder%s left by interrupted runs", stale, stale > 1 ? "s" : "");
+  const OnInterrupt remove_work([path = temp->path()] {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  });
   ConvertReport report;
 
   // 1. Read every input into one spool (RAM up to a fifth of the budget, then disk).
@@ -249,6 +254,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   // 2. Octree and blocks.
   Expected<std::unique_ptr<store::StoreWriter>> writer = store::StoreWriter::Create(args.output);
   if (!writer.ok()) return writer.status();
+  const OnInterrupt drop_store([w = writer->get()] { w->Abandon(); });
   ProgressReporter progress("building blocks", source.triangles(), "tri", args.quiet);
   BuildOptions options;
   options.max_block_bytes = args.max_block_bytes;

@@ -16,6 +16,7 @@
 #include "common/store/format.h"
 #include "tools/prep/convert.h"
 #include "tools/prep/generator.h"
+#include "tools/prep/interrupt_cleanup.h"
 
 namespace raystack::prep {
 namespace {
@@ -189,6 +190,7 @@ void WarnIfBudgetAboveMemory(uint64_t budget) {
 int Run(const Args& args) {
   if (args.convert.quiet) SetLogLevel(LogLevel::kWarning);  // -q: as render's, warnings and errors
   WarnIfBudgetAboveMemory(args.convert.memory_limit_bytes);
+  CleanUpOnInterrupt(args.convert.output);
   Expected<ConvertReport> converted = Convert(args.convert);
   if (!converted.ok()) {
     std::fprintf(stderr, "raystack-prep: error: %s\n", converted.status().message().c_str());

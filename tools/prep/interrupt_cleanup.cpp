@@ -1,0 +1,55 @@
+#include "tools/prep/interrupt_cleanup.h"
+
+#include <pthread.h>
+#include <unistd.h>
+
+#include <csignal>
+#include <cstdio>
+#include <map>
+#include <mutex>
+#include <thread>
+
+namespace raystack::prep {
+namespace {
+
+std::mutex g_mu;  // held by a running clean-up to the process's end
+std::map<uint64_t, std::function<void()>> g_cleanups;
+uint64_t g_next_id = 0;
+
+}  // namespace
+
+void CleanUpOnInterrupt(const std::string& output) {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  std::thread([set, output] {
+    int sig = 0;
+    if (sigwait(&set, &sig) != 0) return;
+    const char* name = sig == SIGINT ? "SIGINT" : "SIGTERM";
+    std::fflush(stdout);
+    std::fprintf(stderr, "\nraystack-prep: interrupted (%s): removing what this conversion wrote\n", name);
+    const std::lock_guard lock(g_mu);
+    for (auto& [id, clean] : g_cleanups) clean();
+    std::fprintf(stderr, "raystack-prep: interrupted (%s): %s is as it was before this run (a "
+                 "store there is kept whole; a folder this run made is removed), and its "
+                 "temporary files are gone; run the same command again to convert\n",
+                 name, output.c_str());
+    std::fflush(nullptr);
+    _exit(128 + sig);
+  }).detach();
+}
+
+OnInterrupt::OnInterrupt(std::function<void()> clean) {
+  const std::lock_guard lock(g_mu);
+  id_ = g_next_id++;
+  g_cleanups.emplace(id_, std::move(clean));
+}
+
+OnInterrupt::~OnInterrupt() {
+  const std::lock_guard lock(g_mu);
+  g_cleanups.erase(id_);
+}
+
+}  // namespace raystack::prep
