@@ -145,7 +145,11 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                                  return go_on;
                                },
                                &figures);
-      if (!status.ok()) progress.Abandon();
+      if (!status.ok()) {
+        progress.Abandon();
+        status = KeepFrameSoFar(status, &checkpoints, film, FramePath(output, f, frames, ".exr"),
+                                plan.spp());
+      }
     }
     image::ImageLayers resolved = writer.TakeSpare();
     if (status.ok()) {

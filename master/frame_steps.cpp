@@ -220,6 +220,25 @@ void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& fi
   std::_Exit(128 + signal);
 }
 
+Status KeepFrameSoFar(const Status& why, Checkpoints* checkpoints, const render::Film& film,
+                      const std::string& path, uint32_t spp) {
+  if (film.samples_merged() == 0) return why;
+  Expected<uint64_t> finished = checkpoints->Final(film, spp);
+  const uint64_t pixels = static_cast<uint64_t>(film.width()) * static_cast<uint64_t>(film.height());
+  if (!finished.ok())
+    return Status::Error(why.message() + "; the frame so far could not be written either: " +
+                         finished.status().message());
+  if (*finished == 0)
+    return Status::Error(why.message() + "; the frame so far is in " + path + ", but no pixel "
+                         "has all its samples yet, so --resume would render the frame again");
+  return Status::Error(why.message() +
+                       StrFormat("; the frame so far is in %s, %llu of %llu pixels with all their "
+                                 "samples: once the cause is fixed, the same command with "
+                                 "--resume keeps those and renders the rest", path.c_str(),
+                                 static_cast<unsigned long long>(*finished),
+                                 static_cast<unsigned long long>(pixels)));
+}
+
 Status LoadReference(const RenderArgs& args, size_t f, size_t frames, const render::Camera& camera,
                      std::unique_ptr<image::ImageLayers>* ref) {
   if (args.reference.empty()) {

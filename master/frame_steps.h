@@ -100,6 +100,11 @@ using AfterInterrupt = std::function<void(const std::string& said)>;
 // their writes finished here), the others are not rendered, and the process ends.
 void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,
                                    const AfterInterrupt& then = [](const std::string&) {});
+// A frame that failed while it rendered (a block that cannot be read, every slave lost): its
+// samples so far, if any, are written where --resume finds them, as on an interrupt, and the
+// error returned says where; before, the job ended with none of them written.
+Status KeepFrameSoFar(const Status& why, Checkpoints* checkpoints, const render::Film& film,
+                      const std::string& path, uint32_t spp);
 // SIGINT or SIGTERM while frame `frame` renders (Ctrl-C; Slurm's time limit, through mpirun,
 // which sends SIGKILL a second later): writes the frame's samples so far where --resume finds
 // them (the frame's EXR, with its provenance), says so, and ends the process with the shell's

@@ -176,7 +176,11 @@ Status RenderLocally(const RenderArgs& args) {
       }
       render.join();
       progress.Update(film.samples_merged() - shown);
-      if (!status.ok()) progress.Abandon();
+      if (!status.ok()) {
+        progress.Abandon();
+        status = KeepFrameSoFar(status, &checkpoints, film, FramePath(output, f, frames, ".exr"),
+                                plan.spp());
+      }
     }
     if (!status.ok()) return failed(std::move(status));
     image::ImageLayers resolved = writer.TakeSpare();

@@ -205,6 +205,51 @@ TEST_F(RenderCli, SlaveOptionsWarnInOneProcessAndAnInjectedReadErrorFailsThere) 
   EXPECT_NE(r.err.find("block"), std::string::npos) << r.err;
 }
 
+// Found by a user with a model too big for RAM: a block that could not be read mid-frame ended
+// the job with no image at all, the frame's samples so far lost (Ctrl-C kept them). Now they
+// are written as an interrupt writes them, the error says where, and --resume (the store
+// repaired) ends with the image an uninterrupted run gives, bit for bit.
+TEST_F(RenderCli, AReadFailingMidFrameKeepsTheFrameSoFarForResume) {
+  const std::string scene = WriteScene(R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 64, "height": 40 },
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "integrator": { "type": "path", "max_depth": 3, "spp": 16, "seed": 5 },
+      "output": "out.exr" })");
+  // One pass of 16 samples: pixels finish tile by tile, so a third of the way some have all of
+  // theirs (the loads of a run vary a little with timing: the fault comes well before the end).
+  const std::vector<std::string> common = {kRaystack, "render", scene, "--cache-mb", "0.2",
+                                           "--threads", "1", "--pass-spp", "16", "-q", "--no-png"};
+  std::vector<std::string> whole = common;
+  whole.insert(whole.end(), {"--output", dir_->File("whole.exr"), "--stats", dir_->File("stats.json")});
+  ProcessResult r = RunProcess(whole, dir_->path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string text = prep::testing::Slurp(dir_->File("stats.json"));
+  const size_t at = text.find("\"blocks_loaded\": ");
+  ASSERT_NE(at, std::string::npos) << text;
+  const long loads = std::stol(text.substr(at + 17));
+  ASSERT_GT(loads, 20) << "the cache must be too small to hold the frame's blocks";
+
+  std::vector<std::string> failing = common;
+  failing.insert(failing.end(), {"--fault-fail-read", std::to_string(loads / 3)});
+  r = RunProcess(failing, dir_->path());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("read failed (injected fault)"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("; the frame so far is in "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("pixels with all their samples: once the cause is fixed, the same command "
+                       "with --resume keeps those"), std::string::npos) << r.err;
+  ASSERT_TRUE(std::filesystem::exists(dir_->File("out.exr"))) << r.err;
+
+  std::vector<std::string> resumed = common;
+  resumed.push_back("--resume");
+  r = RunProcess(resumed, dir_->path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  Expected<image::ImageLayers> a = image::ReadExr(dir_->File("whole.exr"));
+  Expected<image::ImageLayers> b = image::ReadExr(dir_->File("out.exr"));
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_EQ(a->rgba.size(), b->rgba.size());
+  EXPECT_EQ(0, std::memcmp(a->rgba.data(), b->rgba.data(), a->rgba.size() * sizeof(float)));
+}
+
 TEST_F(RenderCli, BadInputIsAClearError) {
   struct Case {
     std::vector<std::string> args;
