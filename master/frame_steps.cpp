@@ -1,12 +1,15 @@
 #include "master/frame_steps.h"
 
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 
 #include "common/base/interrupt.h"
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
+#include "common/image/output_file.h"
 #include "master/preflight.h"
 #include "master/provenance.h"
 #include "master/resume.h"
@@ -17,7 +20,8 @@ Status WriteStats(const std::string& path, const std::string& json) {
   if (path.empty()) return OkStatus();
   std::ofstream out(path);
   out << json;
-  if (!out) return Status::Error(path + ": cannot write the statistics");
+  out.flush();
+  if (!out) return Status::Error(path + ": cannot write the statistics: " + std::strerror(errno));
   return OkStatus();
 }
 
@@ -26,6 +30,10 @@ std::string OutputOf(const RenderArgs& args, const render::Scene& scene) {
 }
 
 Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene) {
+  // Written at the end: found out now, not after the render (a user lost a render's figures).
+  if (!args.stats.empty())
+    if (Status s = image::CheckWritable(args.stats); !s.ok())
+      return Status::Error("--stats: " + s.message());
   const Status s = CheckOutputs(scene, OutputOf(args, scene), args.png, args.checkpoint_s > 0);
   if (s.ok()) return s;
   return Status::Error((args.output.empty() ? scene.source + ": output" : std::string("--output")) +

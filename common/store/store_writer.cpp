@@ -107,6 +107,19 @@ Status StoreWriter::CheckFolderIsForAStore(const std::string& dir) {
   return OkStatus();
 }
 
+Status StoreWriter::CheckCanWrite(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path at = fs::absolute(dir, ec);
+  if (ec) return Status::Error(dir + ": cannot resolve the path: " + ec.message());
+  while (!fs::exists(at, ec) && at.has_parent_path() && at != at.parent_path()) at = at.parent_path();
+  if (!fs::is_directory(at, ec))
+    return Status::Error(dir + ": cannot create directory: " + at.string() + " is not a folder");
+  if (::access(at.c_str(), W_OK | X_OK) != 0)
+    return Status::Error(dir + ": cannot write in " + at.string() + ": " + std::strerror(errno));
+  return OkStatus();
+}
+
 Status StoreWriter::CheckNotBeingWritten(const std::string& dir) {
   int fd = -1;
   std::string error;  // (a lock that cannot be tried here is Create's to report)

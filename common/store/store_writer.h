@@ -44,6 +44,10 @@ class StoreWriter {
   // files (it is replaced). A folder with other files would get the store's among them, and a
   // later removal of the store would take the user's files with it.
   static Status CheckFolderIsForAStore(const std::string& dir);
+  // Whether `dir` can be written, or created (its nearest existing parent is a folder this
+  // process may write in), without creating anything: for a converter to find out before it
+  // reads its model (a read-only destination was found only after reading it).
+  static Status CheckCanWrite(const std::string& dir);
   ~StoreWriter();
 
   // Appends a block; ids must come in order 0, 1, 2, ...

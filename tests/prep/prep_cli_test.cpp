@@ -440,6 +440,22 @@ TEST_F(PrepCliTest, AnInterruptedPrepLeavesTheOldStoreWholeAndNoTemporaries) {
   EXPECT_NE(info.out.find("triangles"), std::string::npos);
 }
 
+// Found by a user with a model too big for RAM: a destination that cannot be written, a typo in
+// the last of several inputs and a --stats-json that cannot be written were found only after
+// the models were read (or the store written); now before anything is read.
+TEST_F(PrepCliTest, WhatCannotBeWrittenOrReadIsFoundBeforeTheModelIsRead) {
+  const std::string model = dir_->File("m.obj");
+  std::ofstream(model) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+  std::ofstream(dir_->File("afile")) << "not a folder";
+  ExpectFailsNaming(Prep({model, "-o", dir_->File("afile") + "/store", "-q"}),
+                    {"afile/store: cannot create directory:", "afile is not a folder"});
+  ExpectFailsNaming(Prep({model, dir_->File("typo.obj"), "-o", dir_->File("s"), "-q"}),
+                    {"cannot open " + dir_->File("typo.obj")});
+  ExpectFailsNaming(Prep({model, "-o", dir_->File("s"), "-q", "--stats-json", dir_->File("none/x.json")}),
+                    {"--stats-json " + dir_->File("none/x.json") + ": cannot write in"});
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("s"))) << "nothing is written before the checks";
+}
+
 // A folder with a conversion's temporaries and no index is named as such, not as empty.
 TEST_F(PrepCliTest, AStoreBeingWrittenIsNamedAsSuch) {
   const std::string out = dir_->File("half");

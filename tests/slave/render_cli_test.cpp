@@ -250,6 +250,17 @@ TEST_F(RenderCli, AReadFailingMidFrameKeepsTheFrameSoFarForResume) {
   EXPECT_EQ(0, std::memcmp(a->rgba.data(), b->rgba.data(), a->rgba.size() * sizeof(float)));
 }
 
+// A --stats file that cannot be written was found after the render (which then failed, its
+// figures lost); now before it starts.
+TEST_F(RenderCli, AStatsFileThatCannotBeWrittenIsFoundBeforeTheRender) {
+  const ProcessResult r = RunProcess({kRaystack, "render", Scene(), "--stats",
+                                      dir_->File("none/stats.json"), "-q"}, dir_->path());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("--stats: " + dir_->File("none/stats.json") + ": cannot write"), std::string::npos)
+      << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("out.exr"))) << "it rendered first";
+}
+
 TEST_F(RenderCli, BadInputIsAClearError) {
   struct Case {
     std::vector<std::string> args;

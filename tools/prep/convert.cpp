@@ -171,6 +171,10 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     return Status::Error("the target block size is above the cap");
   RAYSTACK_RETURN_IF_ERROR(store::StoreWriter::CheckNotBeingWritten(args.output));
   RAYSTACK_RETURN_IF_ERROR(store::StoreWriter::CheckFolderIsForAStore(args.output));
+  RAYSTACK_RETURN_IF_ERROR(store::StoreWriter::CheckCanWrite(args.output));
+  // Every input before the first is read: a typo in the last of several large models was
+  // found only after reading the others.
+  for (const std::string& input : args.inputs) RAYSTACK_RETURN_IF_ERROR(CheckReadable(input));
   const uint64_t budget = args.memory_limit_bytes;
   int stale = 0;  // work folders of killed preps (their bucket files can be gigabytes)
   Expected<TempDir> temp = TempDir::CreateOwned(args.temp_dir, "raystack-prep", &stale);
@@ -198,7 +202,6 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   }
   import::PositionShift shift = args.shift_by;  // one for every file: `automatic` sets it once
   for (const std::string& input : args.inputs) {
-    RAYSTACK_RETURN_IF_ERROR(CheckReadable(input));
     std::error_code ec;
     const uint64_t size = std::filesystem::file_size(input, ec);
     ProgressReporter progress("reading " + input, ec ? 0 : size, "B", args.quiet);

@@ -1,11 +1,13 @@
 // raystack-prep: converts OBJ/PLY models (or a generated one) into a block store, out of core.
 
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -190,6 +192,16 @@ void WarnIfBudgetAboveMemory(uint64_t budget) {
 int Run(const Args& args) {
   if (args.convert.quiet) SetLogLevel(LogLevel::kWarning);  // -q: as render's, warnings and errors
   WarnIfBudgetAboveMemory(args.convert.memory_limit_bytes);
+  if (!args.stats_json.empty()) {  // written at the end: found out now, not after the work
+    const std::string parent = std::filesystem::path(args.stats_json).parent_path().string();
+    const std::string folder = parent.empty() ? "." : parent;
+    const bool exists = std::filesystem::exists(args.stats_json);
+    if (::access(exists ? args.stats_json.c_str() : folder.c_str(), W_OK) != 0) {
+      std::fprintf(stderr, "raystack-prep: error: --stats-json %s: cannot write %s: %s\n",
+                   args.stats_json.c_str(), exists ? "it" : ("in " + folder).c_str(), std::strerror(errno));
+      return 1;
+    }
+  }
   CleanUpOnInterrupt(args.convert.output);
   Expected<ConvertReport> converted = Convert(args.convert);
   if (!converted.ok()) {
