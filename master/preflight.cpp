@@ -83,7 +83,8 @@ Status CheckOutputs(const render::Scene& scene, const std::string& output, bool 
   return image::CheckRoom(FramePath(output, 0, frames, ".exr"), needed);
 }
 
-Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes) {
+Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes, const std::string& what,
+                   const std::string& advice) {
   // Measured peaks: 163 bytes a pixel at 2048 x 2048, 208 at 4096 x 4096 (the film's sums 100,
   // the resolved layers 52, the frame being written while the next renders 52).
   constexpr uint64_t kBytesPerPixel = 210;
@@ -98,11 +99,18 @@ Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes) {
   const std::optional<uint64_t> available = MemoryAvailable();
   if (!available || needed <= *available) return OkStatus();
   const render::CameraDesc& c = scene.cameras[which];
-  return Status::Error(StrFormat("camera %zu: a %dx%d image needs about %.1f GB of memory for "
-                                 "its film and images%s; %.1f GB is available here",
-                                 which, c.width, c.height, static_cast<double>(needed) / 1e9,
-                                 cache_bytes > 0 ? " and the blocks" : "",
-                                 static_cast<double>(*available) / 1e9));
+  // Megabytes below 10 GB: "0.1 GB needed, 0.1 GB available" said nothing.
+  const auto size = [](uint64_t bytes) {
+    return bytes < uint64_t{10} * 1000 * 1000 * 1000
+               ? StrFormat("%.0f MB", static_cast<double>(bytes) / 1e6)
+               : StrFormat("%.1f GB", static_cast<double>(bytes) / 1e9);
+  };
+  return Status::Error(StrFormat("camera %zu: a %dx%d image needs about %s of memory for its film "
+                                 "and images%s; %s is available here (%s)",
+                                 which, c.width, c.height, size(needed).c_str(),
+                                 cache_bytes > 0 ? std::string(" and " + what).c_str() : "",
+                                 size(*available).c_str(),
+                                 cache_bytes > 0 ? advice.c_str() : "a smaller image would fit"));
 }
 
 Status CheckReferences(const render::Scene& scene, const std::string& reference) {

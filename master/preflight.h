@@ -25,8 +25,11 @@ Status CheckOutputs(const render::Scene& scene, const std::string& output, bool 
 // The film and the images made from it fit in this machine's memory (or its cgroup's): a
 // 16384 x 16384 frame needs ~55 GB, and running out midway ended the job with an uncaught
 // std::bad_alloc. `cache_bytes`: the decoded blocks this process will hold where it renders
-// too (0 for a master alone, or before the store is opened).
-Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes);
+// too (0 for a master alone, or before the store is opened), said as `what`, and what to do
+// instead, `advice`.
+Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes,
+                   const std::string& what = "the blocks",
+                   const std::string& advice = "a smaller --cache-mb would fit");
 
 // Every camera's reference image (`reference`, REF-f.exr with several cameras) can be read:
 // checked before the first frame rather than when its frame comes (its size is checked then).

@@ -89,5 +89,38 @@ TEST(MemoryCapRender, AutoReadsDirectUnderACapSmallerThanTheStore) {
   EXPECT_EQ(0, std::memcmp(a->z.data(), b->z.data(), a->z.size() * sizeof(float)));
 }
 
+// Found by a user with a model too big for RAM: --mode bvh passed the memory check (which
+// counted the blocks only) and was then killed by the kernel as it built its tree, without a
+// word. The tree's peak is counted now: refused up front, naming it; incore still runs.
+TEST(MemoryCapRender, ModeBvhCountsItsTreeBeforeItStarts) {
+  std::string why;
+  const std::unique_ptr<MemoryCgroup> group = MemoryCgroup::CreateOwnChild("raystack-bvh-cap", &why);
+  if (!group) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
+  ASSERT_TRUE(group->Limit(kCapBytes)) << "cannot set the limit of " << group->path();
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  // ~12 MB of decoded blocks, whose tree would peak at ~72 MB (180 bytes a triangle).
+  const ProcessResult prep = RunProcess(
+      {prep::testing::kPrepBinary, "--generate", "spheres:400000", "-o", dir->File("store"), "-q"},
+      dir->path());
+  ASSERT_EQ(prep.exit_code, 0) << prep.err;
+  const std::string scene = dir->File("scene.json");
+  std::ofstream(scene) << R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 } })";
+  const auto render = [&](const std::string& mode) {
+    return RunProcess({kRaystackBinary, "render", scene, "--mode", mode, "--no-png", "-q",
+                       "--output", dir->File(mode + ".exr")}, dir->path(), group->Joiner());
+  };
+  const ProcessResult bvh = render("bvh");
+  ASSERT_NE(bvh.exit_code, 125) << "the child could not join " << group->path();
+  EXPECT_EQ(bvh.signal, 0) << "killed by signal " << bvh.signal << ": " << bvh.err;
+  EXPECT_EQ(bvh.exit_code, 1) << bvh.err;
+  EXPECT_NE(bvh.err.find("the one BVH over every triangle (--mode bvh)"), std::string::npos) << bvh.err;
+  EXPECT_NE(bvh.err.find("--mode stack keeps only --cache-mb of blocks"), std::string::npos) << bvh.err;
+  const ProcessResult incore = render("incore");
+  EXPECT_EQ(incore.signal, 0) << incore.err;
+  EXPECT_EQ(incore.exit_code, 0) << incore.err;
+}
+
 }  // namespace
 }  // namespace raystack::testing
