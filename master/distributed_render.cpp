@@ -249,7 +249,8 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
   if (store.ok()) {  // before any block is read (PeerBlocks reads this slave's share)
     // Each slave decides for its own machine; the master prints each one's reads per frame.
     std::string reads;
-    const Status s = slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads);
+    Status s = slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads);
+    if (s.ok()) s = CheckSlaveMemory(EngineMemoryOf(args.engine, **store), HostName());
     if (!s.ok()) store = s;
   }
   std::unique_ptr<slave::PeerBlocks> peers;

@@ -80,23 +80,10 @@ Status RenderLocally(const RenderArgs& args) {
 
   Expected<std::unique_ptr<store::StoreReader>> store = OpenSceneStore(*scene);
   if (!store.ok()) return store.status();
-  // With the blocks this process will hold: all of them in core, else at most its cache.
-  const uint64_t decoded = (*store)->summary().raw_bytes;
-  const bool all_blocks =
-      args.engine.mode == slave::TraceMode::kIncore || args.engine.mode == slave::TraceMode::kBvh;
-  // --mode bvh also holds the one tree over every triangle, and about as much again while it
-  // is built: its peak was 180 bytes a triangle beyond the blocks (7 M triangles, 1.49 GB of
-  // RSS with 0.22 GB of blocks). Left out, a job that passed this check was killed by the kernel
-  // as it built the tree, without a word.
-  constexpr uint64_t kBvhPeakBytesPerTriangle = 180;
-  const uint64_t bvh = args.engine.mode == slave::TraceMode::kBvh
-                           ? (*store)->summary().references * kBvhPeakBytesPerTriangle : 0;
-  const bool bvh_mode = args.engine.mode == slave::TraceMode::kBvh;
-  RAYSTACK_RETURN_IF_ERROR(CheckMemory(
-      *scene, (all_blocks ? decoded : std::min(decoded, args.engine.cache_bytes)) + bvh,
-      bvh_mode ? "every block and the one BVH over every triangle (--mode bvh)"
-      : all_blocks ? "every block (--mode incore)" : "the blocks (--cache-mb)",
-      all_blocks ? "--mode stack keeps only --cache-mb of blocks" : "a smaller --cache-mb would fit"));
+  // With what its engine will hold: its blocks, and --mode bvh's tree.
+  const EngineMemory engine_memory = EngineMemoryOf(args.engine, **store);
+  RAYSTACK_RETURN_IF_ERROR(
+      CheckMemory(*scene, engine_memory.bytes, engine_memory.what, engine_memory.advice));
   std::string reads;
   RAYSTACK_RETURN_IF_ERROR(
       slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads));

@@ -9,6 +9,8 @@
 
 #include "common/base/status.h"
 #include "common/render/scene.h"
+#include "common/store/store_reader.h"
+#include "slave/render_engine.h"
 
 namespace raystack::master {
 
@@ -34,5 +36,19 @@ Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes,
 // Every camera's reference image (`reference`, REF-f.exr with several cameras) can be read:
 // checked before the first frame rather than when its frame comes (its size is checked then).
 Status CheckReferences(const render::Scene& scene, const std::string& reference);
+
+// The memory one process's engine holds beside its film: its blocks (every one in core, else at
+// most its cache) and, in --mode bvh, the one tree over every triangle at its peak while it is
+// built (a job that did not count it was killed by the kernel as it built it, without a word).
+struct EngineMemory {
+  uint64_t bytes = 0;
+  std::string what;    // "the blocks (--cache-mb)", ...
+  std::string advice;  // what would fit
+};
+EngineMemory EngineMemoryOf(const slave::EngineOptions& engine, const store::StoreReader& store);
+
+// A slave's engine fits in its machine's memory (or its cgroup's): refused, naming the host,
+// before it starts, not killed by the kernel midway (seen by the master only as a silent rank).
+Status CheckSlaveMemory(const EngineMemory& m, const std::string& host);
 
 }  // namespace raystack::master

@@ -12,6 +12,7 @@
 #include "common/base/temp_dir.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/convergence_csv.h"
+#include "tests/support/memory_cgroup.h"
 #include "tests/support/older_store.h"
 #include "tests/support/store_dir_fixture.h"
 
@@ -63,6 +64,35 @@ class DistributedCli : public StoreDirFixture {
     return RunProcess(argv, dir_->path());
   }
 };
+
+// Found by a user with a model too big for RAM: under mpirun a slave never checked its memory,
+// and one whose engine could not fit was killed by the kernel, the master seeing only a rank gone
+// silent. Now each slave checks its own machine's (or cgroup's) room before it starts and the
+// job ends with why, naming the host. The whole job runs in a real cgroup-v1 memory cap.
+TEST(DistributedMemory, ASlaveWhoseEngineCannotFitSaysSoNamingItsHost) {
+  std::string why;
+  const std::unique_ptr<MemoryCgroup> group = MemoryCgroup::CreateOwnChild("raystack-slave-cap", &why);
+  if (!group) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
+  ASSERT_TRUE(group->Limit(uint64_t{256} << 20)) << "cannot set the limit of " << group->path();
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  // --mode bvh's tree would peak at ~360 MB beside ~60 MB of blocks: more than the cap.
+  const ProcessResult prep = RunProcess(
+      {kPrepBinary, "--generate", "spheres:2000000", "-o", dir->File("store"), "-q"}, dir->path());
+  ASSERT_EQ(prep.exit_code, 0) << prep.err;
+  std::ofstream(dir->File("scene.json")) << R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 } })";
+  const ProcessResult r = RunProcess(
+      {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", "3", kRaystack, "render",
+       dir->File("scene.json"), "--mode", "bvh", "--no-png", "-q", "--output", dir->File("out.exr")},
+      dir->path(), group->Joiner());
+  ASSERT_NE(r.exit_code, 125) << "the child could not join " << group->path();
+  EXPECT_EQ(r.signal, 0) << r.err;
+  EXPECT_NE(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("needs about"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("of memory for every block and the one BVH over every triangle (--mode bvh)"),
+            std::string::npos) << r.err;
+}
 
 TEST_F(DistributedCli, ImagesEqualTheOneProcessImage) {
   for (const std::string integrator :
