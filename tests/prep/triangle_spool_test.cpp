@@ -4,6 +4,7 @@
 #include "tools/prep/triangle_spool.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cstring>
 #include <filesystem>
@@ -246,6 +247,24 @@ TEST_F(TriangleSpoolTest, ThroughWriteBehindUnwritablePathIsAnErrorNamingIt) {
   Status s = spool.Append(t, &a);
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.message().find(path), std::string::npos) << s.message();
+}
+
+// A full disk stops the appends within a few buffers, not at Close after the whole pass (a
+// user's temp folder filled in seconds, and the partition pass went on for minutes). /dev/full
+// fails every write with ENOSPC.
+TEST_F(TriangleSpoolTest, ThroughWriteBehindAFullDiskStopsTheAppendsAtOnce) {
+  if (access("/dev/full", W_OK) != 0) GTEST_SKIP() << "no writable /dev/full here";
+  WriteBehind writer(4096, 2);
+  TriangleSpool spool("/dev/full", writer);
+  TriangleAttributes a;
+  const PackedTriangle t = MakeTriangle(1, &a, /*plain=*/true);
+  const uint32_t per_buffer = 4096 / sizeof t;
+  Status s = OkStatus();
+  uint32_t appended = 0;
+  for (; appended < 1000 * per_buffer && s.ok(); ++appended) s = spool.Append(t, &a);
+  ASSERT_FALSE(s.ok()) << "every append of 1000 buffers' worth succeeded";
+  EXPECT_LT(appended, 10 * per_buffer) << "the error came only after " << appended << " triangles";
+  EXPECT_NE(s.message().find("/dev/full: write failed (disk full?)"), std::string::npos) << s.message();
 }
 
 TEST_F(TriangleSpoolTest, UnwritablePathIsAnErrorNamingIt) {

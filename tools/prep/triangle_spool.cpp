@@ -74,7 +74,7 @@ Status TriangleSpool::AppendBehind(const PackedTriangle& t, const TriangleAttrib
   }
   const size_t n = sizeof t + (with_attributes ? sizeof *attributes : 0);
   if (pending_.size() + n > writer_->buffer_bytes()) {
-    writer_->Write(fd_, path_, std::move(pending_));
+    RAYSTACK_RETURN_IF_ERROR(writer_->Write(fd_, path_, std::move(pending_)));
     pending_ = writer_->Take();
   }
   const auto* bytes = reinterpret_cast<const uint8_t*>(&t);
@@ -111,7 +111,7 @@ Status TriangleSpool::Append(const PackedTriangle& t, const TriangleAttributes* 
 
 Status TriangleSpool::Close() {
   if (fd_ >= 0) {
-    if (!pending_.empty()) writer_->Write(fd_, path_, std::move(pending_));
+    if (!pending_.empty()) (void)writer_->Write(fd_, path_, std::move(pending_));  // Flush says
     std::vector<uint8_t>().swap(pending_);
     const Status written = writer_->Flush();
     const bool closed = ::close(fd_) == 0;

@@ -35,11 +35,13 @@ std::vector<uint8_t> WriteBehind::Take() {
   return buffer;
 }
 
-void WriteBehind::Write(int fd, const std::string& path, std::vector<uint8_t> data) {
+Status WriteBehind::Write(int fd, const std::string& path, std::vector<uint8_t> data) {
   std::unique_lock<std::mutex> lock(mutex_);
   written_.wait(lock, [&] { return queue_.size() < max_queued_; });
+  if (!error_.ok()) return error_;
   queue_.push_back({fd, &path, std::move(data)});
   queued_.notify_one();
+  return OkStatus();
 }
 
 Status WriteBehind::Flush() {

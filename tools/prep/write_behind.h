@@ -28,8 +28,10 @@ class WriteBehind {
   size_t buffer_bytes() const { return buffer_bytes_; }
   // An empty buffer with room for buffer_bytes(), recycled from finished writes when possible.
   std::vector<uint8_t> Take();
-  // Queues `data` to be appended to the open file `fd` (named `path` in errors).
-  void Write(int fd, const std::string& path, std::vector<uint8_t> data);
+  // Queues `data` to be appended to the open file `fd` (named `path` in errors). Returns the
+  // first write error so far: a full disk stops the caller at its next buffer, not after the
+  // whole pass (a user's 400 MB temp folder filled in seconds, and the prep went on for minutes).
+  Status Write(int fd, const std::string& path, std::vector<uint8_t> data);
   // Waits until every queued write is done; returns the first error since construction.
   Status Flush();
 
