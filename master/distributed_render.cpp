@@ -335,6 +335,7 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
     Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
     Status s = log.ok() ? CheckMemory(*scene, 0) : log.status();
     if (s.ok()) s = CheckOutputOf(args, *scene);
+    if (s.ok()) WarnIfCheckpointsKeepLittle(args, *scene);
     Expected<OutputLock> output_lock =  // held to the end of the job
         s.ok() ? OutputLock::Take(FramePath(OutputOf(args, *scene), 0, 1, ".exr"))
                : Expected<OutputLock>(s);

@@ -186,6 +186,35 @@ void LogFirstPass(const RenderArgs& args, bool rounds, const std::string& why) {
 InterruptsHeld::InterruptsHeld() { HoldInterrupts(true); }
 InterruptsHeld::~InterruptsHeld() { HoldInterrupts(false); }
 
+namespace {
+
+// What makes tiles finish one by one, each with all its samples at once: one pass of every
+// sample, and tiles small enough to hold them (render::kMaxTileSamples).
+std::string WholeTilesAdvice(uint32_t spp) {
+  int side = 1;
+  while (static_cast<uint64_t>(side * 2) * static_cast<uint64_t>(side * 2) * spp <= render::kMaxTileSamples)
+    side *= 2;
+  return StrFormat("--pass-spp %u --tile-size %d renders whole tiles one after another, each kept "
+                   "as it finishes", spp, side);
+}
+
+}  // namespace
+
+void WarnIfCheckpointsKeepLittle(const RenderArgs& args, const render::Scene& scene) {
+  const uint32_t spp = static_cast<uint32_t>(scene.integrator.spp);
+  if (!(args.checkpoint_s > 0) || spp <= 1) return;
+  const bool passes = args.pass_spp < spp;  // 0: doubling passes
+  const bool sweeps = static_cast<uint64_t>(args.tile_size) * static_cast<uint64_t>(args.tile_size) * spp >
+                      render::kMaxTileSamples;
+  if (!passes && !sweeps) return;
+  LOG_WARNING("render", "--checkpoint-s: a pixel is kept by --resume once it has all its %u "
+              "samples, and %s, so checkpoints (and an interrupted run) keep little or nothing "
+              "until the frame's end; %s", spp,
+              passes ? "progressive passes give it the last of them in the last pass"
+                     : "a tile this large takes them in several sweeps",
+              WholeTilesAdvice(spp).c_str());
+}
+
 void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,
                                    const AfterInterrupt& then) {
   const int signal = InterruptSignal();
@@ -216,7 +245,8 @@ void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& fi
       : *finished == 0
           ? StrFormat("interrupted (%s): the frame so far is in %s, but no pixel has all its %u "
                       "samples yet (each pass covers every pixel a little), so --resume would "
-                      "render the frame again", name, path.c_str(), spp)
+                      "render the frame again (next time, %s)", name, path.c_str(), spp,
+                      WholeTilesAdvice(spp).c_str())
           : StrFormat("interrupted (%s): the frame so far is in %s, %llu of %llu pixels with all "
                       "their samples; the same command with --resume keeps those and renders "
                       "the rest", name, path.c_str(), static_cast<unsigned long long>(*finished),
@@ -238,7 +268,8 @@ Status KeepFrameSoFar(const Status& why, Checkpoints* checkpoints, const render:
                          finished.status().message());
   if (*finished == 0)
     return Status::Error(why.message() + "; the frame so far is in " + path + ", but no pixel "
-                         "has all its samples yet, so --resume would render the frame again");
+                         "has all its samples yet, so --resume would render the frame again (next "
+                         "time, " + WholeTilesAdvice(spp) + ")");
   return Status::Error(why.message() +
                        StrFormat("; the frame so far is in %s, %llu of %llu pixels with all their "
                                  "samples: once the cause is fixed, the same command with "

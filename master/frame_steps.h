@@ -96,6 +96,10 @@ struct InterruptsHeld {
 // what they printed (without the "raystack render: " prefix): tell the live preview, then the
 // slaves.
 using AfterInterrupt = std::function<void(const std::string& said)>;
+// --checkpoint-s where pixels finish late (progressive passes, or tiles too large to take all
+// their samples at once): checkpoints keep little for --resume until the frame's end, which a
+// user found out only from an interrupted run's message. Warns, with the options that fix it.
+void WarnIfCheckpointsKeepLittle(const RenderArgs& args, const render::Scene& scene);
 // A signal noted before frame `frame` began to render: the frames before it are written (or
 // their writes finished here), the others are not rendered, and the process ends.
 void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,

@@ -71,6 +71,7 @@ Status RenderLocally(const RenderArgs& args) {
   const size_t frames = scene->cameras.size();
   RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, 0));  // the film alone, before the store is read
   RAYSTACK_RETURN_IF_ERROR(CheckOutputOf(args, *scene));
+  WarnIfCheckpointsKeepLittle(args, *scene);
   // Held to the end of the job; named from the output as written ("out" and "out.exr" are one).
   Expected<OutputLock> output_lock = OutputLock::Take(FramePath(output, 0, 1, ".exr"));
   if (!output_lock.ok()) return output_lock.status();

@@ -38,7 +38,10 @@ options:
   --checkpoint-s S          write the EXR every S seconds while rendering (default 0: only
                             at the end), on a thread of its own at low priority while the
                             render goes on, atomically (a temporary file, then a rename); a
-                            failed checkpoint is logged and tried again, never fatal
+                            failed checkpoint is logged and tried again, never fatal; a
+                            pixel is kept once it has all its samples, so with progressive
+                            passes little is kept before the last pass: --pass-spp SPP with
+                            a --tile-size T where T*T*SPP <= 16384 keeps tiles as they end
   --resume                  continue from the output EXR a killed run left (its last
                             checkpoint): tiles it holds finished are kept, the others are
                             rendered again; the image equals an uninterrupted run's

@@ -250,6 +250,32 @@ TEST_F(RenderCli, AReadFailingMidFrameKeepsTheFrameSoFarForResume) {
   EXPECT_EQ(0, std::memcmp(a->rgba.data(), b->rgba.data(), a->rgba.size() * sizeof(float)));
 }
 
+// Found by a render-farm operator: with progressive passes a checkpoint keeps nothing for
+// --resume until the last pass, and nothing said so before an interrupted run's message. Now a
+// warning at start gives the options that keep whole tiles as they finish.
+TEST_F(RenderCli, CheckpointsThatWouldKeepLittleAreWarnedOfWithTheFix) {
+  const std::string scene = WriteScene(R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 16, "height": 8 },
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "integrator": { "type": "path", "max_depth": 2, "spp": 256, "seed": 5 },
+      "output": "out.exr" })");
+  const auto run = [&](std::vector<std::string> extra) {
+    std::vector<std::string> argv = {kRaystack, "render", scene, "--checkpoint-s", "60", "-q", "--no-png"};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return RunProcess(argv, dir_->path());
+  };
+  ProcessResult r = run({});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("progressive passes give it the last of them in the last pass"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--pass-spp 256 --tile-size 8 renders whole tiles"), std::string::npos) << r.err;
+  r = run({"--pass-spp", "256"});  // one pass, but 32 x 32 tiles take their samples in sweeps
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("a tile this large takes them in several sweeps"), std::string::npos) << r.err;
+  r = run({"--pass-spp", "256", "--tile-size", "8"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find("--checkpoint-s:"), std::string::npos) << r.err;
+}
+
 // A --stats file that cannot be written was found after the render (which then failed, its
 // figures lost); now before it starts.
 TEST_F(RenderCli, AStatsFileThatCannotBeWrittenIsFoundBeforeTheRender) {
