@@ -29,6 +29,7 @@ void Checkpoints::Maybe(const render::Film& film) {
   image.layers = writer_->TakeSpare();  // the last image's memory, when there is one
   film.ResolveInto(&image.layers);
   image.layers.provenance = provenance_;
+  image.layers.partial = true;
   image.done = [written = written_](const Status& s) {
     if (!s.ok()) {  // tried again at the next interval
       LOG_WARNING("render", "checkpoint: %s", s.message().c_str());
@@ -51,6 +52,7 @@ Expected<uint64_t> Checkpoints::Final(const render::Film& film, uint32_t spp) {
   image.layers = writer_->TakeSpare();
   film.ResolveInto(&image.layers);
   image.layers.provenance = provenance_;
+  image.layers.partial = true;
   uint64_t finished = 0;
   for (const uint32_t n : image.layers.samples) finished += n >= spp;
   image.done = [result](const Status& s) { *result = s; };

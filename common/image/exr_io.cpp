@@ -26,6 +26,7 @@ namespace {
 constexpr int64_t kMaxSide = int64_t{1} << 16;
 constexpr int64_t kMaxPixels = int64_t{1} << 28;
 constexpr const char* kProvenanceAttribute = "raystack.provenance";  // ImageLayers::provenance
+constexpr const char* kStateAttribute = "raystack.state";            // ImageLayers::partial
 constexpr int kRowsPerBand = 64;  // fewer rows a band: not worth a thread
 constexpr int kMaxBands = 8;
 
@@ -190,8 +191,10 @@ Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads th
     AddLayer(image.albedo, kAlbedo, image.width, &header, &frame);
     AddLayer(image.samples, kSamples, image.width, &header, &frame);
     AddLayer(image.variance, kVariance, image.width, &header, &frame);
-    if (!image.provenance.empty())
+    if (!image.provenance.empty()) {
       header.insert(kProvenanceAttribute, Imf::StringAttribute(image.provenance));
+      header.insert(kStateAttribute, Imf::StringAttribute(image.partial ? "partial" : "complete"));
+    }
     // Chunks compressed on every core (the file is byte for byte the same): the last frame is
     // written after the render, while the user waits. The dragon 1024x768 job without PNG,
     // medians of 5 interleaved runs on 2 cores: 1.18 -> 0.97 s.
@@ -203,6 +206,18 @@ Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads th
     return Status::Error(path + ": cannot write EXR: " + e.what());
   }
   return output->Commit();
+}
+
+bool IsPartialFrame(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) return false;
+  try {
+    const Imf::InputFile file(path.c_str(), 1);
+    const auto* state = file.header().findTypedAttribute<Imf::StringAttribute>(kStateAttribute);
+    return state && state->value() == "partial";
+  } catch (const std::exception&) {
+    return false;  // not an EXR, or damaged: not ours to keep (--resume says what is wrong)
+  }
 }
 
 Expected<ImageLayers> ReadExr(const std::string& path) {
@@ -246,6 +261,8 @@ Status ReadExrInto(const std::string& path, ImageLayers* into) {
     ImageLayers& image = *into;
     const auto* provenance = header.findTypedAttribute<Imf::StringAttribute>(kProvenanceAttribute);
     image.provenance = provenance ? provenance->value() : std::string();
+    const auto* state = header.findTypedAttribute<Imf::StringAttribute>(kStateAttribute);
+    image.partial = state && state->value() == "partial";
     image.width = static_cast<int>(width);
     image.height = static_cast<int>(height);
     const size_t pixels = image.pixel_count();

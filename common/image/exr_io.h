@@ -36,5 +36,8 @@ Expected<ImageLayers> ReadExr(const std::string& path);
 // reference read into the last one's: new memory costs a page fault a page). On failure
 // `image` holds no usable image.
 Status ReadExrInto(const std::string& path, ImageLayers* image);
+// Whether the EXR at `path` is a raystack frame not finished ("raystack.state" "partial": a
+// checkpoint), from its header alone; false for a missing file, or one another program wrote.
+bool IsPartialFrame(const std::string& path);
 
 }  // namespace raystack::image

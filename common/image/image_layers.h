@@ -21,6 +21,10 @@ struct ImageLayers {
   // What rendered it (scene, camera, settings), as text; the EXR's "raystack.provenance"
   // attribute. --resume compares it with the run's. Empty: unknown (not written).
   std::string provenance;
+  // Written with a provenance, as the EXR's "raystack.state": "partial" for a frame not
+  // finished (a checkpoint, or what an interrupted or failed run saved: --resume continues
+  // it), "complete" for a frame's final image. Read back as true only for "partial".
+  bool partial = false;
 
   void Resize(int w, int h);  // allocates all layers (z filled with +inf, rest 0)
 

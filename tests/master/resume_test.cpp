@@ -114,6 +114,7 @@ TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
     for (int attempt = 0; attempt < 12 && finished == 0; ++attempt) {
       std::vector<std::string> killed = WholeTiles();
       killed.insert(killed.end(), {"--fault-kill-after-checkpoints", std::to_string(kill_after)});
+      std::filesystem::remove(out);  // the last attempt's checkpoint: a run without --resume refuses it
       const ProcessResult died = Render(out, np, killed);
       attempts += StrFormat(" [kill after %d: exit %d", kill_after, died.exit_code);
       if (died.exit_code == 0) {  // the render outran its checkpoints: kill it sooner
@@ -136,6 +137,42 @@ TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
               std::string::npos) << resumed.out;
     EXPECT_TRUE(Slurp(out) == expected) << "np " << np;
   }
+}
+
+// Found by a render-farm operator: a run without --resume overwrote the unfinished frame a
+// killed run left, its finished pixels lost without a word. The EXR now says whether it is a
+// frame's final image ("raystack.state": complete) or not (partial: a checkpoint), and a run
+// without --resume refuses a partial one, naming the way out; a final image is replaced as ever.
+TEST_F(Resume, AnUnfinishedFrameIsNotOverwrittenWithoutResume) {
+  const std::string out = dir_->File("frame.exr");
+  // Long enough (480 samples a pixel) to be killed by its first checkpoint on a loaded machine.
+  const std::vector<std::string> slow = {"--spp", "480", "--pass-spp", "480"};
+  std::vector<std::string> killed = slow;
+  killed.insert(killed.end(), {"--checkpoint-s", "0.05", "--fault-kill-after-checkpoints", "1"});
+  const ProcessResult died = Render(out, 0, killed);
+  ASSERT_NE(died.exit_code, 0) << "the render outran its first checkpoint: " << died.err;
+  Expected<image::ImageLayers> checkpoint = image::ReadExr(out);
+  ASSERT_TRUE(checkpoint.ok()) << checkpoint.status().message();
+  EXPECT_TRUE(checkpoint->partial);
+  EXPECT_TRUE(image::IsPartialFrame(out));
+  const std::string left = Slurp(out);
+
+  const ProcessResult refused = Render(out, 0, slow);
+  EXPECT_EQ(refused.exit_code, 1) << refused.err;
+  EXPECT_NE(refused.err.find(out + " holds a frame a stopped run left unfinished: --resume "
+                             "continues it"), std::string::npos) << refused.err;
+  EXPECT_TRUE(Slurp(out) == left) << "the unfinished frame was touched";
+
+  std::vector<std::string> resume = slow;
+  resume.push_back("--resume");
+  const ProcessResult resumed = Render(out, 0, resume);
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  Expected<image::ImageLayers> final_image = image::ReadExr(out);
+  ASSERT_TRUE(final_image.ok());
+  EXPECT_FALSE(final_image->partial);
+  EXPECT_FALSE(image::IsPartialFrame(out));
+  // A final image is replaced by a new run as before.
+  EXPECT_EQ(Render(out, 0, slow).exit_code, 0);
 }
 
 // Ctrl-C (SIGINT), or SIGTERM to mpirun (Slurm at a job's time limit; mpirun passes it on to
