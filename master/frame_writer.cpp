@@ -3,16 +3,21 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <utility>
 
+#include "common/base/interrupt.h"
+#include "common/base/log.h"
 #include "common/base/thread_name.h"
 #include "common/image/exr_io.h"
 #include "common/image/png_writer.h"
 
 namespace raystack::master {
 
-FrameWriter::FrameWriter(bool announce) : announce_(announce) {
+FrameWriter::FrameWriter(bool announce, int64_t fail_first)
+    : announce_(announce), fail_first_(fail_first) {
   thread_ = std::thread([this] {
     SetThreadName("rs-write");
     Loop();
@@ -53,6 +58,42 @@ Status FrameWriter::Finish() {
   return error_;
 }
 
+Status FrameWriter::WriteImage(const Image& image, image::ExrThreads threads) {
+  const auto write = [&] {
+    if (!image.done && fail_first_ > 0) {
+      --fail_first_;
+      return Status::Error(image.exr + ": cannot write EXR: no space left on device "
+                           "(--fault-fail-writes)");
+    }
+    Status s = image::WriteExr(image.exr, image.layers, threads);
+    if (s.ok() && !image.png.empty()) s = image::WritePng(image.png, image.layers, image.exposure);
+    return s;
+  };
+  Status s = write();
+  if (s.ok() || image.done) return s;  // a checkpoint is tried again at its next interval
+  const auto start = std::chrono::steady_clock::now();
+  double wait_s = 1;
+  std::fprintf(stderr, "raystack render: %s; trying again every few seconds for %.0f minutes "
+               "(free some space, or restore the folder; Ctrl-C gives up)\n", s.message().c_str(),
+               kRetrySeconds / 60);
+  for (;;) {
+    // Slept in short steps, so that SIGINT or SIGTERM (noted, not fatal: InterruptsHeld) ends it.
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
+    while (std::chrono::steady_clock::now() < until && InterruptSignal() == 0)
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (InterruptSignal() != 0 ||
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > kRetrySeconds)
+      return Status::Error(s.message() + StrFormat(" (tried for %.0f s)", std::chrono::duration<double>(
+                                                       std::chrono::steady_clock::now() - start).count()));
+    s = write();
+    if (s.ok()) {
+      std::fprintf(stderr, "raystack render: %s written after all\n", image.exr.c_str());
+      return s;
+    }
+    wait_s = std::min(30.0, wait_s * 2);
+  }
+}
+
 void FrameWriter::Loop() {
   std::unique_lock lock(mu_);
   for (;;) {
@@ -65,9 +106,7 @@ void FrameWriter::Loop() {
     lock.unlock();
     Status s;
     auto write = [&](image::ExrThreads threads) {
-      s = image::WriteExr(image.exr, image.layers, threads);
-      if (s.ok() && !image.png.empty())
-        s = image::WritePng(image.png, image.layers, image.exposure);
+      s = WriteImage(image, threads);
       if (image.done) image.done(s);
     };
     if (image.background) {

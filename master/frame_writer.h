@@ -15,6 +15,11 @@
 // Checkpoints (master/checkpoints.h) go through the same queue, so a frame's checkpoints are
 // always written before its final image, which replaces them at the same path. Only one thread
 // queues images.
+//
+// A frame's image that cannot be written (a full disk, its folder removed) is tried again, at
+// 1, 2, 4 ... up to 30 s apart, for kRetrySeconds, saying so, until it is written, SIGINT or
+// SIGTERM comes, or the time is up: it is the frame's only copy, and failing at once lost a
+// finished frame to a disk that a user could have cleared in a minute.
 
 #include <condition_variable>
 #include <functional>
@@ -24,6 +29,7 @@
 #include <thread>
 
 #include "common/base/status.h"
+#include "common/image/exr_pool.h"
 #include "common/image/image_layers.h"
 
 namespace raystack::master {
@@ -41,8 +47,11 @@ class FrameWriter {
     // and nothing is announced.
     std::function<void(const Status&)> done;
   };
-  // announce: print "  wrote PATH" once an EXR is written.
-  explicit FrameWriter(bool announce);
+  static constexpr double kRetrySeconds = 600;
+
+  // announce: print "  wrote PATH" once an EXR is written. fail_first (a fault for tests): the
+  // first that many writes of frame images fail, as on a full disk.
+  explicit FrameWriter(bool announce, int64_t fail_first = 0);
   // Writes what is queued, then ends (what it had to write is never lost).
   ~FrameWriter();
   FrameWriter(const FrameWriter&) = delete;
@@ -63,7 +72,10 @@ class FrameWriter {
 
  private:
   void Loop();
+  // Writes `image` (EXR, then PNG); a frame's image is tried again as said above.
+  Status WriteImage(const Image& image, image::ExrThreads threads);
   const bool announce_;
+  int64_t fail_first_;  // (writer thread only)
   std::mutex mu_;
   std::condition_variable cv_;
   std::optional<Image> queued_;  // (under mu_)

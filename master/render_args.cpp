@@ -116,6 +116,8 @@ fault injection (for tests and drills):
   --fault-kill-after-checkpoints N  the one process, or the master, kills itself (SIGKILL)
                             right after its N-th checkpoint: the whole job dies (--resume)
   --fault-fail-checkpoints N  the first N checkpoint writes fail, as on a full disk
+  --fault-fail-writes N     the first N writes of frame images fail, as on a full disk (each
+                            is tried again, 1, 2, 4 ... s apart)
 )";
 
 namespace {
@@ -274,6 +276,8 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->kill_after_checkpoints, 1, 1e12));
     } else if (arg == "--fault-fail-checkpoints") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->fail_checkpoints, 0, 1e12));
+    } else if (arg == "--fault-fail-writes") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->fail_writes, 0, 1e12));
     } else if (arg == "--fault-fail-read") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->fail_read, 0, 1e12));
     } else if (arg == "-q" || arg == "--quiet") {

@@ -46,6 +46,7 @@ struct RenderArgs {
   int64_t fail_read = -1;
   int64_t kill_after_checkpoints = -1;
   int64_t fail_checkpoints = 0;
+  int64_t fail_writes = 0;  // --fault-fail-writes: the first N frame images fail to write
   preview::LivePreviewOptions preview;
   // Options given that only slaves of a distributed job use (--blocks, --lost-after, the
   // slaves' faults), for a warning when one process renders alone.

@@ -276,6 +276,21 @@ TEST_F(RenderCli, CheckpointsThatWouldKeepLittleAreWarnedOfWithTheFix) {
   EXPECT_EQ(r.err.find("--checkpoint-s:"), std::string::npos) << r.err;
 }
 
+// Found by a render-farm operator: a frame whose final write failed (a full disk, its folder
+// removed) was lost at once, its render done; only an older checkpoint was left. It is the
+// frame's only copy, so it is tried again (1, 2, 4 ... s apart, for minutes), saying so.
+TEST_F(RenderCli, AFrameThatCannotBeWrittenIsTriedAgain) {
+  const ProcessResult r = RunProcess({kRaystack, "render", Scene(), "--fault-fail-writes", "2",
+                                      "--no-png", "-q"}, dir_->path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("no space left on device (--fault-fail-writes); trying again every few "
+                       "seconds"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("out.exr written after all"), std::string::npos) << r.err;
+  Expected<image::ImageLayers> image = image::ReadExr(dir_->File("out.exr"));
+  ASSERT_TRUE(image.ok()) << image.status().message();
+  EXPECT_FALSE(image->partial);
+}
+
 // A --stats file that cannot be written was found after the render (which then failed, its
 // figures lost); now before it starts.
 TEST_F(RenderCli, AStatsFileThatCannotBeWrittenIsFoundBeforeTheRender) {
