@@ -127,7 +127,14 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
   bool all = true;
   for (int r = 1; r < net_->size(); ++r) {
     const SlaveState& slave = slaves_[static_cast<size_t>(r)];
-    if (acknowledged[static_cast<size_t>(r)] || slave.lost) continue;
+    if (acknowledged[static_cast<size_t>(r)]) continue;
+    if (slave.lost) {
+      // Lost for its silence, it may be alive but frozen (a stopped process, a hung node):
+      // mpirun would wait for it forever, even with the image written (an operator's job held
+      // its allocation that way). Dead, ending by force costs nothing more.
+      net_->NoteRankWillNotEnd(r);
+      continue;
+    }
     all = false;
     LOG_WARNING("master", "rank %d %s: the job is ended by force", r,
                 slave.deaf ? "cannot read this build's messages" : "did not acknowledge the end of the job");

@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -32,6 +33,10 @@ void StopWholeProcess(double seconds) {
   const pid_t self = getpid();
   const pid_t child = fork();
   if (child == 0) {
+    // Ends with the stopped process if that is killed (the job ended by force): it would
+    // otherwise outlive it and signal whatever process takes its id.
+    prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (getppid() != self) _exit(0);
     timespec t{static_cast<time_t>(seconds),
                static_cast<long>((seconds - static_cast<double>(static_cast<time_t>(seconds))) * 1e9)};
     while (nanosleep(&t, &t) != 0) {

@@ -188,6 +188,12 @@ TEST_F(DistributedCli, ALostSlaveCostsTimeNeverPixels) {
            {"stalled", "rem",
             {"--fault-rank", "2", "--fault-stall-after-tiles", "3", "--fault-stall-s", "4"},
             "is lost"},
+           // Frozen for longer than the job (a hung node): found by an operator, mpirun
+           // waited for it after the image was written, holding the allocation; the master
+           // now ends such a rank by force (without the fix this case waits 10 minutes).
+           {"frozen", "loc",
+            {"--fault-rank", "2", "--fault-stall-after-tiles", "3", "--fault-stall-s", "600"},
+            "is lost"},
            {"unreadable", "loc", {"--fault-rank", "3", "--fault-fail-read", "0"}, "failed"},
            {"unreadable", "rem", {"--fault-rank", "3", "--fault-fail-read", "0"}, "failed"}}) {
     std::vector<std::string> extra = c.faults;
