@@ -33,6 +33,12 @@
 namespace raystack::master {
 namespace {
 
+// An operator's slave was killed, and the master said only "interrupted (SIGTERM)".
+constexpr const char* kMpirunSigterm =
+    "(mpirun sends SIGTERM at Ctrl-C, at a scheduler's time limit, and when a rank dies: killed, "
+    "or out of memory; under mpirun --enable-recovery the job goes on without a lost slave)";
+
+
 std::string FiguresJson(size_t frame, const FrameFigures& f) {
   std::string s = StrFormat("{\n  \"frame\": %zu,\n  \"seconds\": %g,\n  \"imbalance\": %g,"
                             "\n  \"utilisation\": %g,\n  \"slaves\": [",
@@ -134,7 +140,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                                  if (const int signal = InterruptSignal())
                                    EndInterrupted(signal, &checkpoints, film,
                                                   FramePath(output, f, frames, ".exr"), plan.spp(),
-                                                  interrupted);
+                                                  interrupted, kMpirunSigterm);
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);
                                  shown = done;

@@ -1,6 +1,7 @@
 #include "master/frame_steps.h"
 
 #include <cerrno>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -245,7 +246,8 @@ void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* wri
 }
 
 void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& film,
-                    const std::string& path, uint32_t spp, const AfterInterrupt& then) {
+                    const std::string& path, uint32_t spp, const AfterInterrupt& then,
+                    const std::string& sigterm_hint) {
   const char* name = InterruptName(signal);
   Expected<uint64_t> finished = checkpoints->Final(film, spp);
   const uint64_t pixels = static_cast<uint64_t>(film.width()) * static_cast<uint64_t>(film.height());
@@ -263,6 +265,8 @@ void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& fi
                       "the rest", name, path.c_str(), static_cast<unsigned long long>(*finished),
                       static_cast<unsigned long long>(pixels));
   std::fprintf(stderr, "raystack render: %s\n", said.c_str());
+  if (signal == SIGTERM && !sigterm_hint.empty())
+    std::fprintf(stderr, "raystack render: %s\n", sigterm_hint.c_str());
   std::fflush(nullptr);
   then(said);
   std::fflush(nullptr);

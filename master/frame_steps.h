@@ -115,8 +115,10 @@ Status KeepFrameSoFar(const Status& why, Checkpoints* checkpoints, const render:
 // code for the signal. Without it the run left nothing, unless --checkpoint-s had written some.
 // `then`: run once the frame is written and the outcome printed (tell the slaves: not before,
 // since mpirun ends the job, this process included, as soon as a rank ends early).
+// `sigterm_hint`: said after a SIGTERM's message (under mpirun, what else sends one).
 [[noreturn]] void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& film,
                                  const std::string& path, uint32_t spp,
-                                 const AfterInterrupt& then = [](const std::string&) {});
+                                 const AfterInterrupt& then = [](const std::string&) {},
+                                 const std::string& sigterm_hint = "");
 
 }  // namespace raystack::master
