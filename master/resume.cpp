@@ -54,10 +54,13 @@ Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, u
   struct stat st;
   if (stat(exr.c_str(), &st) != 0) return plan;
   Expected<image::ImageLayers> read = image::ReadExr(exr);
-  if (!read.ok()) return read.status();
+  if (!read.ok())
+    return Status::Error(read.status().message() + ": cannot resume from it; give another "
+                         "--output, or move it aside to render the frame from the start");
   if (read->width != width || read->height != height)
     return Status::Error(StrFormat("%s: the checkpoint is %dx%d, this frame %dx%d: not a "
-                                   "checkpoint of this frame", exr.c_str(), read->width,
+                                   "checkpoint of this frame; give another --output, or remove it "
+                                   "to render from the start", exr.c_str(), read->width,
                                    read->height, width, height));
   if (read->provenance != provenance)
     return Status::Error(
@@ -66,7 +69,8 @@ Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, u
                      "version): cannot resume from it"
                    : ": rendered from another scene, camera, setting or build (" +
                          FirstDifference(read->provenance, provenance) +
-                         "): remove it, or render without --resume"));
+                         "): give another --output, or remove it to render from the start (its "
+                         "pixels are lost)"));
   if (read->samples.empty())
     return Status::Error(exr + ": no per-pixel sample counts (samples layer): not a raystack "
                          "checkpoint, cannot resume from it");
