@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <mutex>
 
+#include "common/base/progress.h"
+
 namespace raystack {
 namespace {
 std::atomic<int> g_level{static_cast<int>(LogLevel::kInfo)};
@@ -31,6 +33,7 @@ void LogLine(LogLevel level, const char* component, const char* format, ...) {
   std::vsnprintf(buffer, sizeof buffer, format, args);
   va_end(args);
   std::lock_guard<std::mutex> lock(g_sink_mutex);
+  ClearProgressLine();
   std::fprintf(stderr, "[raystack %s %s] %s\n", LevelName(level), component, buffer);
 }
 

@@ -12,6 +12,10 @@ int64_t NowNs(std::chrono::steady_clock::time_point start) {
                                                               start)
       .count();
 }
+// Set while a bar is on a terminal's line, for log lines to clear it first (a warning printed
+// on the bar's line read "...ETA 0 s[raystack WARNING import] ...").
+std::atomic<bool> g_bar_shown{false};
+
 std::string Human(double v) {
   char buf[32];
   if (v >= 1e9) std::snprintf(buf, sizeof buf, "%.2fG", v / 1e9);
@@ -20,7 +24,20 @@ std::string Human(double v) {
   else std::snprintf(buf, sizeof buf, "%.0f", v);
   return buf;
 }
+// "33.83 MB" for bytes (was "33.83M B"), "1.92M samples" for the rest.
+std::string Amount(double v, const std::string& unit) {
+  if (unit == "B") {
+    const std::string h = Human(v);
+    const char last = h.back();
+    return last >= '0' && last <= '9' ? h + " B" : h.substr(0, h.size() - 1) + " " + last + "B";
+  }
+  return Human(v) + " " + unit;
+}
 }  // namespace
+
+void ClearProgressLine() {
+  if (g_bar_shown.exchange(false)) std::fputs("\r\033[K", stderr);
+}
 
 ProgressReporter::ProgressReporter(std::string title, uint64_t total, std::string unit, bool quiet)
     : title_(std::move(title)), unit_(std::move(unit)), total_(total), quiet_(quiet),
@@ -48,6 +65,7 @@ void ProgressReporter::Abandon() {
   if (finished_) return;
   finished_ = true;
   if (!quiet_ && tty_) std::fputs("\r\033[K", stderr);
+  g_bar_shown = false;
 }
 
 void ProgressReporter::Done() {
@@ -57,9 +75,10 @@ void ProgressReporter::Done() {
   if (quiet_) return;
   double seconds = NowNs(start_) * 1e-9;
   uint64_t done = done_.load();
-  std::fprintf(stderr, "%s%s: %s %s in %.1f s (%s %s/s)\n", tty_ ? "\r\033[K" : "",
-               title_.c_str(), Human(static_cast<double>(done)).c_str(), unit_.c_str(), seconds,
-               Human(done / std::max(seconds, 1e-9)).c_str(), unit_.c_str());
+  std::fprintf(stderr, "%s%s: %s in %.1f s (%s/s)\n", tty_ ? "\r\033[K" : "", title_.c_str(),
+               Amount(static_cast<double>(done), unit_).c_str(), seconds,
+               Amount(done / std::max(seconds, 1e-9), unit_).c_str());
+  g_bar_shown = false;
 }
 
 void ProgressReporter::Draw(bool final) {
@@ -75,12 +94,13 @@ void ProgressReporter::Draw(bool final) {
     int filled = static_cast<int>(fraction * kWidth);
     std::string bar(static_cast<size_t>(filled), '#');
     bar.resize(kWidth, '.');
-    std::fprintf(stderr, "\r\033[K%s [%s] %5.1f%% %s %s/s ETA %.0f s", title_.c_str(),
-                 bar.c_str(), 100 * fraction, Human(rate).c_str(), unit_.c_str(), eta);
+    std::fprintf(stderr, "\r\033[K%s [%s] %5.1f%% %s/s ETA %.0f s", title_.c_str(),
+                 bar.c_str(), 100 * fraction, Amount(rate, unit_).c_str(), eta);
+    g_bar_shown = true;
   } else {
-    std::fprintf(stderr, "%s: %.1f%% (%s of %s %s, %s/s, ETA %.0f s)\n", title_.c_str(),
-                 100 * fraction, Human(done).c_str(), Human(total).c_str(), unit_.c_str(),
-                 Human(rate).c_str(), eta);
+    std::fprintf(stderr, "%s: %.1f%% (%s of %s, %s/s, ETA %.0f s)\n", title_.c_str(),
+                 100 * fraction, Human(done).c_str(), Amount(total, unit_).c_str(),
+                 Amount(rate, unit_).c_str(), eta);
   }
   std::fflush(stderr);
 }

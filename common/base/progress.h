@@ -10,6 +10,9 @@
 
 namespace raystack {
 
+// Clears a progress bar from the terminal's line, if one is shown (log lines call it first).
+void ClearProgressLine();
+
 class ProgressReporter {
  public:
   // `total` work units (bytes, triangles, ...) named `unit`; quiet = never print.

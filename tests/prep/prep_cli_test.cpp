@@ -456,6 +456,21 @@ TEST_F(PrepCliTest, WhatCannotBeWrittenOrReadIsFoundBeforeTheModelIsRead) {
   EXPECT_FALSE(std::filesystem::exists(dir_->File("s"))) << "nothing is written before the checks";
 }
 
+// Progress in bytes read as "33.83M B" (a user's report); now "33.83 MB".
+TEST_F(PrepCliTest, ProgressInBytesReadsAsMegabytes) {
+  const std::string model = dir_->File("big.obj");
+  {
+    std::ofstream out(model);
+    for (int i = 0; i < 60000; ++i) out << "v " << i << " 0.000001 " << i % 7 << "\n";
+    for (int i = 1; i + 2 <= 60000; i += 3) out << "f " << i << " " << i + 1 << " " << i + 2 << "\n";
+  }
+  const ProcessResult r = Prep({model, "-o", dir_->File("s")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(std::regex_search(r.err, std::regex("reading .*big\\.obj: [0-9.]+ MB in [0-9.]+ s \\([0-9.]+ [kMG]?B/s\\)")))
+      << r.err;
+  EXPECT_EQ(r.err.find("M B"), std::string::npos) << r.err;
+}
+
 // A folder with a conversion's temporaries and no index is named as such, not as empty.
 TEST_F(PrepCliTest, AStoreBeingWrittenIsNamedAsSuch) {
   const std::string out = dir_->File("half");
