@@ -660,15 +660,18 @@ Status Builder::FillBuckets(const TriangleSource& source, uint32_t node, const B
     if (!stopped[part]) RAYSTACK_RETURN_IF_ERROR(piece_status[part]);
   *over = too_many;
   if (*over) {
-    LOG_INFO("prep", "partition stopped: the buckets would hold more than %llu triangles",
-             static_cast<unsigned long long>(max_references));
+    RAYSTACK_LOG(depth == 0 ? LogLevel::kInfo : LogLevel::kDebug, "prep",
+                 "partition stopped: the buckets would hold more than %llu triangles",
+                 static_cast<unsigned long long>(max_references));
     return OkStatus();
   }
   progress.Done();
   uint64_t bucket_bytes = 0;
   for (const auto& piece : pieces)
     for (const TriangleSpool& b : piece) bucket_bytes += b.bytes();
-  LOG_INFO("prep", "partitioned in %.1f s on %d threads (%.2f GB of bucket files)",
+  // Like the start's line: only the first pass is news (a small --mem-limit gave 120 lines).
+  RAYSTACK_LOG(depth == 0 ? LogLevel::kInfo : LogLevel::kDebug, "prep",
+               "partitioned in %.1f s on %d threads (%.2f GB of bucket files)",
            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), parts,
            static_cast<double>(bucket_bytes) / 1e9);
   return OkStatus();
