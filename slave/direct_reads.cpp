@@ -1,5 +1,7 @@
 #include "slave/direct_reads.h"
 
+#include <algorithm>
+
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
 
@@ -30,10 +32,13 @@ Status ChooseReads(DirectIo mode, uint64_t cache_bytes, store::StoreReader* stor
     return OkStatus();
   }
   const std::optional<uint64_t> available = MemoryAvailable();
+  // The cache never holds more than the decoded store: a --cache-mb far above it took the
+  // memory the page cache needs, on paper, and chose direct reads for no reason.
+  cache_bytes = std::min(cache_bytes, store->summary().raw_bytes);
   const std::string sizes =
-      available ? StrFormat("blocks.bin %.1f MB, %.1f MB of memory available, cache %.1f MiB",
+      available ? StrFormat("blocks.bin %.1f MB, %.1f MB of memory available, cache up to %.1f MB",
                             static_cast<double>(stored) / 1e6, static_cast<double>(*available) / 1e6,
-                            static_cast<double>(cache_bytes) / (1024.0 * 1024.0))
+                            static_cast<double>(cache_bytes) / 1e6)
                 : StrFormat("blocks.bin %.1f MB, available memory unknown",
                             static_cast<double>(stored) / 1e6);
   if (!AutoDirect(stored, cache_bytes, available)) {

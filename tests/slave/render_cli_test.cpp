@@ -291,6 +291,15 @@ TEST_F(RenderCli, AFrameThatCannotBeWrittenIsTriedAgain) {
   EXPECT_FALSE(image->partial);
 }
 
+// A --cache-mb far above the store's decoded blocks chose direct reads "because the page cache
+// cannot keep the store" (a user's report): the cache never holds more than the store.
+TEST_F(RenderCli, ACacheLargerThanTheStoreDoesNotChooseDirectReads) {
+  const ProcessResult r = RunProcess({kRaystack, "render", Scene(), "--cache-mb", "1000000",
+                                      "--no-png"}, dir_->path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("reads: buffered (--direct-io auto: "), std::string::npos) << r.out;
+}
+
 // A --stats file that cannot be written was found after the render (which then failed, its
 // figures lost); now before it starts.
 TEST_F(RenderCli, AStatsFileThatCannotBeWrittenIsFoundBeforeTheRender) {
