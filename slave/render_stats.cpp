@@ -55,17 +55,21 @@ std::string RenderStats::ToText() const {
                  static_cast<unsigned long long>(rays_total), rays_per_second * 1e-6,
                  static_cast<unsigned long long>(rays[0]), static_cast<unsigned long long>(rays[1]),
                  static_cast<unsigned long long>(rays[2]), static_cast<unsigned long long>(rays[3]));
-  s += StrFormat("\n  blocks: %llu loaded (#C), %llu distinct used (#U) of %llu; %.1f MB read in %llu %s reads (%llu by the loader itself, the rest by %llu I/O threads); loader busy %.3f s; ray threads idle %.3f s",
+  s += StrFormat("\n  blocks: %llu loaded (#C), %llu distinct used (#U) of %llu; %.1f MB read in %llu %s reads",
                  static_cast<unsigned long long>(blocks_loaded),
                  static_cast<unsigned long long>(blocks_distinct),
                  static_cast<unsigned long long>(block_count), static_cast<double>(bytes_read) / 1e6,
                  static_cast<unsigned long long>(reads),
-                 aio_reads ? "direct (Linux AIO)" : direct_reads ? "direct" : "buffered",
-                 static_cast<unsigned long long>(loader_reads),
-                 static_cast<unsigned long long>(io_workers), loader_busy_seconds, ray_idle_seconds);
-  s += StrFormat("\n  ray threads: busy %.3f s, waiting for a tile %.3f s; CPU: ray threads %.3f s, "
-                 "loader threads %.3f s",
-                 ray_busy_seconds, ray_tile_wait_seconds, ray_cpu_seconds, loader_cpu_seconds);
+                 aio_reads ? "direct (Linux AIO)" : direct_reads ? "direct" : "buffered");
+  if (mode == "sync")  // no loader: each ray thread reads what it misses, and waits
+    s += " (by the ray threads themselves, each waiting for its own)";
+  else
+    s += StrFormat(" (%llu by the loader itself, the rest by %llu I/O threads); loader busy %.3f s; "
+                   "ray threads idle %.3f s", static_cast<unsigned long long>(loader_reads),
+                   static_cast<unsigned long long>(io_workers), loader_busy_seconds, ray_idle_seconds);
+  s += StrFormat("\n  ray threads: busy %.3f s, waiting for a tile %.3f s; CPU: ray threads %.3f s",
+                 ray_busy_seconds, ray_tile_wait_seconds, ray_cpu_seconds);
+  if (mode != "sync") s += StrFormat(", loader threads %.3f s", loader_cpu_seconds);
   // In core the cache has no budget (the largest byte count stands for none).
   const std::string budget =
       cache_budget_bytes == std::numeric_limits<uint64_t>::max()

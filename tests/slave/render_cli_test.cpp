@@ -300,6 +300,17 @@ TEST_F(RenderCli, ACacheLargerThanTheStoreDoesNotChooseDirectReads) {
   EXPECT_NE(r.out.find("reads: buffered (--direct-io auto: "), std::string::npos) << r.out;
 }
 
+// The sync mode's figures spoke of a loader it does not have ("0 by the loader itself, the rest
+// by 0 I/O threads; loader busy 0.000 s"): they say who reads there.
+TEST_F(RenderCli, SyncModeFiguresSayTheRayThreadsRead) {
+  const ProcessResult r = RunProcess({kRaystack, "render", Scene(), "--mode", "sync", "--cache-mb",
+                                      "1", "--no-png"}, dir_->path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("reads (by the ray threads themselves, each waiting for its own)"),
+            std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("loader"), std::string::npos) << r.out;
+}
+
 // A --stats file that cannot be written was found after the render (which then failed, its
 // figures lost); now before it starts.
 TEST_F(RenderCli, AStatsFileThatCannotBeWrittenIsFoundBeforeTheRender) {
