@@ -89,6 +89,13 @@ Status RenderLocally(const RenderArgs& args) {
   RAYSTACK_RETURN_IF_ERROR(
       slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads));
   if (!args.quiet) std::printf("reads: %s\n", reads.c_str());
+  if (!args.quiet && (args.engine.mode == slave::TraceMode::kIncore ||
+                      args.engine.mode == slave::TraceMode::kBvh))
+    // The frame's progress stays at 0 meanwhile: say why (a user waited 47 s on "0.0%").
+    std::printf("loading every block first (--mode %s: %.1f MB decoded%s), then rendering\n",
+                args.engine.mode == slave::TraceMode::kBvh ? "bvh" : "incore",
+                static_cast<double>((*store)->summary().raw_bytes) / 1e6,
+                args.engine.mode == slave::TraceMode::kBvh ? ", and the BVH over them" : "");
   for (const std::string& option : args.slave_options)
     LOG_WARNING("render", "%s has no effect in one process: it is for the slaves of an mpirun "
                 "job (mpirun -np N+1)", option.c_str());

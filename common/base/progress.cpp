@@ -33,6 +33,13 @@ std::string Amount(double v, const std::string& unit) {
   }
   return Human(v) + " " + unit;
 }
+// Unknown until something is done ("ETA 0 s" while a render preloaded its blocks for 47 s).
+std::string Eta(uint64_t done, double seconds) {
+  if (done == 0) return "?";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.0f s", seconds);
+  return buf;
+}
 }  // namespace
 
 void ClearProgressLine() {
@@ -94,13 +101,13 @@ void ProgressReporter::Draw(bool final) {
     int filled = static_cast<int>(fraction * kWidth);
     std::string bar(static_cast<size_t>(filled), '#');
     bar.resize(kWidth, '.');
-    std::fprintf(stderr, "\r\033[K%s [%s] %5.1f%% %s/s ETA %.0f s", title_.c_str(),
-                 bar.c_str(), 100 * fraction, Amount(rate, unit_).c_str(), eta);
+    std::fprintf(stderr, "\r\033[K%s [%s] %5.1f%% %s/s ETA %s", title_.c_str(),
+                 bar.c_str(), 100 * fraction, Amount(rate, unit_).c_str(), Eta(done, eta).c_str());
     g_bar_shown = true;
   } else {
-    std::fprintf(stderr, "%s: %.1f%% (%s of %s, %s/s, ETA %.0f s)\n", title_.c_str(),
+    std::fprintf(stderr, "%s: %.1f%% (%s of %s, %s/s, ETA %s)\n", title_.c_str(),
                  100 * fraction, Human(done).c_str(), Amount(total, unit_).c_str(),
-                 Amount(rate, unit_).c_str(), eta);
+                 Amount(rate, unit_).c_str(), Eta(done, eta).c_str());
   }
   std::fflush(stderr);
 }
