@@ -139,6 +139,7 @@ StoreWriter::~StoreWriter() {
 
 void StoreWriter::Abandon() {
   const std::lock_guard lock(mu_);
+  abandoned_ = true;
   if (!finished_) RemovePartialStore();
 }
 
@@ -223,6 +224,9 @@ Status StoreWriter::Finish(StoreSummary s, std::span<const OctreeNode> octree,
   RAYSTACK_RETURN_IF_ERROR(WriteTmp(dir_ + "/" + kIndexFile, kIndexMagic, body));
 
   const std::lock_guard lock(mu_);  // an interrupt's Abandon waits for the renames
+  // Abandoned while the last files were written (an interrupt's clean-up removed them): the
+  // old store must not lose its index for a swap that cannot happen.
+  if (abandoned_) return Status::Error(dir_ + ": the conversion was interrupted");
   // Every file is written: now the swap. A folder with an index.bin holds a complete store, so
   // the old index goes first and the new one comes last; between the two (a few renames) the
   // folder holds no store, never a mix of two.

@@ -61,7 +61,8 @@ class StoreWriter {
   std::span<const BlockEntry> entries() const { return entries_; }
 
   // Removes what an unfinished writer wrote, as its destructor would, from any thread (a
-  // converter interrupted: tools/prep/interrupt_cleanup.h); waits for Finish's renames.
+  // converter interrupted: tools/prep/interrupt_cleanup.h); waits for Finish's renames, and a
+  // Finish that comes after it replaces nothing (the old store stays whole).
   void Abandon();
 
  private:
@@ -74,6 +75,7 @@ class StoreWriter {
   bool created_lock_ = false;  // nor did its kLockFile
   std::mutex mu_;              // Finish's renames against Abandon
   bool finished_ = false;      // Finish() succeeded
+  bool abandoned_ = false;     // Abandon() ran: Finish must not swap (under mu_)
   int lock_fd_ = -1;  // kLockFile, locked
   std::FILE* blocks_ = nullptr;
   uint64_t offset_ = 0;

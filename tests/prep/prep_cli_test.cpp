@@ -424,9 +424,19 @@ TEST_F(PrepCliTest, AnInterruptedPrepLeavesTheOldStoreWholeAndNoTemporaries) {
   master::preview::testing::BackgroundProcess prep(
       {kPrepBinary, "--generate", "spheres:40000000", "--mem-limit", "256", "-o", old,
        "--temp-dir", temp}, dir_->path());
+  // Interrupted once the store is being written and bucket files fill the work folder (its
+  // threads delete them as they go: a review found the clean-up stopping at the first one gone).
+  const auto buckets = [&] {
+    std::error_code ec;
+    for (const fs::directory_entry& work : fs::directory_iterator(temp, ec))
+      for (const fs::directory_entry& f : fs::directory_iterator(work.path(), ec))
+        if (f.path().filename().string().starts_with("bucket-")) return true;
+    return false;
+  };
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(5);
-  while (!fs::exists(old + "/" + store::kBlocksFile + ".tmp") && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  while (!(fs::exists(old + "/" + store::kBlocksFile + ".tmp") && buckets()) &&
+         std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
   ASSERT_TRUE(fs::exists(old + "/" + store::kBlocksFile + ".tmp")) << prep.err();
   prep.Signal(SIGINT);
   EXPECT_EQ(prep.Wait(), 128 + SIGINT) << prep.err();
@@ -469,6 +479,22 @@ TEST_F(PrepCliTest, ProgressInBytesReadsAsMegabytes) {
   EXPECT_TRUE(std::regex_search(r.err, std::regex("reading .*big\\.obj: [0-9.]+ MB in [0-9.]+ s \\([0-9.]+ [kMG]?B/s\\)")))
       << r.err;
   EXPECT_EQ(r.err.find("M B"), std::string::npos) << r.err;
+}
+
+// An interrupt's clean-up that comes while the writer writes its last files: the writer must
+// then not swap (it removed the old index, and the renames failed: the old store was left
+// without one, a review found).
+TEST_F(PrepCliTest, AStoreAbandonedBeforeItsSwapKeepsTheOldOne) {
+  const std::string out = dir_->File("kept");
+  ASSERT_EQ(Prep({"--generate", "sphere:1000", "-o", out, "-q"}).exit_code, 0);
+  Expected<std::unique_ptr<store::StoreWriter>> writer = store::StoreWriter::Create(out);
+  ASSERT_TRUE(writer.ok()) << writer.status().message();
+  (*writer)->Abandon();
+  const Status finished = (*writer)->Finish(store::StoreSummary{}, {}, {});
+  EXPECT_FALSE(finished.ok());
+  writer->reset();
+  const ProcessResult info = Info({out, "--verify"});
+  EXPECT_EQ(info.exit_code, 0) << info.err;
 }
 
 // A folder with a conversion's temporaries and no index is named as such, not as empty.
@@ -557,36 +583,46 @@ TEST_F(PrepCliTest, QuietPrintsNoInformationLines) {
   EXPECT_EQ(r.err.find("[raystack info"), std::string::npos) << r.err;
 }
 
-TEST_F(PrepCliTest, VerifyNamesADamagedBlock) {
+// Every damaged block is named, not only the first (a user's store had three), and counted.
+TEST_F(PrepCliTest, VerifyNamesEveryDamagedBlock) {
   const std::string store = dir_->File("store");
   ASSERT_EQ(Prep({"--generate", "sphere:20000", "-o", store, "--target-block-kb", "8", "-q"})
                 .exit_code,
             0);
-  uint32_t victim = 0;
-  uint64_t offset = 0;
+  std::vector<uint32_t> victims;
+  std::vector<uint64_t> offsets;
+  uint32_t blocks = 0;
   {
     Expected<std::unique_ptr<store::StoreReader>> s = store::StoreReader::Open(store);
     ASSERT_TRUE(s.ok()) << s.status().message();
-    ASSERT_GT((*s)->blocks().size(), 4u);
-    victim = static_cast<uint32_t>((*s)->blocks().size() / 2);
-    const store::BlockEntry& e = (*s)->blocks()[victim];
-    offset = e.offset + e.stored_bytes / 2;
+    blocks = static_cast<uint32_t>((*s)->blocks().size());
+    ASSERT_GT(blocks, 4u);
+    for (uint32_t victim : {blocks / 4, blocks / 2, blocks - 1}) {
+      const store::BlockEntry& e = (*s)->blocks()[victim];
+      victims.push_back(victim);
+      offsets.push_back(e.offset + e.stored_bytes / 2);
+    }
   }
   {
     std::fstream f(store + "/blocks.bin", std::ios::in | std::ios::out | std::ios::binary);
-    f.seekg(static_cast<std::streamoff>(offset));
-    char c = 0;
-    f.read(&c, 1);
-    c = static_cast<char>(c ^ 0x5a);
-    f.seekp(static_cast<std::streamoff>(offset));
-    f.write(&c, 1);
+    for (const uint64_t offset : offsets) {
+      f.seekg(static_cast<std::streamoff>(offset));
+      char c = 0;
+      f.read(&c, 1);
+      c = static_cast<char>(c ^ 0x5a);
+      f.seekp(static_cast<std::streamoff>(offset));
+      f.write(&c, 1);
+    }
     ASSERT_TRUE(f.good());
   }
   // Without --verify the index is intact, so it still opens.
   EXPECT_EQ(Info({store}).exit_code, 0);
   const ProcessResult r = Info({store, "--verify"});
   EXPECT_EQ(r.exit_code, 1) << r.err;
-  EXPECT_TRUE(std::regex_search(r.err, std::regex("block " + std::to_string(victim) + "\\b")))
+  for (const uint32_t victim : victims)
+    EXPECT_TRUE(std::regex_search(r.err, std::regex("block " + std::to_string(victim) + "\\b")))
+        << victim << ": " << r.err;
+  EXPECT_NE(r.err.find("3 of " + std::to_string(blocks) + " blocks are damaged"), std::string::npos)
       << r.err;
 }
 

@@ -8,6 +8,7 @@
 
 #include "common/base/build_id.h"
 #include "common/base/log.h"
+#include "common/base/progress.h"
 #include "common/render/material_table.h"
 #include "common/store/store_reader.h"
 
@@ -18,7 +19,8 @@ constexpr const char* kUsage = R"(usage: raystack-info STORE [--verify] [--block
 
 Prints what a raystack block store holds: format version, triangle and reference counts,
 blocks and their size histogram, bytes per triangle, compression ratio, bounds, materials.
-  --verify   read, checksum, decompress and validate every block (exit 1 on the first bad one)
+  --verify   read, checksum, decompress and validate every block (exit 1 if any is bad: the
+             first 20 are named, then counted)
   --blocks   list every block (offset, sizes, triangles, cell, bounds)
   --version  this build's version and git commit
 )";
@@ -117,14 +119,30 @@ int Run(const std::string& dir, bool verify, bool list) {
     }
   }
   if (verify) {
+    // Every block, not only up to the first bad one: a store damaged in several places is
+    // repaired (or given up) knowing how far the damage goes.
+    constexpr uint32_t kNamed = 20;
     std::vector<uint8_t> stored;
     store::AlignedBuffer scratch, raw;
-    for (uint32_t i = 0; i < s.blocks().size(); ++i) {
-      Expected<store::BlockView> v = s.Load(i, &stored, &scratch, &raw);
-      if (!v.ok()) {
-        std::fprintf(stderr, "raystack-info: %s\n", v.status().message().c_str());
-        return 1;
+    uint32_t bad = 0;
+    {
+      ProgressReporter progress("verifying", s.blocks().size(), "blocks");
+      for (uint32_t i = 0; i < s.blocks().size(); ++i) {
+        Expected<store::BlockView> v = s.Load(i, &stored, &scratch, &raw);
+        progress.Update(1);
+        if (v.ok()) continue;
+        if (++bad <= kNamed) {
+          ClearProgressLine();
+          std::fprintf(stderr, "raystack-info: %s\n", v.status().message().c_str());
+        }
       }
+      if (bad > 0) progress.Abandon();
+    }
+    if (bad > 0) {
+      if (bad > kNamed) std::fprintf(stderr, "raystack-info: ... and %u more\n", bad - kNamed);
+      std::fprintf(stderr, "raystack-info: %s: %u of %u blocks are damaged (convert the model "
+                   "again)\n", dir.c_str(), bad, m.block_count);
+      return 1;
     }
     std::printf("verify           all %u blocks OK\n", m.block_count);
   }

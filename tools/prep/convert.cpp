@@ -71,6 +71,25 @@ Status CheckReadable(const std::string& path) {
   return OkStatus();
 }
 
+// The work folder of a conversion that goes on while it is removed (an interrupt): its threads
+// delete bucket files as they read them, and remove_all stops at its first error (a file gone
+// between listing and removal), which left most of a folder, and gigabytes, behind. So: file by
+// file, what is gone already is fine, a few rounds. Returns what could not be removed.
+std::string RemoveWhileInUse(const std::string& path) {
+  namespace fs = std::filesystem;
+  for (int round = 0; round < 5; ++round) {
+    std::error_code ec;
+    for (fs::directory_iterator it(path, ec), end; !ec && it != end; it.increment(ec)) {
+      std::error_code gone;
+      fs::remove_all(it->path(), gone);
+    }
+    fs::remove(path, ec);
+    if (!fs::exists(path, ec)) return "";
+  }
+  return "its work folder " + path + " could not be removed entirely: remove it (or the next "
+         "raystack-prep with this --temp-dir will)";
+}
+
 double Since(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -181,10 +200,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   if (!temp.ok()) return temp.status();
   if (stale > 0)
     LOG_INFO("prep", "removed %d work folder%s left by interrupted runs", stale, stale > 1 ? "s" : "");
-  const OnInterrupt remove_work([path = temp->path()] {
-    std::error_code ec;
-    std::filesystem::remove_all(path, ec);
-  });
+  const OnInterrupt remove_work([path = temp->path()] { return RemoveWhileInUse(path); });
   ConvertReport report;
 
   // 1. Read every input into one spool (RAM up to a fifth of the budget, then disk).
@@ -257,7 +273,10 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   // 2. Octree and blocks.
   Expected<std::unique_ptr<store::StoreWriter>> writer = store::StoreWriter::Create(args.output);
   if (!writer.ok()) return writer.status();
-  const OnInterrupt drop_store([w = writer->get()] { w->Abandon(); });
+  const OnInterrupt drop_store([w = writer->get()] {
+    w->Abandon();  // after Finish, it leaves the new store (NoteStoreWritten says so)
+    return std::string();
+  });
   ProgressReporter progress("building blocks", source.triangles(), "tri", args.quiet);
   BuildOptions options;
   options.max_block_bytes = args.max_block_bytes;
@@ -294,6 +313,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   summary.target_block_bytes = options.target_block_bytes;
   summary.codec = args.shuffle ? store::kCodecShuffleLz4 : store::kCodecLz4;
   RAYSTACK_RETURN_IF_ERROR((*writer)->Finish(summary, built->octree, materials, emitters));
+  NoteStoreWritten();
 
   const BuildResult& r = *built;
   report.blocks = r.blocks;

@@ -17,11 +17,16 @@ namespace raystack::prep {
 // once, before any other thread starts.
 void CleanUpOnInterrupt(const std::string& output);
 
-// A clean-up that runs if an interrupt comes while this lives. The destructor waits for one
-// that is running (the process then ends).
+// Once the new store is complete (StoreWriter::Finish succeeded): an interrupt after it says
+// the store was replaced, not that it is as it was.
+void NoteStoreWritten();
+
+// A clean-up that runs if an interrupt comes while this lives; it returns what it could not
+// do, said to the user (empty: done). The destructor waits for one that is running (the
+// process then ends).
 class OnInterrupt {
  public:
-  explicit OnInterrupt(std::function<void()> clean);
+  explicit OnInterrupt(std::function<std::string()> clean);
   ~OnInterrupt();
   OnInterrupt(const OnInterrupt&) = delete;
   OnInterrupt& operator=(const OnInterrupt&) = delete;
