@@ -55,6 +55,7 @@ Expected<uint64_t> Checkpoints::Final(const render::Film& film, uint32_t spp) {
   image.layers.partial = true;
   uint64_t finished = 0;
   for (const uint32_t n : image.layers.samples) finished += n >= spp;
+  if (finished == 0) return finished;
   image.done = [result](const Status& s) { *result = s; };
   RAYSTACK_RETURN_IF_ERROR(writer_->Write(std::move(image)));
   RAYSTACK_RETURN_IF_ERROR(writer_->Finish());

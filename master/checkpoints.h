@@ -34,7 +34,8 @@ class Checkpoints {
   // Writes a checkpoint of `film` now, whatever the interval (also with every_s 0), on every
   // core, and waits until it and everything queued before it are written: the job is being
   // interrupted, and the process ends next. Returns how many pixels have all `spp` samples
-  // (those --resume keeps).
+  // (those --resume keeps). With none, nothing is written: --resume could keep nothing, and the
+  // file there (a finished image of an earlier run, say) would be lost for nothing.
   Expected<uint64_t> Final(const render::Film& film, uint32_t spp);
 
  private:

@@ -256,9 +256,9 @@ void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& fi
           ? StrFormat("interrupted (%s); the frame's samples so far could not be written: %s",
                       name, finished.status().message().c_str())
       : *finished == 0
-          ? StrFormat("interrupted (%s): the frame so far is in %s, but no pixel has all its %u "
-                      "samples yet (each pass covers every pixel a little), so --resume would "
-                      "render the frame again (next time, %s)", name, path.c_str(), spp,
+          ? StrFormat("interrupted (%s): no pixel has all its %u samples yet (each pass covers "
+                      "every pixel a little), so nothing is kept for --resume and %s is left as "
+                      "it was (next time, %s)", name, spp, path.c_str(),
                       WholeTilesAdvice(spp).c_str())
           : StrFormat("interrupted (%s): the frame so far is in %s, %llu of %llu pixels with all "
                       "their samples; the same command with --resume keeps those and renders "
@@ -282,9 +282,8 @@ Status KeepFrameSoFar(const Status& why, Checkpoints* checkpoints, const render:
     return Status::Error(why.message() + "; the frame so far could not be written either: " +
                          finished.status().message());
   if (*finished == 0)
-    return Status::Error(why.message() + "; the frame so far is in " + path + ", but no pixel "
-                         "has all its samples yet, so --resume would render the frame again (next "
-                         "time, " + WholeTilesAdvice(spp) + ")");
+    return Status::Error(why.message() + "; no pixel had all its samples yet, so nothing is kept "
+                         "for --resume (next time, " + WholeTilesAdvice(spp) + ")");
   return Status::Error(why.message() +
                        StrFormat("; the frame so far is in %s, %llu of %llu pixels with all their "
                                  "samples: once the cause is fixed, the same command with "

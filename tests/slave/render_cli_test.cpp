@@ -322,6 +322,28 @@ TEST_F(RenderCli, AStatsFileThatCannotBeWrittenIsFoundBeforeTheRender) {
   EXPECT_FALSE(std::filesystem::exists(dir_->File("out.exr"))) << "it rendered first";
 }
 
+// From the review of that fix: a failure before any pixel had all its samples wrote the frame
+// so far anyway, over a finished image of an earlier run, which --resume could not use and a
+// plain run then refused as unfinished. With nothing to keep, nothing is written.
+TEST_F(RenderCli, AFailureWithNothingToKeepLeavesTheOutputAsItWas) {
+  const std::string scene = WriteScene(R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 64, "height": 40 },
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "integrator": { "type": "path", "max_depth": 3, "spp": 16, "seed": 5 },
+      "output": "out.exr" })");
+  const std::vector<std::string> common = {kRaystack, "render", scene, "--cache-mb", "0.2",
+                                           "--threads", "1", "-q", "--no-png"};
+  ASSERT_EQ(RunProcess(common, dir_->path()).exit_code, 0);
+  const std::string finished = prep::testing::Slurp(dir_->File("out.exr"));
+  std::vector<std::string> failing = common;  // progressive passes: nothing finished early on
+  failing.insert(failing.end(), {"--fault-fail-read", "5"});
+  const ProcessResult r = RunProcess(failing, dir_->path());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("no pixel had all its samples yet, so nothing is kept"), std::string::npos) << r.err;
+  EXPECT_TRUE(prep::testing::Slurp(dir_->File("out.exr")) == finished) << "the finished image was replaced";
+  EXPECT_EQ(RunProcess(common, dir_->path()).exit_code, 0);
+}
+
 TEST_F(RenderCli, BadInputIsAClearError) {
   struct Case {
     std::vector<std::string> args;
