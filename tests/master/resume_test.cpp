@@ -192,7 +192,7 @@ TEST_F(Resume, AnInterruptedRunLeavesItsFrameForResume) {
     if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
     for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("scene.json"),
                                  std::string("--threads"), std::string("1"), std::string("--tile-size"),
-                                 std::string("16"), std::string("--output"), out, std::string("--no-png")})
+                                 std::string("4"), std::string("--output"), out, std::string("--no-png")})
       argv.push_back(a);
     argv.insert(argv.end(), flags.begin(), flags.end());
     // A convergence-log row with samples says the frame renders (no --checkpoint-s: a
@@ -201,14 +201,17 @@ TEST_F(Resume, AnInterruptedRunLeavesItsFrameForResume) {
     const std::string log = dir_->File("interrupted" + std::to_string(np) + ".csv");
     argv.insert(argv.end(), {"--convergence-log", log, "--log-interval", "0.05"});
     master::preview::testing::BackgroundProcess run(argv, dir_->path());
-    auto rendering = [&] {  // a row "0,tick,pass,seconds,rays,samples,..." with samples
+    // 4 x 4 tiles of 300 samples a pixel take them in one sweep, so a tile's pixels finish with
+    // it: an interrupt with none finished keeps nothing (and writes nothing). Interrupted once
+    // the merged samples are those of 20 tiles, more than the tiles in flight at once.
+    auto rendering = [&] {  // a row "0,tick,pass,seconds,rays,samples,..." with them
       std::istringstream rows(Slurp(log));
       for (std::string row; std::getline(rows, row);) {
         if (row.rfind("0,tick,", 0) != 0) continue;
         std::istringstream fields(row);
         std::string field;
         for (int i = 0; i < 6; ++i) std::getline(fields, field, ',');
-        if (std::strtoull(field.c_str(), nullptr, 10) > 0) return true;
+        if (std::strtoull(field.c_str(), nullptr, 10) >= 20 * 16 * 300) return true;
       }
       return false;
     };
