@@ -346,6 +346,7 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
         s.ok() ? OutputLock::Take(FramePath(OutputOf(args, *scene), 0, 1, ".exr"))
                : Expected<OutputLock>(s);
     if (!output_lock.ok()) s = output_lock.status();
+    if (s.ok()) s = CheckNoUnfinishedFrame(args, *scene);
     if (s.ok()) s = CheckReferences(*scene, args.reference);
     if (!s.ok()) {  // before the slaves start a frame
       MasterNode(net).Shutdown(1);

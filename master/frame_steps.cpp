@@ -35,20 +35,22 @@ Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene) {
   if (!args.stats.empty())
     if (Status s = image::CheckWritable(args.stats); !s.ok())
       return Status::Error("--stats: " + s.message());
-  // A frame a stopped run left unfinished is not overwritten by a run without --resume (an
-  // operator lost 44,592 finished pixels that way, without a word).
-  if (!args.resume)
-    for (size_t f = 0; f < scene.cameras.size(); ++f) {
-      const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
-      if (image::IsPartialFrame(exr))
-        return Status::Error(exr + " holds a frame a stopped run left unfinished: --resume "
-                             "continues it; to render it from the start, remove it or give "
-                             "another --output");
-    }
   const Status s = CheckOutputs(scene, OutputOf(args, scene), args.png, args.checkpoint_s > 0);
   if (s.ok()) return s;
   return Status::Error((args.output.empty() ? scene.source + ": output" : std::string("--output")) +
                        ": " + s.message());
+}
+
+Status CheckNoUnfinishedFrame(const RenderArgs& args, const render::Scene& scene) {
+  if (args.resume) return OkStatus();
+  for (size_t f = 0; f < scene.cameras.size(); ++f) {
+    const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
+    if (image::IsPartialFrame(exr))
+      return Status::Error(exr + " holds a frame a stopped run left unfinished: --resume "
+                           "continues it; to render it from the start, remove it or give "
+                           "another --output");
+  }
+  return OkStatus();
 }
 
 Expected<std::unique_ptr<store::StoreReader>> OpenSceneStore(const render::Scene& scene) {

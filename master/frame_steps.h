@@ -27,6 +27,11 @@ namespace raystack::master {
 // --cache-mb counts MiB (2^20 bytes), and the messages about the cache say MiB too.
 inline constexpr double kMiB = 1024.0 * 1024.0;
 
+// A frame a stopped run left unfinished (its EXR says "partial") is not overwritten by a run
+// without --resume: an operator lost 44,592 finished pixels that way, without a word. After the
+// output's lock is taken, so that a render still writing it is named as such instead.
+Status CheckNoUnfinishedFrame(const RenderArgs& args, const render::Scene& scene);
+
 // Writes --stats' JSON to `path` (nothing when it is empty).
 Status WriteStats(const std::string& path, const std::string& json);
 // The output the images are named from: --output, else the scene's.

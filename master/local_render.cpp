@@ -75,6 +75,7 @@ Status RenderLocally(const RenderArgs& args) {
   // Held to the end of the job; named from the output as written ("out" and "out.exr" are one).
   Expected<OutputLock> output_lock = OutputLock::Take(FramePath(output, 0, 1, ".exr"));
   if (!output_lock.ok()) return output_lock.status();
+  RAYSTACK_RETURN_IF_ERROR(CheckNoUnfinishedFrame(args, *scene));
   RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
   if (!log.ok()) return log.status();

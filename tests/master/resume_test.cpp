@@ -251,12 +251,16 @@ TEST_F(Resume, TwoRendersOfOneOutputAreRefused) {
     if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
     for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("scene.json"),
                                  std::string("--threads"), std::string("1"), std::string("--output"),
-                                 out, std::string("--no-png"), std::string("--spp"), std::string("400")})
+                                 out, std::string("--no-png"), std::string("--spp"), std::string("400"),
+                                 std::string("--checkpoint-s"), std::string("0.05")})
       argv.push_back(a);
     master::preview::testing::BackgroundProcess first(argv, dir_->path());
-    for (int i = 0; i < 3000 && !std::filesystem::exists(lock); ++i)
+    // Its first checkpoint written (a partial frame at the output): the second render must
+    // still say that another render writes it, not that a stopped run left it (a review).
+    for (int i = 0; i < 3000 && !(std::filesystem::exists(lock) && std::filesystem::exists(out)); ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
     ASSERT_TRUE(std::filesystem::exists(lock)) << first.out() << first.err();
+    ASSERT_TRUE(std::filesystem::exists(out)) << first.out() << first.err();
     const ProcessResult second = Render(out, np);
     EXPECT_NE(second.exit_code, 0);
     EXPECT_NE(second.err.find("another raystack render is writing this output now"),
