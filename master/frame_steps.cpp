@@ -204,10 +204,20 @@ namespace {
 
 // What makes tiles finish one by one, each with all its samples at once: one pass of every
 // sample, and tiles small enough to hold them (render::kMaxTileSamples).
-std::string WholeTilesAdvice(uint32_t spp) {
+// The side of the largest (power of two) tile that takes all `spp` samples in one sweep; 0 when
+// it would be under 4 pixels (tiny tiles cost a round trip each under mpirun: not advised).
+int WholeTileSide(uint32_t spp) {
+  const auto fits = [spp](uint64_t side) { return side * side * spp <= render::kMaxTileSamples; };
   int side = 1;
-  while (static_cast<uint64_t>(side * 2) * static_cast<uint64_t>(side * 2) * spp <= render::kMaxTileSamples)
-    side *= 2;
+  while (fits(static_cast<uint64_t>(side) * 2)) side *= 2;
+  return side >= 4 && fits(static_cast<uint64_t>(side)) ? side : 0;
+}
+
+std::string WholeTilesAdvice(uint32_t spp) {
+  const int side = WholeTileSide(spp);
+  if (side == 0)
+    return StrFormat("--pass-spp %u keeps pixels as their tiles' last sweep ends (at %u samples a "
+                     "pixel, a tile of 4 x 4 or more takes them in several sweeps)", spp, spp);
   return StrFormat("--pass-spp %u --tile-size %d renders whole tiles one after another, each kept "
                    "as it finishes", spp, side);
 }
@@ -218,8 +228,9 @@ void WarnIfCheckpointsKeepLittle(const RenderArgs& args, const render::Scene& sc
   const uint32_t spp = static_cast<uint32_t>(scene.integrator.spp);
   if (!(args.checkpoint_s > 0) || spp <= 1) return;
   const bool passes = args.pass_spp < spp;  // 0: doubling passes
-  const bool sweeps = static_cast<uint64_t>(args.tile_size) * static_cast<uint64_t>(args.tile_size) * spp >
-                      render::kMaxTileSamples;
+  // Tiles in sweeps matter only where a smaller tile (4 pixels a side or more) would not need them.
+  const int side = WholeTileSide(spp);
+  const bool sweeps = side > 0 && args.tile_size > side;
   if (!passes && !sweeps) return;
   LOG_WARNING("render", "--checkpoint-s: a pixel is kept by --resume once it has all its %u "
               "samples, and %s, so checkpoints (and an interrupted run) keep little or nothing "

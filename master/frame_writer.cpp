@@ -10,6 +10,7 @@
 
 #include "common/base/interrupt.h"
 #include "common/base/log.h"
+#include "common/base/progress.h"
 #include "common/base/thread_name.h"
 #include "common/image/exr_io.h"
 #include "common/image/png_writer.h"
@@ -73,6 +74,7 @@ Status FrameWriter::WriteImage(const Image& image, image::ExrThreads threads) {
   if (s.ok() || image.done) return s;  // a checkpoint is tried again at its next interval
   const auto start = std::chrono::steady_clock::now();
   double wait_s = 1;
+  ClearProgressLine();  // (a later frame's bar may be on the line)
   std::fprintf(stderr, "raystack render: %s; trying again every few seconds for %.0f minutes "
                "(free some space, or restore the folder; Ctrl-C gives up)\n", s.message().c_str(),
                kRetrySeconds / 60);
@@ -87,6 +89,7 @@ Status FrameWriter::WriteImage(const Image& image, image::ExrThreads threads) {
                                                        std::chrono::steady_clock::now() - start).count()));
     s = write();
     if (s.ok()) {
+      ClearProgressLine();
       std::fprintf(stderr, "raystack render: %s written after all\n", image.exr.c_str());
       return s;
     }

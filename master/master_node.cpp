@@ -132,6 +132,9 @@ bool MasterNode::Shutdown(uint32_t reason, std::chrono::milliseconds timeout) {
       // Lost for its silence, it may be alive but frozen (a stopped process, a hung node):
       // mpirun would wait for it forever, even with the image written (an operator's job held
       // its allocation that way). Dead, ending by force costs nothing more.
+      LOG_WARNING("master", "rank %d was lost and has not said it ended: the job is ended by force "
+                  "once this rank is done (mpirun then prints an MPI_ABORT notice with "
+                  "errorcode 0; what was written is complete)", r);
       net_->NoteRankWillNotEnd(r);
       continue;
     }

@@ -274,6 +274,17 @@ TEST_F(RenderCli, CheckpointsThatWouldKeepLittleAreWarnedOfWithTheFix) {
   r = run({"--pass-spp", "256", "--tile-size", "8"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err.find("--checkpoint-s:"), std::string::npos) << r.err;
+  // Past 1024 samples a pixel only tiles under 4 x 4 take them in one sweep, and those cost a
+  // round trip each under mpirun: not advised, and the advice does not send the user in a
+  // circle (a review found --tile-size 1 advised, then warned about again).
+  r = run({"--spp", "4096", "--pass-spp", "4096", "--time-limit", "0.2"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find("--checkpoint-s:"), std::string::npos) << r.err;
+  r = run({"--spp", "4096", "--time-limit", "0.2"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("--pass-spp 4096 keeps pixels as their tiles' last sweep ends"), std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("--tile-size 1"), std::string::npos) << r.err;
 }
 
 // Found by a render-farm operator: a frame whose final write failed (a full disk, its folder
