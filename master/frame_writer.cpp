@@ -17,8 +17,8 @@
 
 namespace raystack::master {
 
-FrameWriter::FrameWriter(bool announce, int64_t fail_first)
-    : announce_(announce), fail_first_(fail_first) {
+FrameWriter::FrameWriter(bool announce, int64_t fail_first, double retry_seconds)
+    : announce_(announce), fail_first_(fail_first), retry_seconds_(retry_seconds) {
   thread_ = std::thread([this] {
     SetThreadName("rs-write");
     Loop();
@@ -71,20 +71,23 @@ Status FrameWriter::WriteImage(const Image& image, image::ExrThreads threads) {
     return s;
   };
   Status s = write();
-  if (s.ok() || image.done) return s;  // a checkpoint is tried again at its next interval
+  // A checkpoint is tried again at its next interval.
+  if (s.ok() || image.done || retry_seconds_ <= 0) return s;
   const auto start = std::chrono::steady_clock::now();
   double wait_s = 1;
   ClearProgressLine();  // (a later frame's bar may be on the line)
-  std::fprintf(stderr, "raystack render: %s; trying again every few seconds for %.0f minutes "
-               "(free some space, or restore the folder; Ctrl-C gives up)\n", s.message().c_str(),
-               kRetrySeconds / 60);
+  const std::string how_long = retry_seconds_ >= 120 ? StrFormat("%.0f minutes", retry_seconds_ / 60)
+                                                     : StrFormat("%.0f s", retry_seconds_);
+  std::fprintf(stderr, "raystack render: %s; trying again every few seconds for %s (free some "
+               "space, or restore the folder; Ctrl-C gives up)\n", s.message().c_str(),
+               how_long.c_str());
   for (;;) {
     // Slept in short steps, so that SIGINT or SIGTERM (noted, not fatal: InterruptsHeld) ends it.
     const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
     while (std::chrono::steady_clock::now() < until && InterruptSignal() == 0)
       std::this_thread::sleep_for(std::chrono::milliseconds(50));
     if (InterruptSignal() != 0 ||
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > kRetrySeconds)
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > retry_seconds_)
       return Status::Error(s.message() + StrFormat(" (tried for %.0f s)", std::chrono::duration<double>(
                                                        std::chrono::steady_clock::now() - start).count()));
     s = write();

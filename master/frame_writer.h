@@ -50,8 +50,9 @@ class FrameWriter {
   static constexpr double kRetrySeconds = 600;
 
   // announce: print "  wrote PATH" once an EXR is written. fail_first (a fault for tests): the
-  // first that many writes of frame images fail, as on a full disk.
-  explicit FrameWriter(bool announce, int64_t fail_first = 0);
+  // first that many writes of frame images fail, as on a full disk. retry_seconds: how long a
+  // frame's image is tried again.
+  explicit FrameWriter(bool announce, int64_t fail_first = 0, double retry_seconds = kRetrySeconds);
   // Writes what is queued, then ends (what it had to write is never lost).
   ~FrameWriter();
   FrameWriter(const FrameWriter&) = delete;
@@ -76,6 +77,7 @@ class FrameWriter {
   Status WriteImage(const Image& image, image::ExrThreads threads);
   const bool announce_;
   int64_t fail_first_;  // (writer thread only)
+  const double retry_seconds_;
   std::mutex mu_;
   std::condition_variable cv_;
   std::optional<Image> queued_;  // (under mu_)

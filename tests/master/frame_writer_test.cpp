@@ -161,15 +161,18 @@ TEST(FrameWriter, AWrittenImagesLayersComeBackOnce) {
   EXPECT_TRUE(writer.TakeSpare().rgba.empty());
 }
 
+// A frame's image that cannot be written is tried again for retry_seconds, then reported,
+// naming the file (here after one more try, 1 s later: the tries are 1, 2, 4 ... s apart).
 TEST(FrameWriter, AFailedWriteIsReportedNamingTheFile) {
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());
-  master::FrameWriter writer(false);
+  master::FrameWriter writer(false, 0, /*retry_seconds=*/0.5);
   const std::string bad = dir->File("no-such-folder/x.exr");
   ASSERT_TRUE(writer.Write(ImageAt(bad, 1)).ok());  // queued: the failure comes later
   const Status finished = writer.Finish();
   ASSERT_FALSE(finished.ok());
   EXPECT_NE(finished.message().find("no-such-folder/x.exr"), std::string::npos) << finished.message();
+  EXPECT_NE(finished.message().find("(tried for 1 s)"), std::string::npos) << finished.message();
   // Later writes are refused with the same error.
   const Status next = writer.Write(ImageAt(dir->File("y.exr"), 1));
   EXPECT_FALSE(next.ok());

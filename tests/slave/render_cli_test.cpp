@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "common/base/log.h"
 #include "common/base/temp_dir.h"
 #include "common/image/exr_io.h"
 #include "tests/prep/run_process.h"
@@ -32,6 +33,15 @@ class RenderCli : public StoreDirFixture {
     const std::string path = dir_->File("scene.json");
     std::ofstream(path) << body;
     return path;
+  }
+
+  // The spheres path traced at `spp` samples a pixel (64 x 40 unless given).
+  std::string PathScene(int spp, int width = 64, int height = 40) {
+    return WriteScene(StrFormat(R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": %d, "height": %d },
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "integrator": { "type": "path", "max_depth": 3, "spp": %d, "seed": 5 },
+      "output": "out.exr" })", width, height, spp));
   }
 
   std::string Scene(const std::string& extra = "") {
@@ -210,11 +220,7 @@ TEST_F(RenderCli, SlaveOptionsWarnInOneProcessAndAnInjectedReadErrorFailsThere) 
 // are written as an interrupt writes them, the error says where, and --resume (the store
 // repaired) ends with the image an uninterrupted run gives, bit for bit.
 TEST_F(RenderCli, AReadFailingMidFrameKeepsTheFrameSoFarForResume) {
-  const std::string scene = WriteScene(R"({ "store": "store",
-      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 64, "height": 40 },
-      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
-      "integrator": { "type": "path", "max_depth": 3, "spp": 16, "seed": 5 },
-      "output": "out.exr" })");
+  const std::string scene = PathScene(16);
   // One pass of 16 samples: pixels finish tile by tile, so a third of the way some have all of
   // theirs (the loads of a run vary a little with timing: the fault comes well before the end).
   const std::vector<std::string> common = {kRaystack, "render", scene, "--cache-mb", "0.2",
@@ -254,11 +260,7 @@ TEST_F(RenderCli, AReadFailingMidFrameKeepsTheFrameSoFarForResume) {
 // --resume until the last pass, and nothing said so before an interrupted run's message. Now a
 // warning at start gives the options that keep whole tiles as they finish.
 TEST_F(RenderCli, CheckpointsThatWouldKeepLittleAreWarnedOfWithTheFix) {
-  const std::string scene = WriteScene(R"({ "store": "store",
-      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 16, "height": 8 },
-      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
-      "integrator": { "type": "path", "max_depth": 2, "spp": 256, "seed": 5 },
-      "output": "out.exr" })");
+  const std::string scene = PathScene(256, 16, 8);
   const auto run = [&](std::vector<std::string> extra) {
     std::vector<std::string> argv = {kRaystack, "render", scene, "--checkpoint-s", "60", "-q", "--no-png"};
     argv.insert(argv.end(), extra.begin(), extra.end());
@@ -337,11 +339,7 @@ TEST_F(RenderCli, AStatsFileThatCannotBeWrittenIsFoundBeforeTheRender) {
 // so far anyway, over a finished image of an earlier run, which --resume could not use and a
 // plain run then refused as unfinished. With nothing to keep, nothing is written.
 TEST_F(RenderCli, AFailureWithNothingToKeepLeavesTheOutputAsItWas) {
-  const std::string scene = WriteScene(R"({ "store": "store",
-      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 64, "height": 40 },
-      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
-      "integrator": { "type": "path", "max_depth": 3, "spp": 16, "seed": 5 },
-      "output": "out.exr" })");
+  const std::string scene = PathScene(16);
   const std::vector<std::string> common = {kRaystack, "render", scene, "--cache-mb", "0.2",
                                            "--threads", "1", "-q", "--no-png"};
   ASSERT_EQ(RunProcess(common, dir_->path()).exit_code, 0);
