@@ -1,5 +1,6 @@
 #include "master/distributed_render.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <limits>
@@ -250,13 +251,19 @@ bool UseRemoteBlocks(const RenderArgs& args, const store::StoreReader& store, in
   return fits;
 }
 
+// The slaves on this slave's machine (itself included): every rank there but the master.
+int SlavesHere(const transport::Transport& net) {
+  const std::vector<int> here = net.ranks_on_this_host();
+  return static_cast<int>(std::count_if(here.begin(), here.end(), [](int r) { return r != 0; }));
+}
+
 Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::Transport* net) {
   Expected<std::unique_ptr<store::StoreReader>> store = OpenSceneStore(scene);
   if (store.ok()) {  // before any block is read (PeerBlocks reads this slave's share)
     // Each slave decides for its own machine; the master prints each one's reads per frame.
     std::string reads;
     Status s = slave::ChooseReads(args.direct_io, args.engine.cache_bytes, store->get(), &reads);
-    if (s.ok()) s = CheckSlaveMemory(EngineMemoryOf(args.engine, **store), HostName());
+    if (s.ok()) s = CheckSlaveMemory(EngineMemoryOf(args.engine, **store), SlavesHere(*net), HostName());
     if (!s.ok()) store = s;
   }
   std::unique_ptr<slave::PeerBlocks> peers;

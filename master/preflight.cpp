@@ -131,13 +131,19 @@ EngineMemory EngineMemoryOf(const slave::EngineOptions& engine, const store::Sto
   }
 }
 
-Status CheckSlaveMemory(const EngineMemory& m, const std::string& host) {
+Status CheckSlaveMemory(const EngineMemory& m, int slaves_here, const std::string& host) {
   const std::optional<uint64_t> available = MemoryAvailable();
-  if (!available || m.bytes <= *available) return OkStatus();
-  return Status::Error(StrFormat("on %s: needs about %.0f MB of memory for %s; %.0f MB is "
-                                 "available there (%s)", host.c_str(),
-                                 static_cast<double>(m.bytes) / 1e6, m.what.c_str(),
-                                 static_cast<double>(*available) / 1e6, m.advice.c_str()));
+  const uint64_t needed = m.bytes * static_cast<uint64_t>(std::max(slaves_here, 1));
+  if (!available || needed <= *available) return OkStatus();
+  const auto mb = [](uint64_t bytes) { return static_cast<double>(bytes) / 1e6; };
+  const std::string each =
+      slaves_here > 1 ? StrFormat(", %.0f MB for each of its %d slaves", mb(m.bytes), slaves_here)
+                      : std::string();
+  const std::string advice =
+      slaves_here > 1 ? m.advice + ", or fewer slaves on this machine" : m.advice;
+  return Status::Error(StrFormat("on %s: needs about %.0f MB of memory for %s%s; %.0f MB is "
+                                 "available there (%s)", host.c_str(), mb(needed), m.what.c_str(),
+                                 each.c_str(), mb(*available), advice.c_str()));
 }
 
 Status CheckReferences(const render::Scene& scene, const std::string& reference) {

@@ -49,6 +49,8 @@ EngineMemory EngineMemoryOf(const slave::EngineOptions& engine, const store::Sto
 
 // A slave's engine fits in its machine's memory (or its cgroup's): refused, naming the host,
 // before it starts, not killed by the kernel midway (seen by the master only as a silent rank).
-Status CheckSlaveMemory(const EngineMemory& m, const std::string& host);
+// `slaves_here` slaves share that machine, each with the same engine: all of them must fit
+// (they check at the same moment, so each alone would see the room the others will take).
+Status CheckSlaveMemory(const EngineMemory& m, int slaves_here, const std::string& host);
 
 }  // namespace raystack::master

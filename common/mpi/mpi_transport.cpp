@@ -2,6 +2,7 @@
 
 #include <mpi.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -61,7 +62,21 @@ Expected<std::unique_ptr<MpiTransport>> MpiTransport::Init(int* argc, char*** ar
   int rank = 0, size = 0;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   MPI_Comm_size(MPI_COMM_WORLD, &size);
-  return std::unique_ptr<MpiTransport>(new MpiTransport(rank, size));
+  // The ranks on this machine, which share its memory (each slave's memory check counts them).
+  std::vector<int> host_ranks{rank};
+  MPI_Comm host = MPI_COMM_NULL;
+  if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank, MPI_INFO_NULL, &host) ==
+          MPI_SUCCESS &&
+      host != MPI_COMM_NULL) {
+    int n = 0;
+    MPI_Comm_size(host, &n);
+    std::vector<int> all(static_cast<size_t>(n));
+    if (MPI_Allgather(&rank, 1, MPI_INT, all.data(), 1, MPI_INT, host) == MPI_SUCCESS)
+      host_ranks = std::move(all);
+    MPI_Comm_free(&host);
+  }
+  std::sort(host_ranks.begin(), host_ranks.end());
+  return std::unique_ptr<MpiTransport>(new MpiTransport(rank, size, std::move(host_ranks)));
 }
 
 struct MpiTransport::Incoming {
@@ -71,9 +86,10 @@ struct MpiTransport::Incoming {
   std::vector<uint8_t> bytes;
 };
 
-MpiTransport::MpiTransport(int rank, int size)
+MpiTransport::MpiTransport(int rank, int size, std::vector<int> host_ranks)
     : rank_(rank),
       size_(size),
+      host_ranks_(std::move(host_ranks)),
       dead_(std::make_unique<std::atomic<bool>[]>(static_cast<size_t>(size))),
       incoming_(static_cast<size_t>(size)) {}
 

@@ -36,6 +36,8 @@ class MpiTransport final : public transport::Transport {
 
   int rank() const override { return rank_; }
   int size() const override { return size_; }
+  // From MPI_Comm_split_type(MPI_COMM_TYPE_SHARED), asked once by Init (every rank takes part).
+  std::vector<int> ranks_on_this_host() const override { return host_ranks_; }
   Status Send(int to, std::span<const uint8_t> bytes) override;
   // MPI_Isend of bytes it keeps; Receive (and the next Post) test the sends in flight and drop
   // the finished ones, and those to a rank known dead.
@@ -64,8 +66,9 @@ class MpiTransport final : public transport::Transport {
   [[noreturn]] static void ExitWithoutFinalize(int code);
 
  private:
-  MpiTransport(int rank, int size);
+  MpiTransport(int rank, int size, std::vector<int> host_ranks);
   int rank_, size_;
+  std::vector<int> host_ranks_;
   std::atomic<bool> rank_died_{false}, rank_will_not_end_{false};
   std::unique_ptr<std::atomic<bool>[]> dead_;  // by rank
   // Receives in progress, by sender (Receive; defined where mpi.h is).

@@ -94,6 +94,40 @@ TEST(DistributedMemory, ASlaveWhoseEngineCannotFitSaysSoNamingItsHost) {
             std::string::npos) << r.err;
 }
 
+// Slaves that share a machine share its memory: each checked its own engine against the room
+// left, all at the same moment, so five slaves whose blocks fit one at a time started together
+// and were killed by the kernel as they loaded. Now each counts the slaves on its machine (Open
+// MPI's shared-memory communicator). The same cap as above: --mode incore's ~61 MB of blocks fit
+// once, not five times.
+TEST(DistributedMemory, SlavesOnOneMachineCheckTheirMemoryTogether) {
+  std::string why;
+  const std::unique_ptr<MemoryCgroup> group = MemoryCgroup::CreateOwnChild("raystack-slaves-cap", &why);
+  if (!group) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
+  ASSERT_TRUE(group->Limit(uint64_t{256} << 20)) << "cannot set the limit of " << group->path();
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  const ProcessResult prep = RunProcess(
+      {kPrepBinary, "--generate", "spheres:2000000", "-o", dir->File("store"), "-q"}, dir->path());
+  ASSERT_EQ(prep.exit_code, 0) << prep.err;
+  std::ofstream(dir->File("scene.json")) << R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 } })";
+  const auto render = [&](int np) {
+    return RunProcess({RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np",
+                       std::to_string(np), kRaystack, "render", dir->File("scene.json"), "--mode",
+                       "incore", "--no-png", "-q", "--output", dir->File("out.exr")},
+                      dir->path(), group->Joiner());
+  };
+  // One slave's blocks fit: the check does not refuse what fits.
+  const ProcessResult one = render(2);
+  ASSERT_NE(one.exit_code, 125) << "the child could not join " << group->path();
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  const ProcessResult five = render(6);
+  EXPECT_EQ(five.signal, 0) << five.err;
+  EXPECT_NE(five.exit_code, 0) << five.err;
+  EXPECT_NE(five.err.find("MB for each of its 5 slaves"), std::string::npos) << five.err;
+  EXPECT_NE(five.err.find("or fewer slaves on this machine"), std::string::npos) << five.err;
+}
+
 TEST_F(DistributedCli, ImagesEqualTheOneProcessImage) {
   for (const std::string integrator :
        {R"({ "type": "whitted", "max_depth": 3, "spp": 1, "seed": 1 })",
