@@ -112,7 +112,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     render::Film& film = FilmFor(camera, &reused_film);
     render::FramePlan plan = PlanOf(args, scene, camera, coarse_rounds);
     Status status = ResumeInto(args, scene, f, &plan, &film);
-    const uint64_t total = plan.total_samples();
+    const uint64_t total = plan.samples_to_render();  // less what --resume kept
     if (status.ok()) status = LoadReference(args, f, frames, camera, &reference);
     if (!status.ok()) {
       master.Shutdown(1);
@@ -136,7 +136,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                               Provenance(scene, f), &writer, args.kill_after_checkpoints,
                               args.fail_checkpoints);
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
-                          scene.integrator.spp);
+                          scene.integrator.spp, plan.total_samples() - total);
       status = master.RunFrame(static_cast<uint32_t>(f), plan, &film, [&] {
                                  if (const int signal = InterruptSignal())
                                    EndInterrupted(signal, &checkpoints, film,

@@ -335,11 +335,7 @@ Status ResumeInto(const RenderArgs& args, const render::Scene& scene, size_t f,
   Expected<ResumePlan> resume =
       PlanResume(exr, plan->width, plan->height, plan->spp(), Provenance(scene, f));
   if (!resume.ok()) return resume.status();
-  size_t tiles = 0;
-  for (render::Sweep& sweep : plan->sweeps) {
-    std::erase_if(sweep.tiles, [&](const render::Tile& t) { return !resume->Needs(t); });
-    tiles += sweep.tiles.size();
-  }
+  const size_t tiles = DropFinishedTiles(*resume, plan);
   ApplyResume(*resume, film);
   if (!args.quiet && resume->finished.empty())
     std::printf("resume frame %zu: no checkpoint at %s, every tile to render\n", f, exr.c_str());

@@ -135,7 +135,7 @@ Status RenderLocally(const RenderArgs& args) {
       return failed(std::move(s));
     slave::RenderStats stats;
     Status status;
-    const uint64_t total = plan.total_samples();
+    const uint64_t total = plan.samples_to_render();  // less what --resume kept
     ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log->get(),
                                reference.get(), args.log_interval_s);
     const AfterInterrupt interrupted = [&](const std::string& said) { preview->Interrupted(said); };
@@ -149,7 +149,7 @@ Status RenderLocally(const RenderArgs& args) {
       std::condition_variable finish_cv;
       bool finished = false;
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
-                          scene->integrator.spp);
+                          scene->integrator.spp, plan.total_samples() - total);
       std::thread render([&] {
         Status s = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
         const std::lock_guard lock(finish_mutex);

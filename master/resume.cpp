@@ -47,6 +47,15 @@ bool ResumePlan::Needs(const render::Tile& t) const {
   return false;
 }
 
+size_t DropFinishedTiles(const ResumePlan& resume, render::FramePlan* plan) {
+  size_t tiles = 0;
+  for (render::Sweep& sweep : plan->sweeps) {
+    std::erase_if(sweep.tiles, [&](const render::Tile& t) { return !resume.Needs(t); });
+    tiles += sweep.tiles.size();
+  }
+  return tiles;
+}
+
 Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, uint32_t spp,
                                 const std::string& provenance) {
   ResumePlan plan;

@@ -13,6 +13,7 @@
 #include "common/base/status.h"
 #include "common/image/image_layers.h"
 #include "common/render/film.h"
+#include "common/render/frame_plan.h"
 #include "common/render/tiles.h"
 
 namespace raystack::master {
@@ -31,6 +32,11 @@ struct ResumePlan {
 // (its provenance is not `provenance`) is an error naming it.
 Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, uint32_t spp,
                                 const std::string& provenance);
+
+// Drops from `plan` the tiles whose pixels are all finished; returns how many tiles are left.
+// The samples the dropped tiles stood for, total_samples() - samples_to_render(), are the ones
+// the run does not render (a finished pixel in a tile still to render is rendered again).
+size_t DropFinishedTiles(const ResumePlan& resume, render::FramePlan* plan);
 
 // Puts the kept pixels into `film`.
 inline void ApplyResume(const ResumePlan& plan, render::Film* film) {

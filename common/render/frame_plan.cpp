@@ -77,6 +77,13 @@ FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint
   return plan;
 }
 
+uint64_t FramePlan::samples_to_render() const {
+  uint64_t sum = 0;
+  for (const Sweep& sweep : sweeps)
+    for (const Tile& t : sweep.tiles) sum += TileSamples(t, spp());
+  return sum;
+}
+
 uint64_t TileSamples(const Tile& tile, uint32_t spp) {
   const uint32_t end = tile.sample_end == 0 ? spp : tile.sample_end;
   if (end <= tile.sample_begin) return 0;

@@ -45,6 +45,9 @@ struct FramePlan {
   uint64_t total_samples() const {
     return static_cast<uint64_t>(width) * static_cast<uint64_t>(height) * spp();
   }
+  // The samples its tiles stand for: total_samples(), less what --resume dropped (the tiles a
+  // checkpoint finished), the work a progress bar counts to.
+  uint64_t samples_to_render() const;
 };
 
 // The most samples one tile of a plan holds (pixels x samples per pixel).

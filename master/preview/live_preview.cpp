@@ -28,7 +28,8 @@ Expected<LivePreview> LivePreview::Start(const LivePreviewOptions& options) {
   return preview;
 }
 
-void LivePreview::BeginFrame(const render::Film* film, uint32_t frame, uint32_t frames, int spp) {
+void LivePreview::BeginFrame(const render::Film* film, uint32_t frame, uint32_t frames, int spp,
+                             uint64_t samples_restored) {
   if (!server_) return;
   film_ = film;
   status_ = PreviewStatus{};
@@ -37,7 +38,9 @@ void LivePreview::BeginFrame(const render::Film* film, uint32_t frame, uint32_t 
   status_.spp = spp;
   status_.samples_total = static_cast<uint64_t>(film->width()) * static_cast<uint64_t>(film->height()) *
                           static_cast<uint64_t>(spp);
-  status_.samples_restored = film->samples_restored();  // --resume: set before the frame starts
+  // Not the film's restored samples: a finished pixel in a tile rendered again counted twice,
+  // and the progress reached 100% with tiles still to render.
+  status_.samples_restored = samples_restored;
   if (!Streamed(film->width(), film->height()))
     // The server warns at the terminal; the page has no image to show, so it says why.
     status_.note = StrFormat("a %dx%d frame is larger than the preview streams (4096 x 4096 "

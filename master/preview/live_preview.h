@@ -32,8 +32,11 @@ class LivePreview {
   bool on() const { return server_ != nullptr; }
   PreviewServer* server() { return server_.get(); }
 
-  // Frame `frame` of `frames` renders into `film` (alive until EndFrame) at `spp`.
-  void BeginFrame(const render::Film* film, uint32_t frame, uint32_t frames, int spp);
+  // Frame `frame` of `frames` renders into `film` (alive until EndFrame) at `spp`;
+  // `samples_restored` of its samples are done already and no tile renders them again (--resume:
+  // FramePlan's total_samples() - samples_to_render()).
+  void BeginFrame(const render::Film* film, uint32_t frame, uint32_t frames, int spp,
+                  uint64_t samples_restored);
   // Publishes the progress so far (rays/s from the rays the film has been told of); `tiles`
   // is only called when the preview is on.
   void Update(const std::function<std::vector<RankTiles>()>& tiles);

@@ -14,6 +14,8 @@
 
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
+#include "common/render/frame_plan.h"
+#include "master/resume.h"
 #include "tests/preview/background_process.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/store_dir_fixture.h"
@@ -392,6 +394,51 @@ TEST_F(Resume, WithoutACheckpointEverythingIsRendered) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("no checkpoint at " + dir_->File("fresh.exr") + ", every tile to render"),
             std::string::npos) << r.out;
+}
+
+// What a resumed run renders, for its progress (the bar and the preview): a finished pixel in a
+// tile still to render is rendered again, so it is not done already. The preview took every
+// restored pixel as done, and with the rendered samples counted them twice: its progress reached
+// 100% while tiles were still rendering; the bar counted the whole frame and ended short of it.
+TEST(ResumeProgress, OnlyTilesNoLongerRenderedCountAsDone) {
+  constexpr int kWidth = 40, kHeight = 24, kTile = 8;
+  constexpr uint32_t kSpp = 4;
+  for (const bool coarse : {false, true}) {
+    render::FramePlan plan = render::MakeFramePlan(kWidth, kHeight, kTile, kSpp, /*pass_spp=*/0,
+                                                   render::PixelOrder::kPriority, coarse);
+    master::ResumePlan resume;
+    resume.width = kWidth;
+    resume.finished.assign(static_cast<size_t>(kWidth) * kHeight, 0);
+    // The left half finished; in the right half every other pixel, as a checkpoint catches tiles
+    // whose pixels finish one by one.
+    for (int y = 0; y < kHeight; ++y)
+      for (int x = 0; x < kWidth; ++x)
+        if (x < kWidth / 2 || (x + y) % 2 == 0) {
+          resume.finished[static_cast<size_t>(y) * kWidth + x] = 1;
+          resume.kept_pixels.push_back(static_cast<uint32_t>(y * kWidth + x));
+        }
+    master::DropFinishedTiles(resume, &plan);
+    // Every (pixel, sample) a remaining tile renders, and the kept pixels no tile touches.
+    std::vector<uint32_t> rendered(static_cast<size_t>(kWidth) * kHeight, 0);
+    for (const render::Sweep& sweep : plan.sweeps)
+      for (const render::Tile& t : sweep.tiles)
+        for (int y = t.y0; y < t.y1; ++y)
+          for (int x = t.x0; x < t.x1; ++x)
+            if (t.HasRank(x, y))
+              rendered[static_cast<size_t>(y) * kWidth + x] +=
+                  (t.sample_end == 0 ? kSpp : t.sample_end) - t.sample_begin;
+    uint64_t to_render = 0, untouched = 0;
+    for (size_t i = 0; i < rendered.size(); ++i) {
+      to_render += rendered[i];
+      if (resume.finished[i]) untouched += kSpp - rendered[i];
+      else EXPECT_EQ(rendered[i], kSpp) << "an unfinished pixel is rendered whole";
+    }
+    EXPECT_EQ(plan.samples_to_render(), to_render) << "coarse " << coarse;
+    EXPECT_EQ(plan.total_samples() - plan.samples_to_render(), untouched) << "coarse " << coarse;
+    // The case of the bug: some kept pixels are rendered again, so fewer samples are done
+    // already than the kept pixels hold.
+    EXPECT_LT(untouched, resume.kept_pixels.size() * kSpp) << "coarse " << coarse;
+  }
 }
 
 }  // namespace

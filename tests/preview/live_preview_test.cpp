@@ -24,7 +24,7 @@ TEST(LivePreview, AFailedJobSaysWhyForTheHoldTime) {
   Expected<LivePreview> preview = LivePreview::Start(options);
   ASSERT_TRUE(preview.ok()) << preview.status().message();
   render::Film film(4, 2);
-  preview->BeginFrame(&film, 0, 1, 4);
+  preview->BeginFrame(&film, 0, 1, 4, 0);
   testing::WsViewer viewer;
   ASSERT_TRUE(viewer.Open(preview->server()->port()));
   std::thread fail([&] {
@@ -87,7 +87,7 @@ TEST(LivePreview, AnInterruptedJobSaysSoWithTheImageSoFarBeforeItCloses) {
   Expected<LivePreview> preview = LivePreview::Start(options);
   ASSERT_TRUE(preview.ok()) << preview.status().message();
   render::Film film(1024, 768);
-  preview->BeginFrame(&film, 0, 1, 4);
+  preview->BeginFrame(&film, 0, 1, 4, 0);
   testing::WsViewer viewer;
   ASSERT_TRUE(viewer.Open(preview->server()->port()));
   FillFilm(&film);
@@ -111,7 +111,7 @@ TEST(LivePreview, WithNoHoldTheViewersStillGetTheFinalImage) {
   Expected<LivePreview> preview = LivePreview::Start(options);
   ASSERT_TRUE(preview.ok()) << preview.status().message();
   render::Film film(1024, 768);
-  preview->BeginFrame(&film, 0, 1, 1);
+  preview->BeginFrame(&film, 0, 1, 1, 0);
   testing::WsViewer viewer;
   ASSERT_TRUE(viewer.Open(preview->server()->port()));
   std::thread render([&] {
