@@ -157,6 +157,19 @@ Status RenderLocally(const RenderArgs& args) {
         finished = true;
         finish_cv.notify_one();
       });
+      // An exception out of the loop below (out of memory as a checkpoint or the monitor takes
+      // an image) must not destroy the running thread, which is std::terminate ("terminate
+      // called without an active exception", exit 134, the output's lock left): the frame is
+      // stopped and its thread joined first.
+      struct StopAndJoin {
+        std::thread& thread;
+        WatchedTileSource& tiles;
+        ~StopAndJoin() {
+          if (!thread.joinable()) return;
+          tiles.Stop();
+          thread.join();
+        }
+      } stop_and_join{render, tiles};
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
                               Provenance(*scene, f), &writer, args.kill_after_checkpoints,
                               args.fail_checkpoints);

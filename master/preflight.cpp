@@ -96,7 +96,7 @@ Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes, const std::
     if (pixels > largest) largest = pixels, which = f;
   }
   const uint64_t needed = largest * kBytesPerPixel + cache_bytes;
-  const std::optional<uint64_t> available = MemoryAvailable();
+  const std::optional<uint64_t> available = MemoryThisProcessMayTake();
   if (!available || needed <= *available) return OkStatus();
   const render::CameraDesc& c = scene.cameras[which];
   // Megabytes below 10 GB: "0.1 GB needed, 0.1 GB available" said nothing.
@@ -132,7 +132,7 @@ EngineMemory EngineMemoryOf(const slave::EngineOptions& engine, const store::Sto
 }
 
 Status CheckSlaveMemory(const EngineMemory& m, int slaves_here, const std::string& host) {
-  const std::optional<uint64_t> available = MemoryAvailable();
+  const std::optional<uint64_t> available = MemoryThisProcessMayTake();
   const uint64_t needed = m.bytes * static_cast<uint64_t>(std::max(slaves_here, 1));
   if (!available || needed <= *available) return OkStatus();
   const auto mb = [](uint64_t bytes) { return static_cast<double>(bytes) / 1e6; };

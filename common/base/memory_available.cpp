@@ -1,5 +1,7 @@
 #include "common/base/memory_available.h"
 
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <fstream>
 #include <sstream>
@@ -82,6 +84,34 @@ MemoryCgroups MemoryCgroupsIn(const std::string& proc_cgroup) {
 }
 
 MemoryCgroups OwnMemoryCgroups() { return MemoryCgroupsIn(ReadAll("/proc/self/cgroup")); }
+
+uint64_t AddressSpaceRoom(uint64_t limit, uint64_t vm_size) {
+  return vm_size >= limit ? 0 : limit - vm_size;
+}
+
+std::optional<uint64_t> VmSizeIn(const std::string& proc_status) {
+  std::istringstream lines(proc_status);
+  std::string line;
+  while (std::getline(lines, line)) {
+    if (line.rfind("VmSize:", 0) != 0) continue;
+    std::istringstream fields(line.substr(7));
+    uint64_t kb = 0;
+    std::string unit;
+    if (fields >> kb >> unit && unit == "kB") return kb * 1024;
+    return std::nullopt;
+  }
+  return std::nullopt;
+}
+
+std::optional<uint64_t> MemoryThisProcessMayTake() {
+  std::optional<uint64_t> room = MemoryAvailable();
+  rlimit limit{};
+  if (getrlimit(RLIMIT_AS, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return room;
+  const std::optional<uint64_t> vm = VmSizeIn(ReadAll("/proc/self/status"));
+  if (!vm) return room;
+  const uint64_t under_limit = AddressSpaceRoom(limit.rlim_cur, *vm);
+  return room ? std::min(*room, under_limit) : under_limit;
+}
 
 std::optional<uint64_t> MemoryAvailable() {
   std::optional<uint64_t> available = MemAvailableIn(ReadAll("/proc/meminfo"));

@@ -12,6 +12,17 @@ namespace raystack {
 
 std::optional<uint64_t> MemoryAvailable();
 
+// What this process may still allocate: MemoryAvailable(), or less under an address-space limit
+// (RLIMIT_AS: `ulimit -v`, some batch schedulers' memory limit, e.g. SGE's h_vmem), which
+// counts address space reserved, not memory used. For the checks before a render or a prep, not
+// for the page cache (which no such limit bounds).
+std::optional<uint64_t> MemoryThisProcessMayTake();
+// The parts, for tests: the room under an address-space limit of `limit` bytes for a process
+// of `vm_size` bytes (0 once at or over it).
+uint64_t AddressSpaceRoom(uint64_t limit, uint64_t vm_size);
+// VmSize in bytes from /proc/<pid>/status's text.
+std::optional<uint64_t> VmSizeIn(const std::string& proc_status);
+
 // Where a process sits in the hierarchies that can limit its memory: v1's memory controller
 // (mounted at kCgroupV1Memory) and the unified v2 one (at kCgroupV2).
 struct MemoryCgroups {

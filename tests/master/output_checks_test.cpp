@@ -3,6 +3,8 @@
 // and the room, and nothing is rendered; so is an output that is a folder or not an EXR.
 
 #include <gtest/gtest.h>
+
+#include <sys/resource.h>
 #include <sys/mount.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -204,6 +206,31 @@ TEST(OutputChecks, AnImageLargerThanTheMemoryIsRefusedBeforeRendering) {
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("camera 1: a 16384x16384 image needs about"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("is available here (a smaller image would fit)"), std::string::npos) << r.err;
+}
+
+// Found by a scene author on a machine whose jobs run under an address-space limit (`ulimit -v`,
+// as some schedulers set it): the check read only the machine's and the cgroups' memory, so a
+// 3584 x 3584 frame started under 2 GB; it ran out midway, and with --time-limit the main thread's
+// std::bad_alloc destroyed the running render thread: "terminate called without an active
+// exception", exit 134, its lock left. The limit is now counted before rendering.
+TEST(OutputChecks, AnImageLargerThanTheAddressSpaceLimitIsRefusedBeforeRendering) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  std::ofstream(dir->File("scene.json")) << R"({ "store": "no-such-store",
+    "camera": { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 3584, "height": 3584 } })";
+  const ProcessResult r = RunProcess(
+      {kRaystackBinary, "render", dir->File("scene.json"), "--output", dir->File("out.exr"), "-q",
+       "--time-limit", "3"},
+      dir->path(), [] {
+        const rlimit two_gb{uint64_t{2} << 30, uint64_t{2} << 30};
+        if (setrlimit(RLIMIT_AS, &two_gb) != 0) _exit(125);
+      });
+  ASSERT_NE(r.exit_code, 125) << "cannot set RLIMIT_AS";
+  EXPECT_EQ(r.signal, 0) << r.err;
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("camera 0: a 3584x3584 image needs about"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("is available here"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir->File(".out.exr.lock")));
 }
 
 }  // namespace

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+
 #include <filesystem>
 #include <fstream>
 
@@ -28,6 +30,17 @@ TEST(MemoryAvailable, ReadsMemAvailableFromMeminfo) {
   const std::optional<uint64_t> here = MemoryAvailable();
   ASSERT_TRUE(here);
   EXPECT_GT(*here, 0u);
+}
+
+TEST(MemoryAvailable, CountsAnAddressSpaceLimit) {
+  EXPECT_EQ(VmSizeIn("Name: raystack\nVmPeak:  9000 kB\nVmSize:    8000 kB\nVmRSS: 10 kB\n"),
+            uint64_t{8000} * 1024);
+  EXPECT_FALSE(VmSizeIn("Name: raystack\nVmRSS: 10 kB\n"));
+  EXPECT_FALSE(VmSizeIn("VmSize: lots\n"));
+  EXPECT_EQ(AddressSpaceRoom(2000, 500), 1500u);
+  EXPECT_EQ(AddressSpaceRoom(2000, 2500), 0u);  // already over it
+  // This process's own figure exists.
+  EXPECT_TRUE(MemoryThisProcessMayTake());
 }
 
 TEST(MemoryAvailable, FindsTheMemoryHierarchiesInProcCgroup) {

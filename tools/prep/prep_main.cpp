@@ -181,11 +181,11 @@ double PeakRssMb() {
 // A budget above what this process may fill (the machine's available memory, or a cgroup
 // limit nearer) ends in the kernel's OOM killer, without a word from us: say so first.
 void WarnIfBudgetAboveMemory(uint64_t budget) {
-  const std::optional<uint64_t> room = MemoryAvailable();
+  const std::optional<uint64_t> room = MemoryThisProcessMayTake();
   if (room && budget > *room)
     LOG_WARNING("prep", "--mem-limit %llu MB is above the %llu MB this process may fill now (the "
-                "memory available, or its cgroup's limit): the kernel may kill it; give a "
-                "smaller --mem-limit", static_cast<unsigned long long>(budget >> 20),
+                "memory available, its cgroup's limit or its address-space limit): it may fail "
+                "or be killed; give a smaller --mem-limit", static_cast<unsigned long long>(budget >> 20),
                 static_cast<unsigned long long>(*room >> 20));
 }
 
