@@ -146,16 +146,32 @@ void WarnIfUnlit(const render::Scene& scene, const render::MaterialTable& materi
                  const store::StoreReader& store) {
   const Vec3f b = scene.background;
   const bool path = scene.integrator.type == render::IntegratorType::kPath;
-  if (!path && materials.any_emissive())
+  const bool background = b.x > 0 || b.y > 0 || b.z > 0, emissive = materials.any_emissive();
+  if (scene.lights.empty() && !emissive && !background) {
+    LOG_WARNING("render",
+                "%s: the scene has no light (no point lights, no emissive material in the store "
+                "or the scene, a black background): the image will be black",
+                scene.source.c_str());
+    return;
+  }
+  if (path) {
+    if (emissive) WarnIfEmittersNotAimedAt(scene, materials, store);
+    return;
+  }
+  // Whitted lights with point lights only: a bright background lit nothing, without a word (the
+  // "no light" warning took it for a light).
+  const char* seen = emissive && background ? "the emissive materials and the background are"
+                     : emissive             ? "the emissive materials are"
+                                            : "the background is";
+  if (scene.lights.empty())
+    LOG_WARNING("render", "%s: the whitted integrator lights with point lights only, and the scene "
+                "has none: every diffuse surface will be black (%s seen, directly and in mirrors "
+                "and glass, but light nothing; the \"path\" integrator lights with them)",
+                scene.source.c_str(), seen);
+  else if (emissive)
     LOG_WARNING("render", "%s: the whitted integrator lights with point lights only: the emissive "
                 "materials are seen, but light nothing (the \"path\" integrator lights with them)",
                 scene.source.c_str());
-  if (path && materials.any_emissive()) WarnIfEmittersNotAimedAt(scene, materials, store);
-  if (!scene.lights.empty() || materials.any_emissive() || b.x > 0 || b.y > 0 || b.z > 0) return;
-  LOG_WARNING("render",
-              "%s: the scene has no light (no point lights, no emissive material in the store "
-              "or the scene, a black background): the image will be black",
-              scene.source.c_str());
 }
 
 uint64_t StoredBytes(const store::StoreReader& store) {

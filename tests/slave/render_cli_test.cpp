@@ -114,6 +114,33 @@ TEST_F(RenderCli, EmittersThatWillNotLightAsExpectedAreAWarning) {
   EXPECT_EQ(r.err.find(whitted), std::string::npos) << r.err;
 }
 
+// Found by a scene author: under whitted a white background took the place of a light for the
+// "no light" warning, and the model came out black without a word (whitted lights with point
+// lights only; the background lights under path only).
+TEST_F(RenderCli, AWhittedSceneLitByItsBackgroundAloneIsAWarning) {
+  const auto render = [&](const std::string& integrator, const std::string& lights) {
+    const std::string path = WriteScene(R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 16, "height": 12 },
+      "background": [1, 1, 1], "lights": )" + lights + R"(,
+      "integrator": { "type": ")" + integrator + R"(", "max_depth": 2, "spp": 1 } })");
+    return RunProcess({kRaystack, "render", path, "--no-png", "-q", "--output", dir_->File("bg.exr")},
+                      dir_->path());
+  };
+  const std::string warning = "the whitted integrator lights with point lights only, and the scene "
+                              "has none: every diffuse surface will be black (the background is seen";
+  ProcessResult r = render("whitted", "[]");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find(warning), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("the scene has no light"), std::string::npos) << r.err;
+  for (const auto& [integrator, lights] : std::vector<std::pair<std::string, std::string>>{
+           {"path", "[]"},
+           {"whitted", R"([ { "type": "point", "position": [3, 8, 4], "intensity": [9, 9, 9] } ])"}}) {
+    r = render(integrator, lights);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(r.err.find("point lights only"), std::string::npos) << integrator << ": " << r.err;
+  }
+}
+
 TEST_F(RenderCli, ModesWriteTheSameImage) {
   std::vector<image::ImageLayers> images;
   for (const char* mode : {"stack", "sync", "incore", "bvh"}) {
