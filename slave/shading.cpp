@@ -65,7 +65,18 @@ Shader::Shader(const render::Scene& scene, const render::MaterialTable& material
       path_(scene.integrator.type == render::IntegratorType::kPath),
       max_depth_(scene.integrator.max_depth),
       seed_(scene.integrator.seed),
-      background_(NonZero(scene.background)) {}
+      background_(NonZero(scene.background)) {
+  double sum = 0;
+  for (const render::PointLight& light : scene.lights) {
+    const Vec3f i = light.intensity;
+    sum += 4 * std::numbers::pi * ((double{i.x} + double{i.y} + double{i.z}) / 3);
+    point_power_sums_.push_back(sum);
+  }
+  if (area_) {
+    emitters_power_ = area_->power();
+    emitters_scale_ = static_cast<float>((sum + emitters_power_) / emitters_power_);
+  }
+}
 
 void Shader::Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f direction,
                    Vec3f weight, ShadeOutput* out) const {
@@ -91,20 +102,29 @@ void Shader::DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albe
   // path one segment longer, which the depth limit cuts when the bounce is not traced (so the
   // image converges to the one the bounces alone would give).
   const bool emitters = area_ && ray.depth < max_depth_;
-  const size_t choices = lights.size() + (emitters ? 1 : 0);
-  if (choices == 0 || !NonZero(albedo)) return;
+  if ((lights.empty() && !emitters) || !NonZero(albedo)) return;
   size_t first = 0, last = lights.size();
   float scale = 1.0f;
-  if (path_) {  // next-event estimation: one light, chosen uniformly
+  if (path_) {
+    // Next-event estimation: one light, chosen by power (chosen uniformly, ten negligible fill
+    // lights took ten elevenths of the shadow rays from the one that lit the scene: +31% of
+    // variance at 64 samples).
+    const double points = point_power_sums_.empty() ? 0.0 : point_power_sums_.back();
+    const double total = points + (emitters ? emitters_power_ : 0.0);
+    if (!(total > 0)) return;
     const SampleRandom rng(seed_, pixel, sample);
-    const float u = rng.Uniform(ray.depth, RandomUse::kLightChoice);
-    const size_t chosen = std::min(choices - 1, static_cast<size_t>(u * static_cast<float>(choices)));
-    scale = static_cast<float>(choices);
-    if (chosen == lights.size()) {
-      EmitterLight(ray, origin, n, albedo, scale, rng, out);
+    // Below `total` (a float below 1 times a double): below `points` or among the emitters.
+    const double u = double{rng.Uniform(ray.depth, RandomUse::kLightChoice)} * total;
+    if (!(u < points)) {
+      EmitterLight(ray, origin, n, albedo, emitters_scale_, rng, out);
       return;
     }
-    first = chosen;
+    // The first light whose running sum passes u: one with power (a dark one adds nothing to
+    // the sum, so it is never the first to pass it).
+    first = static_cast<size_t>(std::upper_bound(point_power_sums_.begin(), point_power_sums_.end(), u) -
+                                point_power_sums_.begin());
+    const double power = point_power_sums_[first] - (first > 0 ? point_power_sums_[first - 1] : 0.0);
+    scale = static_cast<float>(total / power);
     last = first + 1;
   }
   for (size_t i = first; i < last; ++i) {
@@ -166,8 +186,7 @@ float Shader::EmissionWeight(const RayRecord& ray, Vec3f ng) const {
   if (!(pdf_area > 0)) return 1.0f;  // not sampled by EmitterLight: only found this way
   const float cos_light = -Dot(ng, ray.direction);  // ng faces the ray's origin
   if (!(cos_light > 0)) return 1.0f;
-  const float choices = static_cast<float>(scene_.lights.size() + 1);
-  const float light_pdf = pdf_area * ray.tmax * ray.tmax / (cos_light * choices);  // as EmitterLight
+  const float light_pdf = pdf_area * ray.tmax * ray.tmax / (cos_light * emitters_scale_);  // as EmitterLight
   const float bounce_pdf = CosineOf(ray.origin_cosine) / std::numbers::pi_v<float>;
   return 1.0f / (1.0f + light_pdf / bounce_pdf);  // 0 where the bounce had no density
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace raystack::render {
 
@@ -40,6 +41,7 @@ AreaLights::AreaLights(std::span<const store::EmitterRecord> emitters,
   }
   double total = 0;
   for (const double w : power) total += w;
+  power_ = 2 * std::numbers::pi * total;
   double running = 0;
   cumulative_.reserve(triangles_.size());
   for (const double w : power) cumulative_.push_back(running += w / total);

@@ -25,6 +25,9 @@ class AreaLights {
 
   bool empty() const { return triangles_.empty(); }
   size_t size() const { return triangles_.size(); }
+  // The power the triangles emit, both sides (2 pi x area x radiance, the radiance measured as
+  // the mean of its channels), for choosing between them and point lights.
+  double power() const { return power_; }
   // The density per unit area with which Pick returns a point on a triangle of store material
   // `material` (the same on each of them: a triangle's probability is its power, area times
   // radiance, over the total), or 0 when the material's triangles are not sampled here. For
@@ -56,6 +59,7 @@ class AreaLights {
   std::vector<Triangle> triangles_;
   std::vector<double> cumulative_;  // probability of choosing a triangle at or before i
   std::vector<float> pdf_area_;    // by store material (0: not sampled)
+  double power_ = 0;
 };
 
 }  // namespace raystack::render
