@@ -396,6 +396,36 @@ TEST_F(Resume, WithoutACheckpointEverythingIsRendered) {
             std::string::npos) << r.out;
 }
 
+// Under mpirun --enable-recovery the job's exit code is 0 whatever happened (found by an
+// operator: deploy/run-default.sh "succeeded" with the output a folder), so scripts check the
+// image: raystack-info IMAGE.exr exits 0 only for a complete frame, without OpenEXR's tools.
+TEST_F(Resume, RaystackInfoTellsACompleteFrameFromAPartialOne) {
+  const ProcessResult full = Render(dir_->File("done.exr"), 0);
+  ASSERT_EQ(full.exit_code, 0) << full.err;
+  ProcessResult info = RunProcess({prep::testing::kInfoBinary, dir_->File("done.exr")}, dir_->path());
+  EXPECT_EQ(info.exit_code, 0) << info.err;
+  EXPECT_NE(info.out.find("state            complete"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("size             96 x 64"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("samples/pixel    3 to 3"), std::string::npos) << info.out;
+  Expected<image::ImageLayers> image = image::ReadExr(dir_->File("done.exr"));
+  ASSERT_TRUE(image.ok());
+  image->partial = true;  // as a checkpoint is written
+  ASSERT_TRUE(image::WriteExr(dir_->File("checkpoint.exr"), *image).ok());
+  info = RunProcess({prep::testing::kInfoBinary, dir_->File("checkpoint.exr")}, dir_->path());
+  EXPECT_EQ(info.exit_code, 1);
+  EXPECT_NE(info.err.find("a partial frame"), std::string::npos) << info.err;
+  EXPECT_NE(info.err.find("--resume continues it"), std::string::npos) << info.err;
+  image->partial = false;
+  image->provenance.clear();  // another program's EXR
+  ASSERT_TRUE(image::WriteExr(dir_->File("other.exr"), *image).ok());
+  info = RunProcess({prep::testing::kInfoBinary, dir_->File("other.exr")}, dir_->path());
+  EXPECT_EQ(info.exit_code, 1);
+  EXPECT_NE(info.err.find("not a frame raystack render wrote"), std::string::npos) << info.err;
+  info = RunProcess({prep::testing::kInfoBinary, dir_->File("scene.json")}, dir_->path());
+  EXPECT_EQ(info.exit_code, 1);
+  EXPECT_NE(info.err.find(dir_->File("scene.json")), std::string::npos) << info.err;
+}
+
 // What a resumed run renders, for its progress (the bar and the preview): a finished pixel in a
 // tile still to render is rendered again, so it is not done already. The preview took every
 // restored pixel as done, and with the rendered samples counted them twice: its progress reached

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -11,11 +12,13 @@
 #include "common/base/progress.h"
 #include "common/render/material_table.h"
 #include "common/store/store_reader.h"
+#include "tools/info/image_info.h"
 
 namespace raystack {
 namespace {
 
 constexpr const char* kUsage = R"(usage: raystack-info STORE [--verify] [--blocks]
+       raystack-info IMAGE.exr
 
 Prints what a raystack block store holds: format version, triangle and reference counts,
 blocks and their size histogram, bytes per triangle, compression ratio, bounds, materials.
@@ -23,6 +26,11 @@ blocks and their size histogram, bytes per triangle, compression ratio, bounds, 
              first 20 are named, then counted)
   --blocks   list every block (offset, sizes, triangles, cell, bounds)
   --version  this build's version and git commit
+
+Given an EXR that raystack render wrote: its size, its state (complete, or partial: a
+checkpoint or what a stopped or failed job kept), its samples per pixel and what rendered it.
+Exit 0 only for a complete frame: under mpirun --enable-recovery the job's own exit code is
+always 0, so scripts check each image this way.
 )";
 
 void PrintHistogram(std::span<const store::BlockEntry> blocks) {
@@ -178,6 +186,17 @@ int main(int argc, char** argv) {
   if (dir.empty()) {
     std::fputs(raystack::kUsage, stderr);
     return 2;
+  }
+  const bool exr_name = dir.size() > 4 && (dir.compare(dir.size() - 4, 4, ".exr") == 0 ||
+                                           dir.compare(dir.size() - 4, 4, ".EXR") == 0);
+  // An image: a file (a store is a folder), or a missing one named as an EXR.
+  if (std::filesystem::is_regular_file(dir) || (exr_name && !std::filesystem::is_directory(dir))) {
+    if (verify || list) {
+      std::fprintf(stderr, "raystack-info: --verify and --blocks are for a store (%s is a file)\n",
+                   dir.c_str());
+      return 2;
+    }
+    return raystack::info::ShowImage(dir);
   }
   return raystack::Run(dir, verify, list);
 }
