@@ -11,6 +11,7 @@
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
 #include "common/image/output_file.h"
+#include "common/store/format.h"
 #include "master/preflight.h"
 #include "master/provenance.h"
 #include "master/resume.h"
@@ -348,6 +349,14 @@ Status ResumeInto(const RenderArgs& args, const render::Scene& scene, size_t f,
                   render::FramePlan* plan, render::Film* film) {
   if (!args.resume) return OkStatus();
   const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
+  // A checkpoint is continued only from the store it was rendered from, which the provenance
+  // tells by the index's checksum. A master that cannot read the index (under mpirun only the
+  // slaves need the store) cannot tell: it took a checkpoint of another model at the same path
+  // and finished it, a mixed image marked complete.
+  if (!StoreChecksum(scene.store))
+    return Status::Error(StrFormat("--resume: cannot read %s/%s here, so the checkpoint's store "
+                                   "cannot be told from this one; run the master where the store "
+                                   "is readable", scene.store.c_str(), store::kIndexFile));
   Expected<ResumePlan> resume =
       PlanResume(exr, plan->width, plan->height, plan->spp(), Provenance(scene, f));
   if (!resume.ok()) return resume.status();

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <cstdio>
 
 #include <filesystem>
@@ -451,6 +453,40 @@ TEST_F(DistributedCli, ADamagedBlockEndsTheJobNamingIt) {
   EXPECT_NE(r.err.find("damaged"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("block "), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("rank "), std::string::npos) << r.err;
+}
+
+// Under mpirun only the slaves need the store. Found by an operator: a master that could not read
+// it (another host's filesystem, here a private mount namespace with an empty folder over it)
+// resumed a checkpoint rendered from another model at the same path, and wrote the mixed image
+// as complete: its provenance could not tell the stores apart. --resume now needs the index.
+TEST_F(DistributedCli, AMasterThatCannotReadTheStoreRefusesToResume) {
+  if (geteuid() != 0) GTEST_SKIP() << "a private mount namespace needs root (CI runs as root)";
+  const std::string wrapper = dir_->File("blind-master.sh");
+  std::filesystem::create_directories(dir_->File("empty"));
+  std::ofstream(wrapper) << "#!/bin/sh\n"
+                            "if [ \"$OMPI_COMM_WORLD_RANK\" = 0 ]; then\n"
+                            "  exec unshare -m sh -c 'mount --bind \"$0\" \"$1\" || exit 125; shift; exec \"$@\"' "
+                         << dir_->File("empty") << " " << dir_->File("store") << " \"$@\"\n"
+                            "fi\n"
+                            "exec \"$@\"\n";
+  std::filesystem::permissions(wrapper, std::filesystem::perms::owner_all);
+  const std::string scene = Scene(R"({ "type": "whitted", "max_depth": 3, "spp": 1, "seed": 1 })");
+  const auto run = [&](const std::vector<std::string>& extra) {
+    std::vector<std::string> argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np",
+                                     "3", wrapper, kRaystack, "render", scene, "--no-png", "-q",
+                                     "--cache-mb", "1", "--output", dir_->File("blind.exr")};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return RunProcess(argv, dir_->path());
+  };
+  // Without --resume the slaves render it (the store is theirs to read).
+  const ProcessResult fresh = run({});
+  if (fresh.err.find("unshare") != std::string::npos || fresh.exit_code == 125)
+    GTEST_SKIP() << "no private mount namespace here: " << fresh.err;
+  ASSERT_EQ(fresh.exit_code, 0) << fresh.err;
+  const ProcessResult resumed = run({"--resume"});
+  EXPECT_NE(resumed.exit_code, 0);
+  EXPECT_NE(resumed.err.find("--resume: cannot read " + dir_->File("store") + "/index.bin here"),
+            std::string::npos) << resumed.err;
 }
 
 }  // namespace
