@@ -253,8 +253,8 @@ bool UseRemoteBlocks(const RenderArgs& args, const store::StoreReader& store, in
 
 // The slaves on this slave's machine (itself included): every rank there but the master.
 int SlavesHere(const transport::Transport& net) {
-  const std::vector<int> here = net.ranks_on_this_host();
-  return static_cast<int>(std::count_if(here.begin(), here.end(), [](int r) { return r != 0; }));
+  const transport::Transport::HostShare here = net.host_share();
+  return std::max(1, here.ranks - (here.with_rank0 ? 1 : 0));
 }
 
 Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::Transport* net) {

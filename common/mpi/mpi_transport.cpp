@@ -2,11 +2,11 @@
 
 #include <mpi.h>
 
-#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <iterator>
+#include <optional>
 #include <thread>
 
 #include "common/base/log.h"
@@ -29,6 +29,28 @@ bool LaunchedByMpirun() {
   return std::getenv("OMPI_COMM_WORLD_SIZE") != nullptr || std::getenv("PMI_SIZE") != nullptr ||
          std::getenv("PMIX_RANK") != nullptr;
 }
+
+namespace {
+
+transport::Transport::HostShare HostShareFromEnvironment(int rank) {
+  transport::Transport::HostShare share{1, rank == 0};
+  const auto number = [](const char* name) -> std::optional<int> {
+    const char* text = std::getenv(name);
+    if (text == nullptr) return std::nullopt;
+    char* end = nullptr;
+    const long value = std::strtol(text, &end, 10);
+    if (end == text || *end != '\0' || value < 0 || value > (1 << 24)) return std::nullopt;
+    return static_cast<int>(value);
+  };
+  const std::optional<int> local_size = number("OMPI_COMM_WORLD_LOCAL_SIZE");
+  const std::optional<int> local_rank = number("OMPI_COMM_WORLD_LOCAL_RANK");
+  if (!local_size || !local_rank || *local_size < 1) return share;
+  share.ranks = *local_size;
+  share.with_rank0 = number("OMPI_MCA_orte_num_nodes") == 1 || rank - *local_rank == 0;
+  return share;
+}
+
+}  // namespace
 
 Expected<std::unique_ptr<MpiTransport>> MpiTransport::Init(int* argc, char*** argv) {
   // Open MPI's shared-memory transport may copy a large message straight out of the
@@ -62,21 +84,7 @@ Expected<std::unique_ptr<MpiTransport>> MpiTransport::Init(int* argc, char*** ar
   int rank = 0, size = 0;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   MPI_Comm_size(MPI_COMM_WORLD, &size);
-  // The ranks on this machine, which share its memory (each slave's memory check counts them).
-  std::vector<int> host_ranks{rank};
-  MPI_Comm host = MPI_COMM_NULL;
-  if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank, MPI_INFO_NULL, &host) ==
-          MPI_SUCCESS &&
-      host != MPI_COMM_NULL) {
-    int n = 0;
-    MPI_Comm_size(host, &n);
-    std::vector<int> all(static_cast<size_t>(n));
-    if (MPI_Allgather(&rank, 1, MPI_INT, all.data(), 1, MPI_INT, host) == MPI_SUCCESS)
-      host_ranks = std::move(all);
-    MPI_Comm_free(&host);
-  }
-  std::sort(host_ranks.begin(), host_ranks.end());
-  return std::unique_ptr<MpiTransport>(new MpiTransport(rank, size, std::move(host_ranks)));
+  return std::unique_ptr<MpiTransport>(new MpiTransport(rank, size, HostShareFromEnvironment(rank)));
 }
 
 struct MpiTransport::Incoming {
@@ -86,10 +94,10 @@ struct MpiTransport::Incoming {
   std::vector<uint8_t> bytes;
 };
 
-MpiTransport::MpiTransport(int rank, int size, std::vector<int> host_ranks)
+MpiTransport::MpiTransport(int rank, int size, HostShare host_share)
     : rank_(rank),
       size_(size),
-      host_ranks_(std::move(host_ranks)),
+      host_share_(host_share),
       dead_(std::make_unique<std::atomic<bool>[]>(static_cast<size_t>(size))),
       incoming_(static_cast<size_t>(size)) {}
 

@@ -36,8 +36,12 @@ class MpiTransport final : public transport::Transport {
 
   int rank() const override { return rank_; }
   int size() const override { return size_; }
-  // From MPI_Comm_split_type(MPI_COMM_TYPE_SHARED), asked once by Init (every rank takes part).
-  std::vector<int> ranks_on_this_host() const override { return host_ranks_; }
+  // From Open MPI's environment, not a collective call (MPI_Comm_split_type at Init): a rank of
+  // an older build, which makes no such call, left the others waiting in it, so the job hung
+  // before the master could name the other build. OMPI_COMM_WORLD_LOCAL_SIZE ranks here; rank 0
+  // among them on a one-node job, or where this node's ranks start at 0 (ranks placed by slot,
+  // mpirun's default). Elsewhere (srun, MPICH): this rank alone.
+  HostShare host_share() const override { return host_share_; }
   Status Send(int to, std::span<const uint8_t> bytes) override;
   // MPI_Isend of bytes it keeps; Receive (and the next Post) test the sends in flight and drop
   // the finished ones, and those to a rank known dead.
@@ -66,9 +70,9 @@ class MpiTransport final : public transport::Transport {
   [[noreturn]] static void ExitWithoutFinalize(int code);
 
  private:
-  MpiTransport(int rank, int size, std::vector<int> host_ranks);
+  MpiTransport(int rank, int size, HostShare host_share);
   int rank_, size_;
-  std::vector<int> host_ranks_;
+  HostShare host_share_;
   std::atomic<bool> rank_died_{false}, rank_will_not_end_{false};
   std::unique_ptr<std::atomic<bool>[]> dead_;  // by rank
   // Receives in progress, by sender (Receive; defined where mpi.h is).

@@ -10,11 +10,7 @@ class InProcessTransport final : public Transport {
   int rank() const override { return rank_; }
   int size() const override { return hub_->ranks(); }
   // Every rank is a thread of this process.
-  std::vector<int> ranks_on_this_host() const override {
-    std::vector<int> all(static_cast<size_t>(size()));
-    for (int r = 0; r < size(); ++r) all[static_cast<size_t>(r)] = r;
-    return all;
-  }
+  HostShare host_share() const override { return {size(), true}; }
 
   Status Send(int to, std::span<const uint8_t> bytes) override {
     if (to < 0 || to >= size())

@@ -35,9 +35,13 @@ class Transport {
   virtual ~Transport() = default;
   virtual int rank() const = 0;
   virtual int size() const = 0;
-  // The ranks that share this rank's machine (this one included), in increasing order: they
-  // share its memory. The default: this rank alone.
-  virtual std::vector<int> ranks_on_this_host() const { return {rank()}; }
+  // The ranks on this rank's machine, which share its memory: how many (this one included),
+  // and whether rank 0 is one of them. The default: this rank alone.
+  struct HostShare {
+    int ranks = 1;
+    bool with_rank0 = false;
+  };
+  virtual HostShare host_share() const { return {1, rank() == 0}; }
   // Queues `bytes` for rank `to` (0 <= to < size()); returns once they may be reused.
   virtual Status Send(int to, std::span<const uint8_t> bytes) = 0;
   // Queues `bytes` for rank `to` and returns at once, whether or not `to` has begun to receive
