@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "common/base/log.h"
+#include "common/base/usable_cores.h"
 #include "slave/block_loader.h"
 
 namespace raystack::master {
@@ -28,7 +29,7 @@ options:
                             in RAM, after a build of ~1 s per million triangles: worth it for
                             many samples or frames; about twice incore's memory; same image)
   --cache-mb N              block cache budget in MiB, never exceeded (default 512)
-  --threads N               ray threads (default: all cores, at most 64)
+  --threads N               ray threads (default: the cores this process may use, at most 64)
   --feed-fraction P         start the next tile once this fraction of the current one is
                             done (default 0.1)
   --tile-size N             tile side in pixels (default 32)
@@ -132,7 +133,7 @@ bool ParseNumber(const std::string& s, T* out) {
 
 Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
   bool bind_given = false, hold_given = false;
-  a->engine.threads = DefaultRayThreads(std::thread::hardware_concurrency());
+  a->engine.threads = DefaultRayThreads(static_cast<unsigned>(UsableCores()));
   bool log_options_given = false, checkpoint_faults_given = false;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];

@@ -9,6 +9,7 @@
 #include "common/base/thread_cpu.h"
 #include "common/base/thread_name.h"
 #include "common/base/thread_policy.h"
+#include "common/base/usable_cores.h"
 
 namespace raystack::slave {
 namespace {
@@ -20,7 +21,7 @@ long VoluntarySwitches() {
   return usage.ru_nvcsw;
 }
 
-size_t Cores() { return std::max(1u, std::thread::hardware_concurrency()); }
+size_t Cores() { return static_cast<size_t>(UsableCores()); }
 
 }  // namespace
 

@@ -48,7 +48,7 @@ std::string RenderStats::ToJson() const {
 }
 
 std::string RenderStats::ToText() const {
-  std::string s = StrFormat("%s mode, %d threads: %.3f s", mode.c_str(), threads, seconds);
+  std::string s = StrFormat("%s mode, %d thread%s: %.3f s", mode.c_str(), threads, threads == 1 ? "" : "s", seconds);
   if (preload_seconds > 0) s += StrFormat(" (+%.3f s preloading)", preload_seconds);
   if (bvh_build_seconds > 0) s += StrFormat(" (+%.3f s building the BVH)", bvh_build_seconds);
   s += StrFormat("\n  rays: %llu (%.2f M/s); primary %llu, shadow %llu, specular %llu, diffuse %llu",

@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <sched.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -170,6 +173,22 @@ TEST_F(RenderCli, NegligibleFillLightsBarelyChangeAPathTracedImage) {
   ASSERT_GT(sum, 0);
   // Uniformly chosen: 0.8 of the image's mean.
   EXPECT_LT(difference / sum, 1e-3);
+}
+
+// The default --threads is the cores this process may use (found by an operator: mpirun binds a
+// rank to one core when it starts two or fewer, and the rank still ran a ray thread per core of
+// the machine, time-sharing that core: 0.6-0.7x the speed). Bound to one CPU, as taskset does.
+TEST_F(RenderCli, TheDefaultThreadsAreTheCoresThisProcessMayUse) {
+  const ProcessResult r = RunProcess(
+      {kRaystack, "render", Scene(), "--no-png", "--output", dir_->File("bound.exr")}, dir_->path(),
+      [] {
+        cpu_set_t one;
+        CPU_ZERO(&one);
+        CPU_SET(0, &one);
+        if (sched_setaffinity(0, sizeof one, &one) != 0) _exit(125);
+      });
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("stack mode, 1 thread:"), std::string::npos) << r.out;
 }
 
 TEST_F(RenderCli, ModesWriteTheSameImage) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/base/status.h"
+#include "common/base/usable_cores.h"
 #include "common/geometry/bvh.h"
 #include "tools/import/model_reader.h"
 
@@ -32,7 +33,7 @@ struct ConvertOptions {
   uint32_t target_block_bytes = 32 * 1024;
   uint32_t max_block_bytes = 128 * 1024;
   uint64_t memory_limit_bytes = 1024ull << 20;
-  int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  int threads = UsableCores();
   bool shuffle = true;
   BvhBuildOptions bvh = DefaultBlockBvh();  // each block's own BVH
   bool quiet = false;  // no progress output

@@ -671,9 +671,9 @@ Status Builder::FillBuckets(const TriangleSource& source, uint32_t node, const B
     for (const TriangleSpool& b : piece) bucket_bytes += b.bytes();
   // Like the start's line: only the first pass is news (a small --mem-limit gave 120 lines).
   RAYSTACK_LOG(depth == 0 ? LogLevel::kInfo : LogLevel::kDebug, "prep",
-               "partitioned in %.1f s on %d threads (%.2f GB of bucket files)",
+               "partitioned in %.1f s on %d thread%s (%.2f GB of bucket files)",
            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), parts,
-           static_cast<double>(bucket_bytes) / 1e9);
+           parts == 1 ? "" : "s", static_cast<double>(bucket_bytes) / 1e9);
   return OkStatus();
 }
 

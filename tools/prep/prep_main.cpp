@@ -39,7 +39,7 @@ options:
   --target-block-kb N     mean raw block size to aim for (default 32)
   --max-block-kb N        hard cap on a raw block (default 128)
   --mem-limit MB          memory budget of the whole converter (default 1024)
-  --threads N             encoding threads (default: all cores)
+  --threads N             encoding threads (default: the cores it may use)
   --temp-dir DIR          where temporary files go (default: $TMPDIR or /tmp)
   --no-shuffle            plain lz4 without the byte shuffle (for measurement)
   --bvh-leaf N            most triangles per leaf of a block's BVH (default 8)
