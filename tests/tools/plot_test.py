@@ -141,6 +141,56 @@ class PlotTool(unittest.TestCase):
             self.assertIn(says, r.stderr)
         self.assertFalse(os.path.exists(os.path.join(self.tmp, "p.jpg")))
 
+    def test_a_curve_holds_each_value_until_the_next_row(self):
+        # Found by a researcher: rows were joined by lines, so a curve fell through times where
+        # the log holds no row (two renders seemed to cross where neither had a value). A log
+        # high until 10 s, then low: across the plot's width the curve stays at its top.
+        a = os.path.join(self.tmp, "a.csv")
+        write_log(a, [(0.1, 1.0), (1.0, 1.0), (10.0, 0.01)])
+        out = os.path.join(self.tmp, "p.png")
+        r = self.run_tool(a, "-o", out, "--width", "640", "--height", "400")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        w, h, rows = read_png_rgb(out)
+
+        def blue(p):
+            return all(abs(x - y) <= 40 for x, y in zip(p, (0x1f, 0x77, 0xb4)))
+
+        cells = [(x, y) for y in range(h) for x in range(w) if blue(rows[y][x])]
+        top = min(y for _, y in cells)
+        # Between 1 s and 10 s (the middle of the curve's columns, past the legend's short
+        # line), every blue pixel is on the top line: a line from (1, 1.0) to (10, 0.01) would
+        # have blue halfway down.
+        xs = sorted({x for x, _ in cells})
+        middle = xs[len(xs) * 3 // 4]
+        column = [y for x, y in cells if x == middle]
+        self.assertTrue(column)
+        self.assertLessEqual(max(column) - top, 4, (middle, column, top))
+
+    def test_paths_with_equals_signs(self):
+        # Found by a researcher: "feed=0.1.csv" was read as the label "feed" and the file
+        # "0.1.csv". A path that names a file is taken whole; a label before it still works.
+        os.makedirs(os.path.join(self.tmp, "run=3"))
+        for name in ("feed=0.1.csv", os.path.join("run=3", "log.csv")):
+            path = os.path.join(self.tmp, name)
+            write_log(path, [(0.1, 1.0), (1.0, 0.5)])
+            for spec in (path, "mine=" + path, "P=0.1=" + path):
+                r = self.run_tool(spec, "-o", os.path.join(self.tmp, "p.png"), "--area")
+                self.assertEqual(r.returncode, 0, (spec, r.stderr))
+            self.assertIn("P=0.1: area", r.stdout)
+        r = self.run_tool("x=" + os.path.join(self.tmp, "none.csv"), "-o", os.path.join(self.tmp, "p.png"))
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("none.csv: cannot read", r.stderr)
+
+    def test_a_file_that_is_not_text_is_refused(self):
+        # Found by a researcher: an EXR given by mistake ended in a Python traceback.
+        exr = os.path.join(self.tmp, "image.exr")
+        with open(exr, "wb") as f:
+            f.write(b"\x76\x2f\x31\x01\x02\x00\x00\x00" + bytes(range(128, 256)) * 4)
+        r = self.run_tool(exr, "-o", os.path.join(self.tmp, "p.png"))
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("image.exr: not a raystack convergence log", r.stderr)
+        self.assertNotIn("Traceback", r.stderr)
+
     def test_bad_logs_name_the_file_and_line(self):
         bad = os.path.join(self.tmp, "bad.csv")
         with open(bad, "w") as f:

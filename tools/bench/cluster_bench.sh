@@ -17,6 +17,7 @@
 # into the efficiency.
 #
 #   tools/bench/cluster_bench.sh [SCENE] [CACHE_MB] [QUOTA] [LATENCY_US]
+#   RAYSTACK_BUILD: the build folder whose raystack runs (default: build)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 scene=${1:-tools/bench/scenes/default2.json}
@@ -39,7 +40,7 @@ run() {  # slaves blocks latency repeat -> prints the stats file
   local n=$1 blocks=$2 lat=$3 out="$work/s-$1-$2-$3-$4.json"
   RAYSTACK_CPU_QUOTA_PCT=$quota mpirun --allow-run-as-root --oversubscribe -np $((n + 1)) \
       -x RAYSTACK_CPU_QUOTA_PCT tools/bench/cpu_capped.sh \
-      build/master/raystack render "$scene" --threads 1 --cache-mb "$cache_mb" \
+      "${RAYSTACK_BUILD:-build}"/master/raystack render "$scene" --threads 1 --cache-mb "$cache_mb" \
       --blocks "$blocks" --io-latency-us "$lat" --no-png -q --stats "$out" > /dev/null
   echo "$out"
 }

@@ -4,6 +4,9 @@
 #
 #   tools/bench/error_time_bench.sh [WORK_DIR]      (run it under flock /tmp/raystack-bench.lock)
 #
+# RAYSTACK_BUILD: the build folder to measure (default: build); PLOTS_DIR: where the plots go
+# (default: tools/bench/plots, the published ones, overwritten).
+#
 # (a) priority vs scanline, in core: a Whitted scene at 1 spp (the order alone: the error is
 #     mostly pixels not yet computed), and a path-traced scene at 32 spp (passes 1, 1, 2, 4,
 #     ...), priority order (first pass in priority-matrix rounds) against scanline order with
@@ -21,10 +24,12 @@ set -euo pipefail
 cd "$(dirname "$0")/../.."
 root=$PWD
 work=${1:-$(mktemp -d)}
-mkdir -p "$work" tools/bench/plots
-raystack=$root/build/master/raystack
+build=$(realpath "${RAYSTACK_BUILD:-build}")
+plots=$(realpath -m "${PLOTS_DIR:-tools/bench/plots}")
+mkdir -p "$work" "$plots"
+raystack=$build/master/raystack
 plot=$root/tools/plot/raystack-plot
-prep=$root/build/tools/prep/raystack-prep
+prep=$build/tools/prep/raystack-prep
 threads=2
 
 [ -d "$work/small-store" ] || "$prep" --generate spheres:200000 -o "$work/small-store" -q
@@ -54,7 +59,7 @@ render whitted a1-scanline --reference "$work/whitted-ref.exr" --pixel-order sca
 echo "## (a) Whitted 1 spp: area under RMSE(t)"
 "$plot" "priority=$work/a1-priority.csv" "scanline=$work/a1-scanline.csv" --area --metric rmse \
     --title "RMSE against time: priority vs scanline (480x270, Whitted, 1 spp, 2 threads)" \
-    -o tools/bench/plots/error_priority_vs_scanline_whitted.png
+    -o "$plots"/error_priority_vs_scanline_whitted.png
 
 # (a), (b): small in-core path-traced scene.
 scene path-ref small-store 240 135 path 512 99
@@ -69,7 +74,7 @@ echo "## (a) area under RMSE(t)"
 "$plot" "priority=$work/a-priority.csv" "scanline=$work/a-scanline.csv" \
     "scanline, whole tiles=$work/a-scanline-tiles.csv" --area --metric rmse \
     --title "RMSE against time: priority vs scanline (240x135, path, 32 spp, 2 threads)" \
-    -o tools/bench/plots/error_priority_vs_scanline.png
+    -o "$plots"/error_priority_vs_scanline.png
 first_full=$(awk -F, '$2=="pass" && $3==1 {print $4; exit}' "$work/a-priority.csv")
 echo "## (a) up to the priority run's first full frame ($first_full s)"
 "$plot" "priority=$work/a-priority.csv" "scanline=$work/a-scanline.csv" \
@@ -81,7 +86,7 @@ awk -F, 'NR > 1 && $8 >= 4 && $9 != "" && $11 != "" {
     "$work/a-priority.csv" | (echo "event,pass,seconds,min_samples,error_estimate,rmse,ratio"; cat)
 "$plot" "priority=$work/a-priority.csv" --estimate --metric rmse \
     --title "Variance-based estimate (dashed) against RMSE to a 512-spp reference" \
-    -o tools/bench/plots/error_estimate_vs_rmse.png
+    -o "$plots"/error_estimate_vs_rmse.png
 
 # (c): out of core, stack vs sync.
 scene ooc-ref default-store 480 270 whitted 64 99
@@ -100,7 +105,7 @@ for latency in 0 1000; do
   echo "## (c) area under RMSE(t), --io-latency-us $latency"
   "$plot" "stack=$work/c-stack-$latency.csv" "sync=$work/c-sync-$latency.csv" --area --metric rmse \
       --title "RMSE against time, out of core (2 M triangles, 16 MB cache, +$latency us/read)" \
-      -o "tools/bench/plots/error_stack_vs_sync_io$latency.png"
+      -o "$plots/error_stack_vs_sync_io$latency.png"
 done
 render ooc c-stack-scanline --reference "$work/ooc-ref.exr" --cache-mb 16 --pixel-order scanline \
     --stats "$work/c-stack-scanline-stats.json"

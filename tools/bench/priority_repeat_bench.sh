@@ -2,10 +2,11 @@
 # Issue 5 figure (a), repeated: Whitted at 1 spp, priority and scanline order alternated,
 # three pairs at 480x270 and at 960x540; areas under RMSE(t) per pair (tools/bench/RESULTS.md).
 #   flock /tmp/raystack-bench.lock tools/bench/priority_repeat_bench.sh WORK_DIR STORE
+# RAYSTACK_BUILD: the build folder to measure (default: build).
 set -e
 cd "$(dirname "$0")/../.."; root=$PWD; w=${1:-$(mktemp -d)}; store=${2:?usage: priority_repeat_bench.sh WORK_DIR STORE (a store of --generate spheres:200000)}
 mkdir -p "$w"
-rs=$root/build/master/raystack; plot=$root/tools/plot/raystack-plot
+rs=$(realpath "${RAYSTACK_BUILD:-build}")/master/raystack; plot=$root/tools/plot/raystack-plot
 . tools/bench/bench_scene.sh
 scene() { local name=$1; shift; bench_scene "$w/$name.json" "$store" "$@"; }
 for size in "480 270" "960 540"; do
