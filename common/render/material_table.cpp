@@ -1,11 +1,13 @@
 #include "common/render/material_table.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <map>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "common/base/log.h"
 
@@ -46,6 +48,51 @@ void WarnAboutSharedOverrides(const std::map<std::string, size_t>& matched,
                   "in the store, which keeps %zu bytes of a name); the override changes all of "
                   "them. To tell them apart, rename them in the MTL file and convert again",
                   source.c_str(), name.c_str(), count, sizeof(store::MaterialRecord::name) - 1);
+}
+
+// Edits (insertions, deletions, substitutions, ignoring case) from a to b, or `cap` + 1 once
+// past `cap`.
+size_t EditDistance(const std::string& a, const std::string& b, size_t cap) {
+  if ((a.size() > b.size() ? a.size() - b.size() : b.size() - a.size()) > cap) return cap + 1;
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const bool same = std::tolower(static_cast<unsigned char>(a[i - 1])) ==
+                        std::tolower(static_cast<unsigned char>(b[j - 1]));
+      const size_t next = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (same ? 0 : 1)});
+      diagonal = row[j];
+      row[j] = next;
+    }
+  }
+  return std::min(row.back(), cap + 1);
+}
+
+// The store's material names, " (it has a, b, c)", or where to find them when they are many.
+std::string Names(std::span<const store::MaterialRecord> records) {
+  constexpr size_t kListed = 12;
+  if (records.size() > kListed) return " (raystack-info STORE lists them)";
+  std::string names;
+  for (const store::MaterialRecord& r : records) names += (names.empty() ? "" : ", ") + RecordName(r);
+  return " (it has " + names + ")";
+}
+
+// What to say of an override key no store material has: the name it was probably meant to be
+// (the same but for case, or two edits away), else the store's names when they are few.
+std::string NameHint(const std::string& key, std::span<const store::MaterialRecord> records) {
+  constexpr size_t kCloseEdits = 2;
+  std::string closest;
+  size_t best = kCloseEdits + 1;
+  for (const store::MaterialRecord& r : records) {
+    const std::string name = RecordName(r);
+    const size_t d = EditDistance(key, name, kCloseEdits);
+    if (d < best) best = d, closest = name;
+  }
+  if (!closest.empty()) return " (did you mean \"" + closest + "\"?)";
+  if (records.empty()) return " (it has none: every triangle takes materials.default)";
+  return Names(records);
 }
 
 }  // namespace
@@ -123,9 +170,17 @@ MaterialTable MaterialTable::Build(std::span<const store::MaterialRecord> record
     if (!say || matched.count(name) || ++unused > kNamedUnused) continue;
     LOG_WARNING(kComponent,
                 "%s: materials.%s: the store has no material of that name; the override is "
-                "unused",
-                scene.source.c_str(), name.c_str());
+                "unused%s",
+                scene.source.c_str(), name.c_str(), NameHint(name, records).c_str());
   }
+  // A "default" beside a store whose faces carry MTL materials changed nothing, without a word
+  // (a scene author gave the Cornell box a default mirror: the same image, bit for bit).
+  if (say && scene.default_given && !records.empty())
+    LOG_WARNING(kComponent,
+                "%s: materials.default applies only to triangles without a material, and the "
+                "store's come with %zu from the model's MTL: it changes nothing where every face "
+                "has one; to change those, name them in \"materials\"%s",
+                scene.source.c_str(), records.size(), Names(records).c_str());
   if (say && unused > kNamedUnused)
     LOG_WARNING(kComponent, "%s: %zu more material overrides name no material of the store",
                 scene.source.c_str(), unused - kNamedUnused);

@@ -188,6 +188,7 @@ class SceneParser {
         const std::string path = Child("materials", name);
         if (name.empty()) return Error(path, "a material name must not be empty");
         Material* material = name == "default" ? &scene->default_material : &scene->overrides[name];
+        if (name == "default") scene->default_given = true;
         RAYSTACK_RETURN_IF_ERROR(ReadMaterial(value, path, material));
       }
     }

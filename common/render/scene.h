@@ -53,6 +53,7 @@ struct Scene {
   std::vector<CameraDesc> cameras;  // "camera": {...} or "cameras": [{...}, ...]; at least one
   std::vector<PointLight> lights;
   Material default_material;  // "materials": {"default": {...}} (else the default above)
+  bool default_given = false;  // "default" was in "materials"
   std::map<std::string, Material> overrides;  // "materials": {"<MTL name>": {...}}
   Vec3f background{0, 0, 0};  // radiance of rays that escape ("background": [r,g,b])
   IntegratorDesc integrator;

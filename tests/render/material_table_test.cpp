@@ -217,6 +217,41 @@ TEST(MaterialTable, OverrideOfAMissingMaterialIsAWarning) {
   EXPECT_NE(log.find("no material of that name"), std::string::npos) << log;
 }
 
+// Found by a scene author: a typo's warning did not say what the name might have been, and a
+// "default" beside a store whose faces all carry MTL materials changed nothing without a word.
+TEST(MaterialTable, WarningsNameWhatWasMeant) {
+  const std::vector<store::MaterialRecord> records = {Record("shortBox"), Record("tallBox"),
+                                                      Record("light")};
+  const auto warnings = [&](const Scene& scene) {
+    testing::internal::CaptureStderr();
+    (void)MaterialTable::Build(records, scene);
+    return testing::internal::GetCapturedStderr();
+  };
+  Scene typo;
+  typo.source = "scene.json";
+  typo.overrides["shortbox"].type = MaterialType::kMirror;  // case
+  typo.overrides["talBox"].type = MaterialType::kMirror;    // one letter
+  typo.overrides["lamp"].type = MaterialType::kMirror;      // nothing near: the names listed
+  std::string log = warnings(typo);
+  EXPECT_NE(log.find("materials.shortbox: the store has no material of that name; the override is "
+                     "unused (did you mean \"shortBox\"?)"), std::string::npos) << log;
+  EXPECT_NE(log.find("materials.talBox: the store has no material of that name; the override is "
+                     "unused (did you mean \"tallBox\"?)"), std::string::npos) << log;
+  EXPECT_NE(log.find("materials.lamp: the store has no material of that name; the override is "
+                     "unused (it has shortBox, tallBox, light)"), std::string::npos) << log;
+  Scene with_default;
+  with_default.source = "scene.json";
+  with_default.default_given = true;
+  log = warnings(with_default);
+  EXPECT_NE(log.find("materials.default applies only to triangles without a material"),
+            std::string::npos) << log;
+  EXPECT_NE(log.find("(it has shortBox, tallBox, light)"), std::string::npos) << log;
+  // Without MTL materials the default is every triangle's: nothing to say.
+  testing::internal::CaptureStderr();
+  (void)MaterialTable::Build({}, with_default);
+  EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+}
+
 TEST(MaterialTable, LongNamesMatchTheStoresTruncation) {
   const std::string long_name(80, 'm');
   const std::vector<store::MaterialRecord> records = {Record(long_name)};  // kept to 63 bytes
