@@ -129,7 +129,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     };
     EndIfInterruptedBetweenFrames(f, frames, &writer, interrupted);
     {
-      ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
+      ProgressReporter progress(FrameTitle(f, frames), total, "samples",
                                 args.quiet);
       uint64_t shown = 0;
       Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),

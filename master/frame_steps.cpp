@@ -27,6 +27,10 @@ Status WriteStats(const std::string& path, const std::string& json) {
   return OkStatus();
 }
 
+std::string FrameTitle(size_t f, size_t frames) {
+  return frames == 1 ? std::string("frame 0") : StrFormat("frame %zu (%zu of %zu)", f, f + 1, frames);
+}
+
 std::string OutputOf(const RenderArgs& args, const render::Scene& scene) {
   return args.output.empty() ? scene.output : args.output;
 }

@@ -36,6 +36,10 @@ Status CheckNoUnfinishedFrame(const RenderArgs& args, const render::Scene& scene
 Status WriteStats(const std::string& path, const std::string& json);
 // The output the images are named from: --output, else the scene's.
 std::string OutputOf(const RenderArgs& args, const render::Scene& scene);
+// Frame f's name in progress lines: "frame 1 (2 of 3)", "frame 0" alone. Frames are counted
+// from 0 as in the file names (out-1.exr), the figures and the convergence log; the progress
+// said "frame 2/3" of that frame.
+std::string FrameTitle(size_t f, size_t frames);
 // CheckOutputs (preflight.h) for OutputOf, its errors prefixed by where the output was given
 // ("--output", or the scene file's "output" key).
 Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene);

@@ -141,7 +141,7 @@ Status RenderLocally(const RenderArgs& args) {
     const AfterInterrupt interrupted = [&](const std::string& said) { preview->Interrupted(said); };
     EndIfInterruptedBetweenFrames(f, frames, &writer, interrupted);
     {
-      ProgressReporter progress(StrFormat("frame %zu/%zu", f + 1, frames), total, "samples",
+      ProgressReporter progress(FrameTitle(f, frames), total, "samples",
                                 args.quiet);
       // The frame's end wakes this thread at once: a sleep of `poll` here cost every frame up to
       // 100 ms after its last ray (a 8x8 image took 0.11 s, 0.01 s now).

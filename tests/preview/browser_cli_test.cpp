@@ -162,7 +162,7 @@ TEST_P(PreviewCliRanks, CtrlCSaysOnThePageWhereTheFrameSoFarIs) {
   }
   ASSERT_TRUE(browser.WaitFor("preview.status.interrupted === true", kPatience, &error))
       << error << "\n" << render.err();
-  EXPECT_EQ(browser.Evaluate("document.getElementById('frame').textContent", &error), "1/1 (interrupted)");
+  EXPECT_EQ(browser.Evaluate("document.getElementById('frame').textContent", &error), "0 (interrupted)");
   const nlohmann::json note = browser.Evaluate("document.getElementById('note').textContent", &error);
   ASSERT_TRUE(note.is_string()) << error;
   // Either where the frame so far is, or (no pixel has all its samples yet, as is likely with
@@ -367,7 +367,7 @@ TEST_F(PreviewCli, AFailedRenderSaysWhyOnThePageForTheHoldTime) {
   ASSERT_TRUE(note.is_string()) << error;
   EXPECT_NE(note.get<std::string>().find("failed: "), std::string::npos) << note;
   EXPECT_NE(note.get<std::string>().find("read failed (injected fault)"), std::string::npos) << note;
-  EXPECT_EQ(browser.Evaluate("document.getElementById('frame').textContent", &error), "1/1 (failed)");
+  EXPECT_EQ(browser.Evaluate("document.getElementById('frame').textContent", &error), "0 (failed)");
   EXPECT_EQ(browser.Evaluate("document.getElementById('left').textContent", &error), "—");
   EXPECT_EQ(browser.Evaluate("Number(document.getElementById('exposure').value)", &error), 12);
   render.Signal(SIGTERM);  // ends the hold
