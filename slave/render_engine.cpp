@@ -205,6 +205,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   }
 
   uint64_t visits = 0, waited = 0;
+  double sync_loads = 0;
   for (auto& t : threads) {
     const ThreadCounters& c = t->counters();
     for (int k = 0; k < kRayTypeCount; ++k) s.rays[k] += c.rays[k];
@@ -218,7 +219,9 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
     s.ray_tile_wait_seconds += c.tile_wait_seconds;
     s.ray_busy_seconds += std::max(0.0, c.run_seconds - c.idle_seconds - c.tile_wait_seconds);
     s.ray_cpu_seconds += c.cpu_seconds;
+    sync_loads += c.load_seconds;
   }
+  if (!loader) s.loader_busy_seconds = sync_loads;  // sync: the ray threads' own loads
   for (uint64_t r : s.rays) s.rays_total += r;
   s.rays_per_second = s.seconds > 0 ? static_cast<double>(s.rays_total) / s.seconds : 0;
   s.block_visits = visits;

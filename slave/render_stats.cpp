@@ -37,7 +37,10 @@ std::string RenderStats::ToJson() const {
     << ",\n  \"ray_busy_seconds\": " << ray_busy_seconds
     << ",\n  \"ray_cpu_seconds\": " << ray_cpu_seconds
     << ",\n  \"loader_cpu_seconds\": " << loader_cpu_seconds
-    << ",\n  \"cache_budget_bytes\": " << cache_budget_bytes
+    // No budget (in core): null, not 2^64 - 1, which a JSON reader in doubles misreads.
+    << ",\n  \"cache_budget_bytes\": "
+    << (cache_budget_bytes == std::numeric_limits<uint64_t>::max() ? std::string("null")
+                                                                    : std::to_string(cache_budget_bytes))
     << ",\n  \"cache_peak_bytes\": " << cache_peak_bytes << ",\n  \"evictions\": " << evictions
     << ",\n  \"peak_stack_bytes\": " << peak_stack_bytes
     << ",\n  \"peak_stack_rays\": " << peak_stack_rays
@@ -62,7 +65,8 @@ std::string RenderStats::ToText() const {
                  static_cast<unsigned long long>(reads),
                  aio_reads ? "direct (Linux AIO)" : direct_reads ? "direct" : "buffered");
   if (mode == "sync")  // no loader: each ray thread reads what it misses, and waits
-    s += " (by the ray threads themselves, each waiting for its own)";
+    s += StrFormat(" (by the ray threads themselves, each waiting for its own); loading %.3f s, "
+                   "ray threads waiting for reads %.3f s", loader_busy_seconds, ray_idle_seconds);
   else
     s += StrFormat(" (%llu by the loader itself, the rest by %llu I/O threads); loader busy %.3f s; "
                    "ray threads idle %.3f s", static_cast<unsigned long long>(loader_reads),

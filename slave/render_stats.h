@@ -17,7 +17,10 @@ struct ThreadCounters {
   uint64_t peak_stack_bytes = 0;
   uint64_t peak_stack_rays = 0;
   uint64_t peak_open_samples = 0;
-  double idle_seconds = 0;  // asleep with every ray waiting for the loader (stack mode)
+  // Stack mode: asleep with every ray waiting for the loader. Sync mode: reading a block, or
+  // waiting for another thread's read of it (the time its I/O took from the thread).
+  double idle_seconds = 0;
+  double load_seconds = 0;  // sync mode: reading and decoding blocks (its T_io, summed)
   double tile_wait_seconds = 0;  // holding no rays, waiting for the tile source's next tile
   double run_seconds = 0;        // from the thread's start in the frame to its end
   double cpu_seconds = 0;        // CPU time the thread used in that span

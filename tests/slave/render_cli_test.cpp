@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -189,6 +190,36 @@ TEST_F(RenderCli, TheDefaultThreadsAreTheCoresThisProcessMayUse) {
       });
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("stack mode, 1 thread:"), std::string::npos) << r.out;
+}
+
+// A number of the statistics JSON ("key": value), NaN when missing.
+double StatOf(const std::string& json, const std::string& key) {
+  const size_t at = json.find("\"" + key + "\": ");
+  return at == std::string::npos ? std::nan("") : std::strtod(json.c_str() + at + key.size() + 4, nullptr);
+}
+
+// Found by a researcher: in sync mode the time the ray threads spent in their own reads counted
+// as busy (ray_idle_seconds and loader_busy_seconds 0 with 1 ms injected per read), so its I/O
+// wait and T_io could not be read from the figures; in core the budget read 2^64 - 1.
+TEST_F(RenderCli, SyncModeCountsItsReadsAsWaiting) {
+  const ProcessResult r = RunProcess({kRaystack, "render", Scene(), "--mode", "sync", "--cache-mb",
+                                      "1", "--io-latency-us", "2000", "--threads", "2", "--no-png",
+                                      "-q", "--output", dir_->File("sync.exr"), "--stats",
+                                      dir_->File("sync.json")},
+                                     dir_->path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::string json = Slurp(dir_->File("sync.json"));
+  const double reads = StatOf(json, "reads");
+  ASSERT_GT(reads, 0) << json;
+  // Each read sleeps 2 ms at least: that much waiting, and as much loading.
+  EXPECT_GE(StatOf(json, "ray_idle_seconds"), reads * 0.002) << json;
+  EXPECT_GE(StatOf(json, "loader_busy_seconds"), reads * 0.002) << json;
+  const ProcessResult incore = RunProcess({kRaystack, "render", Scene(), "--mode", "incore", "-q",
+                                           "--no-png", "--output", dir_->File("incore.exr"),
+                                           "--stats", dir_->File("incore.json")},
+                                          dir_->path());
+  ASSERT_EQ(incore.exit_code, 0) << incore.err;
+  EXPECT_NE(Slurp(dir_->File("incore.json")).find("\"cache_budget_bytes\": null"), std::string::npos);
 }
 
 TEST_F(RenderCli, ModesWriteTheSameImage) {
