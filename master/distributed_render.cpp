@@ -40,38 +40,46 @@ constexpr const char* kMpirunSigterm =
     "or out of memory; under mpirun --enable-recovery the job goes on without a lost slave)";
 
 
+// Per slave, the names a one-process run's --stats uses for the same figures
+// (slave::RenderStats::ToJson), and the job's own (tiles, peers, bytes to and from the master).
 std::string FiguresJson(size_t frame, const FrameFigures& f) {
   std::string s = StrFormat("{\n  \"frame\": %zu,\n  \"seconds\": %g,\n  \"imbalance\": %g,"
                             "\n  \"utilisation\": %g,\n  \"slaves\": [",
                             frame, f.seconds, f.imbalance(), f.utilisation());
+  const auto u = [](uint64_t v) { return static_cast<unsigned long long>(v); };
   for (size_t i = 0; i < f.slaves.size(); ++i) {
     const SlaveFigures& x = f.slaves[i];
-    s += StrFormat("%s\n    {\"rank\": %d, \"seconds\": %g, \"rays\": %llu, \"samples\": %llu, "
-                   "\"tiles\": %llu, \"blocks_loaded\": %llu, \"blocks_distinct\": %llu, "
-                   "\"bytes_read\": %llu, \"bytes_from_peers\": %llu, \"bytes_to_peers\": %llu, "
-                   "\"bytes_to_master\": %llu, \"pixel_bytes\": %llu, "
-                   "\"bytes_from_master\": %llu, \"ray_threads\": %u, \"busy_seconds\": %g, "
-                   "\"fetches\": %llu, \"fetch_wait_seconds\": %g, \"fetch_runs\": %llu, "
-                   "\"ray_cpu_seconds\": %g, \"loader_cpu_seconds\": %g, "
-                   "\"process_cpu_seconds\": %g, \"tile_wait_seconds\": %g, "
-                   "\"block_wait_seconds\": %g, \"engine_seconds\": %g, \"direct_reads\": %s}",
-                   i ? "," : "", x.rank, x.done.seconds,
-                   static_cast<unsigned long long>(x.done.rays),
-                   static_cast<unsigned long long>(x.done.samples),
-                   static_cast<unsigned long long>(x.done.tiles),
-                   static_cast<unsigned long long>(x.done.blocks_loaded),
-                   static_cast<unsigned long long>(x.done.blocks_distinct),
-                   static_cast<unsigned long long>(x.done.bytes_read),
-                   static_cast<unsigned long long>(x.done.bytes_from_peers),
-                   static_cast<unsigned long long>(x.done.bytes_to_peers),
-                   static_cast<unsigned long long>(x.bytes_received),
-                   static_cast<unsigned long long>(x.pixel_bytes),
-                   static_cast<unsigned long long>(x.bytes_sent), x.done.ray_threads,
-                   x.done.busy_seconds, static_cast<unsigned long long>(x.done.fetches),
-                   x.done.fetch_wait_seconds, static_cast<unsigned long long>(x.done.fetch_runs),
-                   x.done.ray_cpu_seconds, x.done.loader_cpu_seconds, x.done.process_cpu_seconds,
-                   x.done.tile_wait_seconds, x.done.block_wait_seconds, x.done.engine_seconds,
-                   x.done.flags & wire::kFrameDoneDirectReads ? "true" : "false");
+    const wire::FrameDone& d = x.done;
+    uint64_t rays = 0;
+    for (const uint64_t r : d.rays_by_type) rays += r;
+    const std::string budget = d.cache_budget_bytes == std::numeric_limits<uint64_t>::max()
+                                   ? std::string("null")  // in core
+                                   : std::to_string(d.cache_budget_bytes);
+    s += StrFormat(
+        "%s\n    {\"rank\": %d, \"dropped\": %s, \"seconds\": %g, \"engine_seconds\": %g, "
+        "\"threads\": %u, \"rays\": {\"primary\": %llu, \"shadow\": %llu, \"specular\": %llu, "
+        "\"diffuse\": %llu}, \"rays_total\": %llu, \"samples\": %llu, \"tiles\": %llu, "
+        "\"blocks_loaded\": %llu, \"blocks_distinct\": %llu, \"bytes_read\": %llu, "
+        "\"reads\": %llu, \"direct_reads\": %s, \"block_visits\": %llu, "
+        "\"cache_hit_rate\": %g, \"loader_busy_seconds\": %g, \"ray_idle_seconds\": %g, "
+        "\"ray_tile_wait_seconds\": %g, \"ray_busy_seconds\": %g, \"ray_cpu_seconds\": %g, "
+        "\"loader_cpu_seconds\": %g, \"process_cpu_seconds\": %g, \"cache_budget_bytes\": %s, "
+        "\"cache_peak_bytes\": %llu, \"evictions\": %llu, \"peak_stack_bytes\": %llu, "
+        "\"peak_stack_rays\": %llu, \"peak_rss_bytes\": %llu, \"bytes_from_peers\": %llu, "
+        "\"bytes_to_peers\": %llu, \"fetches\": %llu, \"fetch_wait_seconds\": %g, "
+        "\"fetch_runs\": %llu, \"bytes_to_master\": %llu, \"pixel_bytes\": %llu, "
+        "\"bytes_from_master\": %llu}",
+        i ? "," : "", x.rank, x.dropped ? "true" : "false", d.seconds, d.engine_seconds,
+        d.ray_threads, u(d.rays_by_type[0]), u(d.rays_by_type[1]), u(d.rays_by_type[2]),
+        u(d.rays_by_type[3]), u(rays), u(d.samples), u(d.tiles), u(d.blocks_loaded),
+        u(d.blocks_distinct), u(d.bytes_read), u(d.reads),
+        d.flags & wire::kFrameDoneDirectReads ? "true" : "false", u(d.block_visits),
+        d.cache_hit_rate, d.loader_busy_seconds, d.block_wait_seconds, d.tile_wait_seconds,
+        d.busy_seconds, d.ray_cpu_seconds, d.loader_cpu_seconds, d.process_cpu_seconds,
+        budget.c_str(), u(d.cache_peak_bytes), u(d.evictions), u(d.peak_stack_bytes),
+        u(d.peak_stack_rays), u(d.peak_rss_bytes), u(d.bytes_from_peers), u(d.bytes_to_peers),
+        u(d.fetches), d.fetch_wait_seconds, u(d.fetch_runs), u(x.bytes_received),
+        u(x.pixel_bytes), u(x.bytes_sent));
   }
   return s + "\n  ]\n}";
 }
@@ -197,10 +205,22 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                             static_cast<unsigned long long>(s.done.fetches),
                             s.done.fetch_wait_seconds,
                             static_cast<double>(s.done.bytes_to_peers) / 1e6);
+        // The cache and the process's peak, as a one-process run prints them (an operator
+        // sizing --cache-mb reads them here).
+        const std::string cache =
+            s.done.cache_budget_bytes == std::numeric_limits<uint64_t>::max()
+                ? StrFormat("; cache: in core, peak RSS %.1f MB",
+                            static_cast<double>(s.done.peak_rss_bytes) / 1e6)
+                : StrFormat("; cache: hit rate %.4f, peak %.1f MB of %.1f MB, %llu evictions; peak "
+                            "RSS %.1f MB", s.done.cache_hit_rate,
+                            static_cast<double>(s.done.cache_peak_bytes) / 1e6,
+                            static_cast<double>(s.done.cache_budget_bytes) / 1e6,
+                            static_cast<unsigned long long>(s.done.evictions),
+                            static_cast<double>(s.done.peak_rss_bytes) / 1e6);
         std::printf("  rank %d: %.3f s (ray threads busy %.3f s; CPU: process %.3f s, ray threads "
                     "%.3f s, loader %.3f s), %llu rays, %llu tiles, %llu "
                     "blocks loaded (%llu distinct), %.1f MB of blocks (%s reads)%s, %.1f MB sent "
-                    "to the master\n",
+                    "to the master%s\n",
                     s.rank, s.done.seconds, s.done.busy_seconds, s.done.process_cpu_seconds,
                     s.done.ray_cpu_seconds, s.done.loader_cpu_seconds,
                     static_cast<unsigned long long>(s.done.rays),
@@ -209,7 +229,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                     static_cast<unsigned long long>(s.done.blocks_distinct),
                     static_cast<double>(s.done.bytes_read) / 1e6,
                     s.done.flags & wire::kFrameDoneDirectReads ? "direct" : "buffered", peers.c_str(),
-                    static_cast<double>(s.bytes_received) / 1e6);
+                    static_cast<double>(s.bytes_received) / 1e6, cache.c_str());
       }
     }
     json += FiguresJson(f, figures) + (f + 1 < frames ? ",\n" : "\n");

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <memory>
+#include <utility>
 
 #include "common/base/check.h"
 #include "common/base/interrupt.h"
@@ -396,6 +398,24 @@ Status MasterNode::Handle(Frame* f, transport::Envelope e) {
       if (d.frame != f->number || f->done[static_cast<size_t>(e.from)])
         return Status::Error(StrFormat("rank %d reports frame %u done during frame %u",
                                        e.from, d.frame, f->number));
+      // Its times go into the figures and the --stats JSON: a NaN or an infinity ("nan" in the
+      // JSON) would make the file unreadable.
+      for (const auto& [name, value] : {std::pair<const char*, double>{"seconds", d.seconds},
+                                        {"busy_seconds", d.busy_seconds},
+                                        {"fetch_wait_seconds", d.fetch_wait_seconds},
+                                        {"ray_cpu_seconds", d.ray_cpu_seconds},
+                                        {"loader_cpu_seconds", d.loader_cpu_seconds},
+                                        {"process_cpu_seconds", d.process_cpu_seconds},
+                                        {"tile_wait_seconds", d.tile_wait_seconds},
+                                        {"block_wait_seconds", d.block_wait_seconds},
+                                        {"engine_seconds", d.engine_seconds},
+                                        {"loader_busy_seconds", d.loader_busy_seconds}})
+        if (!(value >= 0) || !std::isfinite(value))
+          return Status::Error(StrFormat("rank %d reports frame %u done with %s %g", e.from,
+                                         d.frame, name, value));
+      if (!(d.cache_hit_rate >= 0 && d.cache_hit_rate <= 1))
+        return Status::Error(StrFormat("rank %d reports frame %u done with cache_hit_rate %g",
+                                       e.from, d.frame, d.cache_hit_rate));
       f->done[static_cast<size_t>(e.from)] = true;
       from.done = d;
       --f->remaining;

@@ -465,6 +465,18 @@ Status SlaveNode::RunFrame(uint32_t frame, const render::Scene& scene,
   d.loader_cpu_seconds = stats->loader_cpu_seconds;
   d.process_cpu_seconds = process_cpu;
   d.flags = stats->direct_reads ? wire::kFrameDoneDirectReads : 0;
+  static_assert(kRayTypeCount == 4);
+  for (int t = 0; t < 4; ++t) d.rays_by_type[t] = stats->rays[static_cast<size_t>(t)];
+  d.reads = stats->reads;
+  d.block_visits = stats->block_visits;
+  d.cache_hit_rate = stats->cache_hit_rate;
+  d.loader_busy_seconds = stats->loader_busy_seconds;
+  d.cache_budget_bytes = stats->cache_budget_bytes;
+  d.cache_peak_bytes = stats->cache_peak_bytes;
+  d.evictions = stats->evictions;
+  d.peak_stack_bytes = stats->peak_stack_bytes;
+  d.peak_stack_rays = stats->peak_stack_rays;
+  d.peak_rss_bytes = stats->peak_rss_bytes;
   if (peers_) {
     d.bytes_from_peers = peers_->bytes_from_peers() - from_peers;
     d.bytes_to_peers = peers_->bytes_to_peers() - to_peers;

@@ -31,7 +31,9 @@ inline constexpr uint32_t kMagic = 0x4d575352;  // "RSWM"
 // 8: pixel batches carry the primary-hit layers of sample 0 only, the hit flag in the sample.
 // 9: frame figures carry where the ray threads waited (for tiles, for blocks). 10: a slave's
 // hello carries what it renders (store, scene, build, block mode), which the master checks.
-inline constexpr uint16_t kProtocolVersion = 10;
+// 11: frame figures carry the engine's own (rays by type, reads, the cache, T_io, the stack,
+// peak RSS), so a job's --stats has per slave what a one-process run's has.
+inline constexpr uint16_t kProtocolVersion = 11;
 // Largest payload accepted: a pixel batch of this many samples at most.
 inline constexpr uint32_t kMaxBatchSamples = 1 << 16;
 // How often a slave says it is alive (the master drops one it has not heard from for
@@ -124,6 +126,18 @@ struct FrameDone {
   // From the slave starting the frame to its end: minus `seconds`, the wait for its first tile
   // (the master finishing the frame before).
   double engine_seconds;
+  // The engine's figures (slave::RenderStats, the same names in --stats).
+  uint64_t rays_by_type[4];  // primary, shadow, specular, diffuse
+  uint64_t reads;
+  uint64_t block_visits;
+  double cache_hit_rate;
+  double loader_busy_seconds;  // T_io
+  uint64_t cache_budget_bytes;
+  uint64_t cache_peak_bytes;
+  uint64_t evictions;
+  uint64_t peak_stack_bytes;
+  uint64_t peak_stack_rays;
+  uint64_t peak_rss_bytes;
 };
 inline constexpr uint32_t kFrameDoneDirectReads = 1;  // blocks read past the page cache
 struct Shutdown {
@@ -183,7 +197,7 @@ struct PrimaryRecord {
   float albedo[3];
 };
 static_assert(sizeof(Hello) == 104 && sizeof(TileRequest) == 8 && sizeof(TileAssign) == 40 &&
-              sizeof(FrameDone) == 168 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 24 &&
+              sizeof(FrameDone) == 280 && sizeof(Shutdown) == 8 && sizeof(PixelBatchHeader) == 24 &&
               sizeof(SampleRecord) == 20 && sizeof(PrimaryRecord) == 28 &&
               sizeof(BlockRequest) == 16 && sizeof(BlockRun) == 8 && sizeof(BlockDataHeader) == 16 &&
               sizeof(Heartbeat) == 8 && sizeof(RankLost) == 8);

@@ -11,6 +11,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <nlohmann/json.hpp>
+
 #include "common/base/temp_dir.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/convergence_csv.h"
@@ -194,6 +196,57 @@ TEST_F(DistributedCli, DirectReadsUnderMpirunKeepTheImageAndAreReported) {
     EXPECT_EQ(direct, 4u) << stats;
     EXPECT_EQ(stats.find("\"direct_reads\": false"), std::string::npos) << stats;
   }
+}
+
+// Found by a researcher: a job's --stats had per slave fewer figures than a one-process run's,
+// under other names (busy_seconds, ray_threads, rays a number), so T_io and bytes per waiting ray
+// could not be had from a distributed run. Now each slave's entry has the one-process figures
+// under their names, and the rays the slaves traced add up to the one process's, type by type.
+TEST_F(DistributedCli, EachSlavesStatisticsHaveTheOneProcessFigures) {
+  const std::string scene = Scene(R"({ "type": "path", "max_depth": 3, "spp": 2, "seed": 5 })");
+  const ProcessResult one = Render(scene, 0, dir_->File("one.exr"), "loc", {"--stats", dir_->File("one.json")});
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  // Not quiet (Render's -q): the master's per-rank lines are checked too.
+  const ProcessResult job = RunProcess(
+      {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", "3", kRaystack, "render",
+       scene, "--threads", "2", "--cache-mb", "1", "--output", dir_->File("job.exr"), "--no-png",
+       "--blocks", "loc", "--stats", dir_->File("job.json")},
+      dir_->path());
+  ASSERT_EQ(job.exit_code, 0) << job.err;
+  const nlohmann::json local = nlohmann::json::parse(Slurp(dir_->File("one.json")));
+  const nlohmann::json slaves = nlohmann::json::parse(Slurp(dir_->File("job.json")));
+  ASSERT_EQ(local.size(), 2u);  // two cameras
+  ASSERT_EQ(slaves.size(), 2u);
+  for (size_t f = 0; f < 2; ++f) {
+    ASSERT_EQ(slaves[f]["slaves"].size(), 2u);
+    nlohmann::json sum = {{"primary", 0}, {"shadow", 0}, {"specular", 0}, {"diffuse", 0}};
+    uint64_t total = 0;
+    for (const nlohmann::json& s : slaves[f]["slaves"]) {
+      for (const char* key : {"threads", "rays", "rays_total", "samples", "blocks_loaded",
+                              "blocks_distinct", "bytes_read", "reads", "direct_reads",
+                              "block_visits", "cache_hit_rate", "loader_busy_seconds",
+                              "ray_idle_seconds", "ray_tile_wait_seconds", "ray_busy_seconds",
+                              "ray_cpu_seconds", "loader_cpu_seconds", "cache_budget_bytes",
+                              "cache_peak_bytes", "evictions", "peak_stack_bytes",
+                              "peak_stack_rays", "peak_rss_bytes"}) {
+        ASSERT_TRUE(s.contains(key)) << key << " in " << s;
+        // The same kind of value (a number of either kind: "%g" writes 0.0 as 0).
+        EXPECT_TRUE(s[key].is_number() ? local[f][key].is_number() : s[key].type() == local[f][key].type())
+            << key << ": " << s[key] << " against " << local[f][key];
+      }
+      for (auto& [type, n] : sum.items()) n = n.get<uint64_t>() + s["rays"][type].get<uint64_t>();
+      total += s["rays_total"].get<uint64_t>();
+      EXPECT_GT(s["peak_rss_bytes"].get<uint64_t>(), uint64_t{1} << 20);
+      EXPECT_GE(s["cache_hit_rate"].get<double>(), 0.0);
+      EXPECT_LE(s["cache_hit_rate"].get<double>(), 1.0);
+      EXPECT_LE(s["cache_peak_bytes"].get<uint64_t>(), s["cache_budget_bytes"].get<uint64_t>());
+    }
+    EXPECT_EQ(sum, local[f]["rays"]) << "frame " << f;
+    EXPECT_EQ(total, local[f]["rays_total"].get<uint64_t>()) << "frame " << f;
+  }
+  // And the master's per-rank lines say the cache's figures and the peak RSS.
+  EXPECT_NE(job.out.find("; cache: hit rate "), std::string::npos) << job.out;
+  EXPECT_NE(job.out.find("peak RSS "), std::string::npos) << job.out;
 }
 
 // kill -9 of a slave mid-render (the slave does it to itself at its 3rd tile, so the test

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <limits>
 
 #include <functional>
@@ -422,6 +424,13 @@ Status MasterFacing(const std::vector<uint8_t>& bytes) {
   return node.RunFrame(0, render::HilbertTiles(16, 16, 8), 1, &film, [] {}, &figures);
 }
 
+// Rank 1's figures of frame 0, all zero but what `set` changes.
+std::vector<uint8_t> FrameDoneWith(void (*set)(wire::FrameDone*)) {
+  wire::FrameDone d{};
+  set(&d);
+  return wire::Encode(1, d);
+}
+
 TEST(Distributed, HostileMessagesEndTheFrameNamingTheSender) {
   std::vector<uint8_t> other_version = wire::Encode(1, wire::TileRequest{0, 0});
   other_version[4] = 99;  // never this build's
@@ -433,6 +442,13 @@ TEST(Distributed, HostileMessagesEndTheFrameNamingTheSender) {
            {wire::EncodeError(1, "block 9: checksum mismatch (the block is damaged)"),
             "rank 1: block 9: checksum mismatch"},
            {wire::Encode(1, wire::TileAssign{}), "only the master sends"},
+           // Figures that would be written as "nan" into --stats (an unreadable JSON).
+           {FrameDoneWith([](wire::FrameDone* d) { d->seconds = std::nan(""); }),
+            "rank 1 reports frame 0 done with seconds nan"},
+           {FrameDoneWith([](wire::FrameDone* d) { d->loader_busy_seconds = -1; }),
+            "rank 1 reports frame 0 done with loader_busy_seconds -1"},
+           {FrameDoneWith([](wire::FrameDone* d) { d->cache_hit_rate = 2; }),
+            "rank 1 reports frame 0 done with cache_hit_rate 2"},
        }) {
     const Status s = MasterFacing(bytes);
     ASSERT_FALSE(s.ok()) << expected;

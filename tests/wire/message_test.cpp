@@ -261,7 +261,8 @@ TEST(Message, NoTruncationOrFlippedByteCrashesOrMisreads) {
   const std::vector<std::vector<uint8_t>> messages = {
       Encode(2, TileAssign{1, 0, 0, 0, 32, 32, 0, 0, 1, 0, 256}), EncodePixelBatch(2, 1, samples),
       Encode(2, FrameDone{1, 2, 9, 0, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0, 0, 0, 0, 0,
-                          kFrameDoneDirectReads, 0, 0.25, 0.125, 0.75})};
+                          kFrameDoneDirectReads, 0, 0.25, 0.125, 0.75, {5, 4, 3, 2}, 7, 11,
+                          0.5, 0.25, 1 << 20, 1 << 19, 3, 4096, 64, 1 << 24})};
   for (const auto& good : messages) {
     for (size_t n = 0; n < good.size(); ++n)  // every truncation
       EXPECT_FALSE(Decode(std::span(good).first(n), 2).ok()) << n;

@@ -109,10 +109,10 @@ for (blocks, lat, n), frames in sorted(data.items(), key=lambda kv: (kv[0][0], i
         # The wait for the first tile (the master finishing the frame before) is outside the
         # frame's seconds; the tile waits shown are those after it.
         first = [max(0.0, s.get("engine_seconds", 0) - s["seconds"]) for s in fr["slaves"]]
-        tiles_wait = [max(0.0, s.get("tile_wait_seconds", 0) - s["ray_threads"] * w)
+        tiles_wait = [max(0.0, s.get("ray_tile_wait_seconds", 0) - s["threads"] * w)
                       for s, w in zip(fr["slaves"], first)]
         mean = lambda xs: sum(xs) / max(1, len(xs))
-        blocks_wait = mean([s.get("block_wait_seconds", 0) for s in fr["slaves"]])
+        blocks_wait = mean([s.get("ray_idle_seconds", 0) for s in fr["slaves"]])
         waits = f"{mean(tiles_wait):.2f} / {blocks_wait:.2f} / {mean(first):.2f}"
         print(f"| {blocks} | {lat} | {n} | {'first' if f == 0 else 'warm'} | {fr['seconds']:.2f} ({every}) | {eff} | "
               f"{fr['utilisation']:.2f} | {waits} | {fr['imbalance']*100:.1f}% | {net:.1f} | {pixel/1e6/max(net,1e-9)*100:.0f}% | "
