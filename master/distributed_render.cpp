@@ -52,11 +52,14 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
     const wire::FrameDone& d = x.done;
     uint64_t rays = 0;
     for (const uint64_t r : d.rays_by_type) rays += r;
+    // The host as its hello gave it (printable ASCII): quotes and backslashes escaped.
+    std::string host;
+    for (const char c : x.host) host += c == '"' || c == '\\' ? std::string("\\") + c : std::string(1, c);
     const std::string budget = d.cache_budget_bytes == std::numeric_limits<uint64_t>::max()
                                    ? std::string("null")  // in core
                                    : std::to_string(d.cache_budget_bytes);
     s += StrFormat(
-        "%s\n    {\"rank\": %d, \"dropped\": %s, \"seconds\": %g, \"engine_seconds\": %g, "
+        "%s\n    {\"rank\": %d, \"host\": \"%s\", \"dropped\": %s, \"seconds\": %g, \"engine_seconds\": %g, "
         "\"threads\": %u, \"rays\": {\"primary\": %llu, \"shadow\": %llu, \"specular\": %llu, "
         "\"diffuse\": %llu}, \"rays_total\": %llu, \"samples\": %llu, \"tiles\": %llu, "
         "\"blocks_loaded\": %llu, \"blocks_distinct\": %llu, \"bytes_read\": %llu, "
@@ -69,7 +72,7 @@ std::string FiguresJson(size_t frame, const FrameFigures& f) {
         "\"bytes_to_peers\": %llu, \"fetches\": %llu, \"fetch_wait_seconds\": %g, "
         "\"fetch_runs\": %llu, \"bytes_to_master\": %llu, \"pixel_bytes\": %llu, "
         "\"bytes_from_master\": %llu}",
-        i ? "," : "", x.rank, x.dropped ? "true" : "false", d.seconds, d.engine_seconds,
+        i ? "," : "", x.rank, host.c_str(), x.dropped ? "true" : "false", d.seconds, d.engine_seconds,
         d.ray_threads, u(d.rays_by_type[0]), u(d.rays_by_type[1]), u(d.rays_by_type[2]),
         u(d.rays_by_type[3]), u(rays), u(d.samples), u(d.tiles), u(d.blocks_loaded),
         u(d.blocks_distinct), u(d.bytes_read), u(d.reads),
@@ -190,8 +193,9 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
       std::printf("frame %zu: %d slaves, %.3f s, imbalance %.3f, utilisation %.3f\n", f,
                   net->size() - 1, figures.seconds, figures.imbalance(), figures.utilisation());
       for (const SlaveFigures& s : figures.slaves) {
+        const std::string on = s.host.empty() ? std::string() : " (on " + s.host + ")";
         if (s.dropped) {
-          std::printf("  rank %d: dropped (%s)\n", s.rank, s.failure.c_str());
+          std::printf("  rank %d%s: dropped (%s)\n", s.rank, on.c_str(), s.failure.c_str());
           continue;
         }
         // The peers' part only where there was one (--blocks rem).
@@ -217,11 +221,11 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                             static_cast<double>(s.done.cache_budget_bytes) / 1e6,
                             static_cast<unsigned long long>(s.done.evictions),
                             static_cast<double>(s.done.peak_rss_bytes) / 1e6);
-        std::printf("  rank %d: %.3f s (ray threads busy %.3f s; CPU: process %.3f s, ray threads "
+        std::printf("  rank %d%s: %.3f s (ray threads busy %.3f s; CPU: process %.3f s, ray threads "
                     "%.3f s, loader %.3f s), %llu rays, %llu tiles, %llu "
                     "blocks loaded (%llu distinct), %.1f MB of blocks (%s reads)%s, %.1f MB sent "
                     "to the master%s\n",
-                    s.rank, s.done.seconds, s.done.busy_seconds, s.done.process_cpu_seconds,
+                    s.rank, on.c_str(), s.done.seconds, s.done.busy_seconds, s.done.process_cpu_seconds,
                     s.done.ray_cpu_seconds, s.done.loader_cpu_seconds,
                     static_cast<unsigned long long>(s.done.rays),
                     static_cast<unsigned long long>(s.done.tiles),

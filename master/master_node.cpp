@@ -255,6 +255,7 @@ Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
   SlaveFigures& figures = f->figures->slaves[static_cast<size_t>(rank - 1)];
   figures.dropped = true;
   figures.failure = why;
+  figures.host = s.host;
   if (!f->done[static_cast<size_t>(rank)]) {
     f->done[static_cast<size_t>(rank)] = true;
     --f->remaining;
@@ -269,9 +270,11 @@ Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
   const std::vector<render::Tile> back = f->ledger.Release(rank, &merged);
   f->film->Unmerge(merged);
   f->returned.insert(f->returned.end(), back.begin(), back.end());
-  LOG_WARNING("master", "rank %d %s: %s; its %zu unfinished tiles (%zu samples taken back) go "
-              "to the other slaves", rank, lost ? "is lost" : "failed", why.c_str(), back.size(),
-              merged.size());
+  // The host: on a cluster the operator looks for the bad disk or node there.
+  const std::string on = s.host.empty() ? std::string() : " (on " + s.host + ")";
+  LOG_WARNING("master", "rank %d%s %s: %s; its %zu unfinished tiles (%zu samples taken back) go "
+              "to the other slaves", rank, on.c_str(), lost ? "is lost" : "failed", why.c_str(),
+              back.size(), merged.size());
   // The others read its blocks from disk from now on (--blocks rem).
   for (int r = 1; r < net_->size(); ++r)
     if (!slaves_[static_cast<size_t>(r)].dropped)
@@ -309,9 +312,10 @@ Status MasterNode::CheckHeartbeats(Frame* f) {
 }
 
 Status MasterNode::CheckHello(int rank, const wire::Hello& hello) {
+  const std::string host = wire::HelloText(hello.host);
+  slaves_[static_cast<size_t>(rank)].host = host;  // named in its figures and warnings
   if (!options_.identity) return OkStatus();
   JobIdentity& job = *options_.identity;
-  const std::string host = wire::HelloText(hello.host);
   const std::string who = StrFormat("rank %d (on %s)", rank, host.empty() ? "an unnamed host" : host.c_str());
   const std::string build = wire::HelloText(hello.build);
   // The field holds 39 bytes: a longer id is compared as far as it goes.
@@ -418,6 +422,7 @@ Status MasterNode::Handle(Frame* f, transport::Envelope e) {
                                        e.from, d.frame, d.cache_hit_rate));
       f->done[static_cast<size_t>(e.from)] = true;
       from.done = d;
+      from.host = slaves_[static_cast<size_t>(e.from)].host;  // its hello may come after the start
       --f->remaining;
       return OkStatus();
     }
@@ -470,6 +475,7 @@ Status MasterNode::RunFrame(uint32_t frame, const render::FramePlan& plan, rende
     SlaveFigures& s = figures->slaves[static_cast<size_t>(r - 1)];
     s.rank = r;
     const SlaveState& state = slaves_[static_cast<size_t>(r)];
+    s.host = state.host;
     if (state.dropped) {  // dropped in an earlier frame
       s.dropped = true;
       s.failure = state.failure;

@@ -32,6 +32,7 @@ namespace raystack::master {
 
 struct SlaveFigures {
   int rank = 0;
+  std::string host;  // where it runs (its hello), for the operator: empty if it never said
   wire::FrameDone done{};  // as the slave reported it
   uint64_t bytes_received = 0;  // by the master from this slave (pixel batches and the rest)
   uint64_t bytes_sent = 0;      // by the master to this slave
@@ -118,6 +119,7 @@ class MasterNode {
 
  private:
   struct SlaveState {
+    std::string host;  // from its hello (empty before it, or when it gave none)
     bool dropped = false;
     bool lost = false;  // dropped for silence: it may be dead, so nothing waits for it
     bool heard = false;  // it has said something since the job began

@@ -13,6 +13,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/base/process_names.h"
 #include "common/base/temp_dir.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/convergence_csv.h"
@@ -244,7 +245,9 @@ TEST_F(DistributedCli, EachSlavesStatisticsHaveTheOneProcessFigures) {
     EXPECT_EQ(sum, local[f]["rays"]) << "frame " << f;
     EXPECT_EQ(total, local[f]["rays_total"].get<uint64_t>()) << "frame " << f;
   }
-  // And the master's per-rank lines say the cache's figures and the peak RSS.
+  EXPECT_EQ(slaves[0]["slaves"][0]["host"], HostName());
+  // And the master's per-rank lines say the host, the cache's figures and the peak RSS.
+  EXPECT_NE(job.out.find("  rank 1 (on " + HostName() + "): "), std::string::npos) << job.out;
   EXPECT_NE(job.out.find("; cache: hit rate "), std::string::npos) << job.out;
   EXPECT_NE(job.out.find("peak RSS "), std::string::npos) << job.out;
 }
@@ -293,6 +296,9 @@ TEST_F(DistributedCli, ALostSlaveCostsTimeNeverPixels) {
     // what shows that the job succeeded.)
     ASSERT_EQ(r.exit_code, 0) << c.name << " " << c.blocks << ": " << r.err << r.out;
     EXPECT_NE(r.err.find(c.why), std::string::npos) << c.name << ": " << r.err;
+    // Where it ran, for the operator (found by one: the warnings named no host).
+    EXPECT_NE(r.err.find(" (on " + HostName() + ") " + c.why), std::string::npos)
+        << c.name << ": " << r.err;
     for (const char* frame : {"-0", "-1"}) {
       const std::string a = Slurp(dir_->File(std::string("one") + frame + ".exr"));
       const std::string b = Slurp(dir_->File(c.name + "-" + c.blocks + frame + ".exr"));
