@@ -30,6 +30,7 @@ void Checkpoints::Maybe(const render::Film& film) {
   film.ResolveInto(&image.layers);
   image.layers.provenance = provenance_;
   image.layers.partial = true;
+  image.layers.stopped.clear();  // (the layers may be a stopped frame's, reused)
   image.done = [written = written_](const Status& s) {
     if (!s.ok()) {  // tried again at the next interval
       LOG_WARNING("render", "checkpoint: %s", s.message().c_str());
@@ -53,6 +54,7 @@ Expected<uint64_t> Checkpoints::Final(const render::Film& film, uint32_t spp) {
   film.ResolveInto(&image.layers);
   image.layers.provenance = provenance_;
   image.layers.partial = true;
+  image.layers.stopped.clear();  // (the layers may be a stopped frame's, reused)
   uint64_t finished = 0;
   for (const uint32_t n : image.layers.samples) finished += n >= spp;
   if (finished == 0) return finished;

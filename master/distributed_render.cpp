@@ -42,10 +42,12 @@ constexpr const char* kMpirunSigterm =
 
 // Per slave, the names a one-process run's --stats uses for the same figures
 // (slave::RenderStats::ToJson), and the job's own (tiles, peers, bytes to and from the master).
-std::string FiguresJson(size_t frame, const FrameFigures& f) {
-  std::string s = StrFormat("{\n  \"frame\": %zu,\n  \"seconds\": %g,\n  \"imbalance\": %g,"
+// `record`: the frame's (FrameRecordJson).
+std::string FiguresJson(const std::string& record, const FrameFigures& f) {
+  std::string s = "{\n" + record +
+                  StrFormat("  \"seconds\": %g,\n  \"imbalance\": %g,"
                             "\n  \"utilisation\": %g,\n  \"slaves\": [",
-                            frame, f.seconds, f.imbalance(), f.utilisation());
+                            f.seconds, f.imbalance(), f.utilisation());
   const auto u = [](uint64_t v) { return static_cast<unsigned long long>(v); };
   for (size_t i = 0; i < f.slaves.size(); ++i) {
     const SlaveFigures& x = f.slaves[i];
@@ -182,7 +184,8 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                                             : std::numeric_limits<double>::quiet_NaN());
     }
     Expected<std::string> exr =
-        status.ok() ? WriteFrame(args, scene, f, film, std::move(resolved), &writer)
+        status.ok() ? WriteFrame(args, scene, f, film, std::move(resolved),
+                                   monitor.stopped() ? monitor.stop_reason() : std::string(), &writer)
                     : Expected<std::string>(status);
     if (!exr.ok()) {  // every rank ends, none is left waiting
       master.Shutdown(1);
@@ -236,7 +239,10 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                     static_cast<double>(s.bytes_received) / 1e6, cache.c_str());
       }
     }
-    json += FiguresJson(f, figures) + (f + 1 < frames ? ",\n" : "\n");
+    json += FiguresJson(FrameRecordJson(f, *exr, camera.width(), camera.height(), plan.spp(),
+                                        monitor.stopped() ? monitor.stop_reason() : ""),
+                        figures) +
+            (f + 1 < frames ? ",\n" : "\n");
   }
   if (const Status written = writer.Finish(); !written.ok()) {  // the last frame's write
     master.Shutdown(1);

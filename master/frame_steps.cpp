@@ -7,8 +7,10 @@
 #include <cstring>
 #include <fstream>
 
+#include "common/base/build_id.h"
 #include "common/base/interrupt.h"
 #include "common/base/log.h"
+#include "common/base/process_names.h"
 #include "common/image/exr_io.h"
 #include "common/image/output_file.h"
 #include "common/store/format.h"
@@ -25,6 +27,30 @@ Status WriteStats(const std::string& path, const std::string& json) {
   out.flush();
   if (!out) return Status::Error(path + ": cannot write the statistics: " + std::strerror(errno));
   return OkStatus();
+}
+
+namespace {
+
+// `text` as a JSON string, quotes, backslashes and control characters escaped.
+std::string JsonQuoted(const std::string& text) {
+  std::string q = "\"";
+  for (const char c : text) {
+    if (c == '"' || c == '\\') q += '\\', q += c;
+    else if (static_cast<unsigned char>(c) < 0x20) q += StrFormat("\\u%04x", c);
+    else q += c;
+  }
+  return q + "\"";
+}
+
+}  // namespace
+
+std::string FrameRecordJson(size_t f, const std::string& exr, int width, int height, uint32_t spp,
+                            const std::string& stopped) {
+  return StrFormat("  \"frame\": %zu,\n  \"output\": %s,\n  \"width\": %d,\n  \"height\": %d,\n"
+                   "  \"spp\": %u,\n  \"stopped\": %s,\n  \"build\": %s,\n  \"host\": %s,\n",
+                   f, JsonQuoted(exr).c_str(), width, height, spp,
+                   stopped.empty() ? "null" : JsonQuoted(stopped).c_str(),
+                   JsonQuoted(BuildId()).c_str(), JsonQuoted(HostName()).c_str());
 }
 
 std::string FrameTitle(size_t f, size_t frames) {
@@ -69,7 +95,7 @@ Expected<std::unique_ptr<store::StoreReader>> OpenSceneStore(const render::Scene
 
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,
-                                 FrameWriter* writer) {
+                                 const std::string& stopped, FrameWriter* writer) {
   const size_t frames = scene.cameras.size();
   const std::string output = OutputOf(args, scene);
   FrameWriter::Image image;
@@ -80,6 +106,7 @@ Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& sc
   image.layers = std::move(layers);
   image.layers.provenance = Provenance(scene, f);
   image.layers.partial = false;  // (the layers may be a checkpoint's, reused)
+  image.layers.stopped = stopped;
   if (film.nonfinite_dropped() > 0)
     LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
                 static_cast<unsigned long long>(film.nonfinite_dropped()));

@@ -88,9 +88,17 @@ Expected<std::unique_ptr<ConvergenceLog>> OpenLog(const RenderArgs& args);
 void ReportStop(const RenderArgs& args, const ConvergenceMonitor& monitor);
 // Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
 // returns the EXR's path, or the error of an earlier frame's write.
+// Frame f's record in --stats, as "  \"key\": value,\n" lines: its index, image, size, samples
+// per pixel, why it stopped early (null: it did not), and the build and host that rendered it
+// (found by a researcher: a stats file could not be traced to its run, nor its entries to their
+// frames but by position).
+std::string FrameRecordJson(size_t f, const std::string& exr, int width, int height, uint32_t spp,
+                            const std::string& stopped);
+
+// `stopped`: why a stop rule ended the frame early (ConvergenceMonitor::stop_reason), or empty.
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,
-                                 FrameWriter* writer);
+                                 const std::string& stopped, FrameWriter* writer);
 
 // While it lives, SIGINT and SIGTERM are noted, not fatal: from the first frame to the last
 // image written (the frame rendering is written by EndInterrupted, one rendered and queued by

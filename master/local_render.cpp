@@ -210,10 +210,13 @@ Status RenderLocally(const RenderArgs& args) {
     if (monitor.stopped()) preview->SetNote("stopped: " + monitor.stop_reason());
     preview->EndFrame(stats.rays_per_second);
     ReportStop(args, monitor);
-    Expected<std::string> exr = WriteFrame(args, *scene, f, film, std::move(resolved), &writer);
+    Expected<std::string> exr = WriteFrame(args, *scene, f, film, std::move(resolved),
+                                                monitor.stopped() ? monitor.stop_reason() : std::string(),
+                                                &writer);
     if (!exr.ok()) return failed(exr.status());
     if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
-    stats_json += stats.ToJson();
+    stats_json += stats.ToJson(FrameRecordJson(f, *exr, camera.width(), camera.height(), plan.spp(),
+                                               monitor.stopped() ? monitor.stop_reason() : ""));
     if (f + 1 < frames) stats_json += ",";
   }
   if (Status s = writer.Finish(); !s.ok()) return failed(std::move(s));  // the last frame's write

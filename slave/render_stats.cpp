@@ -13,9 +13,9 @@ namespace {
 constexpr const char* kTypeNames[kRayTypeCount] = {"primary", "shadow", "specular", "diffuse"};
 }
 
-std::string RenderStats::ToJson() const {
+std::string RenderStats::ToJson(const std::string& first) const {
   std::ostringstream o;
-  o << "{\n  \"mode\": \"" << mode << "\",\n  \"threads\": " << threads
+  o << "{\n" << first << "  \"mode\": \"" << mode << "\",\n  \"threads\": " << threads
     << ",\n  \"seconds\": " << seconds << ",\n  \"preload_seconds\": " << preload_seconds
     << ",\n  \"bvh_build_seconds\": " << bvh_build_seconds << ",\n  \"rays\": {";
   for (int t = 0; t < kRayTypeCount; ++t)

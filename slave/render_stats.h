@@ -70,7 +70,8 @@ struct RenderStats {
   uint64_t peak_rss_bytes = 0;
 
   // One JSON object (stable keys, documented in the README).
-  std::string ToJson() const;
+  // `first`: fields put before the figures ("  \"key\": value,\n" lines: the frame's record).
+  std::string ToJson(const std::string& first = "") const;
   // Human-readable lines for the end of a run.
   std::string ToText() const;
 };

@@ -27,6 +27,7 @@ constexpr int64_t kMaxSide = int64_t{1} << 16;
 constexpr int64_t kMaxPixels = int64_t{1} << 28;
 constexpr const char* kProvenanceAttribute = "raystack.provenance";  // ImageLayers::provenance
 constexpr const char* kStateAttribute = "raystack.state";            // ImageLayers::partial
+constexpr const char* kStoppedAttribute = "raystack.stopped";        // ImageLayers::stopped
 constexpr int kRowsPerBand = 64;  // fewer rows a band: not worth a thread
 constexpr int kMaxBands = 8;
 
@@ -195,6 +196,7 @@ Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads th
       header.insert(kProvenanceAttribute, Imf::StringAttribute(image.provenance));
       header.insert(kStateAttribute, Imf::StringAttribute(image.partial ? "partial" : "complete"));
     }
+    if (!image.stopped.empty()) header.insert(kStoppedAttribute, Imf::StringAttribute(image.stopped));
     // Chunks compressed on every core (the file is byte for byte the same): the last frame is
     // written after the render, while the user waits. The dragon 1024x768 job without PNG,
     // medians of 5 interleaved runs on 2 cores: 1.18 -> 0.97 s.
@@ -263,6 +265,8 @@ Status ReadExrInto(const std::string& path, ImageLayers* into) {
     image.provenance = provenance ? provenance->value() : std::string();
     const auto* state = header.findTypedAttribute<Imf::StringAttribute>(kStateAttribute);
     image.partial = state && state->value() == "partial";
+    const auto* stopped = header.findTypedAttribute<Imf::StringAttribute>(kStoppedAttribute);
+    image.stopped = stopped ? stopped->value() : std::string();
     image.width = static_cast<int>(width);
     image.height = static_cast<int>(height);
     const size_t pixels = image.pixel_count();

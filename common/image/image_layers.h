@@ -25,6 +25,10 @@ struct ImageLayers {
   // finished (a checkpoint, or what an interrupted or failed run saved: --resume continues
   // it), "complete" for a frame's final image. Read back as true only for "partial".
   bool partial = false;
+  // Why a stop rule (--time-limit, --target-error) ended the frame before its spp, as the
+  // terminal said it; the EXR's "raystack.stopped" (a complete frame whose pixels have fewer
+  // samples than its provenance's spp). Empty: not stopped early.
+  std::string stopped;
 
   void Resize(int w, int h);  // allocates all layers (z filled with +inf, rest 0)
 

@@ -219,6 +219,18 @@ TEST_F(DistributedCli, EachSlavesStatisticsHaveTheOneProcessFigures) {
   ASSERT_EQ(local.size(), 2u);  // two cameras
   ASSERT_EQ(slaves.size(), 2u);
   for (size_t f = 0; f < 2; ++f) {
+    // Each entry says which frame, image, size and run it is (it was told by position only).
+    for (const auto& [entry, image] : {std::pair{local[f], dir_->File("one-" + std::to_string(f) + ".exr")},
+                                       std::pair{slaves[f], dir_->File("job-" + std::to_string(f) + ".exr")}}) {
+      EXPECT_EQ(entry["frame"], f);
+      EXPECT_EQ(entry["output"], image);
+      EXPECT_EQ(entry["width"], 72);
+      EXPECT_EQ(entry["height"], 48);
+      EXPECT_EQ(entry["spp"], 2);
+      EXPECT_TRUE(entry["stopped"].is_null());
+      EXPECT_TRUE(entry["build"].is_string() && !entry["build"].get<std::string>().empty());
+      EXPECT_EQ(entry["host"], HostName());
+    }
     ASSERT_EQ(slaves[f]["slaves"].size(), 2u);
     nlohmann::json sum = {{"primary", 0}, {"shadow", 0}, {"specular", 0}, {"diffuse", 0}};
     uint64_t total = 0;

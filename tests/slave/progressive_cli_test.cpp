@@ -122,6 +122,10 @@ TEST_F(ProgressiveCli, TimeLimitStopsEarlyAndLeavesAValidImage) {
   }
   EXPECT_GT(total, 0u);
   EXPECT_LT(total, uint64_t{kWidth * kHeight} * 65535);
+  // The EXR says it was stopped, and why (found by a researcher: its provenance said spp 65535,
+  // its state complete, and only the samples layer told otherwise).
+  EXPECT_FALSE(im.partial);
+  EXPECT_NE(im.stopped.find("--time-limit"), std::string::npos) << im.stopped;
   const std::vector<LogRow> rows = ReadConvergenceLog(dir_->File("log.csv"));
   ASSERT_GE(rows.size(), 2u);
   EXPECT_EQ(rows[rows.size() - 2].event, "stop");

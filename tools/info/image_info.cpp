@@ -20,6 +20,7 @@ int ShowImage(const std::string& path) {
   std::printf("image            %s\n", path.c_str());
   std::printf("size             %d x %d\n", im.width, im.height);
   std::printf("state            %s\n", state);
+  if (!im.stopped.empty()) std::printf("stopped          %s\n", im.stopped.c_str());
   if (!im.samples.empty()) {
     const auto [fewest, most] = std::minmax_element(im.samples.begin(), im.samples.end());
     double sum = 0;
