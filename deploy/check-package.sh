@@ -16,4 +16,6 @@ trap 'rm -rf "$work"' EXIT
 test -s "$work/demo/default.exr"
 test -s /usr/share/doc/raystack/SCENE_FORMAT.md  # where --help sends the reader
 test -x /usr/bin/raystack-plot
+test -x /usr/share/raystack/slurm/raystack.sbatch  # a cluster installed from the .deb has it
+/usr/bin/raystack render --help | grep -q /usr/share/doc/raystack/  # where the documents are
 echo "check-package: the installed raystack rendered $(du -h "$work/demo/default.exr" | cut -f1) of EXR"

@@ -14,7 +14,7 @@ namespace raystack::master {
 const char* const kRenderUsage = R"(usage: raystack render SCENE.json [options]
 
 Renders a block store (made by raystack-prep) as the scene file describes (format:
-SCENE_FORMAT.md, in the source's common/render/ or in /usr/share/doc/raystack/) and writes an
+SCENE_FORMAT.md, in the source's common/render/ or in )" RAYSTACK_DOC_DIR R"(/) and writes an
 OpenEXR image with layers R G B A, Z, N, albedo, samples and variance, plus a tone-mapped PNG
 beside it. Blocks are loaded on demand into a cache of --cache-mb; rays that need a missing
 block wait in that block's queue while a loader thread reads it (the ray stack), so the store

@@ -18,6 +18,9 @@
 namespace raystack::render {
 namespace {
 
+// A key that is a comment: "//", "// the key light", "//2".
+bool IsComment(const std::string& key) { return key.rfind("//", 0) == 0; }
+
 using Json = nlohmann::json;
 namespace fs = std::filesystem;
 
@@ -185,6 +188,7 @@ class SceneParser {
       if (!table.is_object())
         return Error("materials", "must be an object of materials by name, got " + Show(table));
       for (const auto& [name, value] : table.items()) {
+        if (IsComment(name)) continue;
         const std::string path = Child("materials", name);
         if (name.empty()) return Error(path, "a material name must not be empty");
         Material* material = name == "default" ? &scene->default_material : &scene->overrides[name];
@@ -220,11 +224,13 @@ class SceneParser {
     return Error(path, std::string("must be ") + expected + ", got " + got);
   }
 
-  // Unknown keys are errors: a misspelt key ("fov_y") must not silently leave a default.
+  // Unknown keys are errors: a misspelt key ("fov_y") must not silently leave a default. Keys
+  // that start with "//" are comments (JSON has none; a scene author could not annotate a scene).
   Status CheckKeys(const Json& v, const std::string& path,
                    std::initializer_list<const char*> allowed) const {
     if (!v.is_object()) return TypeError(path, "an object", v);
     for (const auto& item : v.items()) {
+      if (IsComment(item.key())) continue;
       bool known = false;
       for (const char* k : allowed) known = known || item.key() == k;
       if (!known)

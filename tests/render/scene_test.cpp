@@ -294,6 +294,24 @@ TEST(Scene, UnknownKeysAreErrorsAtEveryLevel) {
               {"scene.json: integrator.sampler: unknown key"});
 }
 
+// Found by a scene author: a hand-written scene could not be annotated at all (JSON has no
+// comments, and any unknown key is an error). Keys that start with "//" are skipped anywhere.
+TEST(Scene, KeysStartingWithTwoSlashesAreComments) {
+  Expected<Scene> scene = Parse(Minimal(
+      R"(, "//": "a note", "// lights": "one key light",
+         "lights": [{"//": "the sun", "position": [0, 9, 0], "intensity": [1, 1, 1]}],
+         "materials": {"// red": "the walls", "default": {"//": "grey", "albedo": [0.5, 0.5, 0.5]}},
+         "integrator": {"// why": "fast", "type": "whitted"})",
+      R"({"// lens": "35 mm", "fov_y_deg": 54})"));
+  ASSERT_TRUE(scene.ok()) << scene.status().message();
+  EXPECT_EQ(scene->lights.size(), 1u);
+  EXPECT_TRUE(scene->overrides.empty()) << "a comment is not a material";
+  EXPECT_EQ(scene->default_material.albedo, (Vec3f{0.5f, 0.5f, 0.5f}));
+  EXPECT_FLOAT_EQ(scene->cameras[0].fov_y_deg, 54.0f);
+  // One slash is a key like any other, so a typo of a key still stops the job.
+  ExpectError(Minimal(R"(, "/note": "x")"), {"scene.json: [\"/note\"]: unknown key"});
+}
+
 TEST(Scene, UnknownTypes) {
   ExpectError(
       Minimal(R"(, "lights": [{"type": "spot", "position": [0, 0, 0], "intensity": [1, 1, 1]}])"),
