@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <thread>
 
 #include "common/base/log.h"
@@ -14,7 +15,7 @@ namespace raystack::master {
 const char* const kRenderUsage = R"(usage: raystack render SCENE.json [options]
 
 Renders a block store (made by raystack-prep) as the scene file describes (format:
-SCENE_FORMAT.md, in the source's common/render/ or in )" RAYSTACK_DOC_DIR R"(/) and writes an
+SCENE_FORMAT.md, in the source's common/render/ or in @DOCS@) and writes an
 OpenEXR image with layers R G B A, Z, N, albedo, samples and variance, plus a tone-mapped PNG
 beside it. Blocks are loaded on demand into a cache of --cache-mb; rays that need a missing
 block wait in that block's queue while a loader thread reads it (the ray stack), so the store
@@ -130,6 +131,17 @@ bool ParseNumber(const std::string& s, T* out) {
 }
 
 }  // namespace
+
+std::string RenderUsage() {
+  std::error_code ec;
+  const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
+  std::filesystem::path docs = "/usr/share/doc/raystack";
+  if (!ec && std::filesystem::is_directory(exe.parent_path().parent_path() / "share/doc/raystack", ec))
+    docs = exe.parent_path().parent_path() / "share/doc/raystack";
+  std::string usage = kRenderUsage;
+  usage.replace(usage.find("@DOCS@"), 6, docs.string() + "/");
+  return usage;
+}
 
 Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
   bool bind_given = false, hold_given = false;

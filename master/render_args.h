@@ -17,6 +17,9 @@
 namespace raystack::master {
 
 extern const char* const kRenderUsage;
+// kRenderUsage with the folder of the installed documents: share/doc/raystack/ beside this
+// program's bin/ (wherever it was installed: /usr, /opt/raystack, ...), else /usr/share/doc's.
+std::string RenderUsage();
 
 struct RenderArgs {
   std::string scene;

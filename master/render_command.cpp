@@ -16,7 +16,7 @@ int RenderCommand(int argc, char** argv) {
   bool help = false;
   Status s = ParseRenderArgs(argc, argv, &args, &help);
   if (help) {
-    std::fputs(kRenderUsage, stdout);
+    std::fputs(RenderUsage().c_str(), stdout);
     return 0;
   }
   if (!s.ok()) {

@@ -222,6 +222,19 @@ TEST_F(RenderCli, SyncModeCountsItsReadsAsWaiting) {
   EXPECT_NE(Slurp(dir_->File("incore.json")).find("\"cache_budget_bytes\": null"), std::string::npos);
 }
 
+// --help says where the installed documents are, wherever raystack was installed (found by an
+// operator: installed under /opt/raystack it named /usr/share/doc/raystack/).
+TEST_F(RenderCli, HelpNamesTheDocumentsBesideTheInstalledProgram) {
+  const std::string prefix = dir_->File("opt raystack");
+  std::filesystem::create_directories(prefix + "/bin");
+  std::filesystem::create_directories(prefix + "/share/doc/raystack");
+  std::filesystem::copy_file(kRaystack, prefix + "/bin/raystack");
+  std::filesystem::permissions(prefix + "/bin/raystack", std::filesystem::perms::owner_all);
+  const ProcessResult r = RunProcess({prefix + "/bin/raystack", "render", "--help"}, dir_->path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find(prefix + "/share/doc/raystack/"), std::string::npos) << r.out;
+}
+
 TEST_F(RenderCli, ModesWriteTheSameImage) {
   std::vector<image::ImageLayers> images;
   for (const char* mode : {"stack", "sync", "incore", "bvh"}) {
