@@ -74,8 +74,19 @@ Shader::Shader(const render::Scene& scene, const render::MaterialTable& material
   }
   if (area_) {
     emitters_power_ = area_->power();
-    emitters_scale_ = static_cast<float>((sum + emitters_power_) / emitters_power_);
+    emitters_scale_ = static_cast<float>(
+        1 / LightChance(emitters_power_, sum + emitters_power_, scene.lights.size() + 1));
   }
+}
+
+// By power alone, a dim light beside a bright one was next to never chosen, so with few samples
+// it was missing from the image (a lamp beside a sun 1e8 times as strong: its 4% of the image
+// gone); one choice in ten uniform keeps each light's chance at least 1/10 of 1/choices.
+constexpr double kUniformShare = 0.1;
+
+double Shader::LightChance(double power, double total, size_t choices) {
+  return (1 - kUniformShare) * (total > 0 ? power / total : 0.0) +
+         kUniformShare / static_cast<double>(choices);
 }
 
 void Shader::Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f direction,
@@ -106,25 +117,37 @@ void Shader::DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albe
   size_t first = 0, last = lights.size();
   float scale = 1.0f;
   if (path_) {
-    // Next-event estimation: one light, chosen by power (chosen uniformly, ten negligible fill
-    // lights took ten elevenths of the shadow rays from the one that lit the scene: +31% of
-    // variance at 64 samples).
+    // Next-event estimation: one light, chosen mostly by power (chosen uniformly, ten negligible
+    // fill lights took ten elevenths of the shadow rays from the one that lit the scene: +31% of
+    // variance at 64 samples), its estimate divided by its chance (LightChance).
     const double points = point_power_sums_.empty() ? 0.0 : point_power_sums_.back();
     const double total = points + (emitters ? emitters_power_ : 0.0);
-    if (!(total > 0)) return;
+    if (!(total > 0)) return;  // every light dark: nothing to light with
+    const size_t choices = lights.size() + (emitters ? 1 : 0);
     const SampleRandom rng(seed_, pixel, sample);
-    // Below `total` (a float below 1 times a double): below `points` or among the emitters.
-    const double u = double{rng.Uniform(ray.depth, RandomUse::kLightChoice)} * total;
-    if (!(u < points)) {
+    // 48 random bits: with 24, a light with less than 2^-24 of the power was never chosen.
+    const double u = double{rng.Uniform(ray.depth, RandomUse::kLightChoice)} +
+                     double{rng.Uniform(ray.depth, RandomUse::kLightChoiceLow)} * 0x1p-24;
+    size_t chosen;  // a point light's index, or lights.size() for the emitters
+    if (u < kUniformShare) {
+      chosen = std::min(choices - 1, static_cast<size_t>(u / kUniformShare * static_cast<double>(choices)));
+    } else {
+      // By power: the first light whose running sum passes u's place in `total` (a dark light
+      // adds nothing to the sum, so it is never the first to pass it); past them, the emitters.
+      const double at = (u - kUniformShare) / (1 - kUniformShare) * total;
+      chosen = at < points ? static_cast<size_t>(std::upper_bound(point_power_sums_.begin(),
+                                                                  point_power_sums_.end(), at) -
+                                                 point_power_sums_.begin())
+                           : lights.size();
+      if (chosen == lights.size() && !emitters) chosen = lights.size() - 1;  // (rounding)
+    }
+    if (chosen == lights.size()) {
       EmitterLight(ray, origin, n, albedo, emitters_scale_, rng, out);
       return;
     }
-    // The first light whose running sum passes u: one with power (a dark one adds nothing to
-    // the sum, so it is never the first to pass it).
-    first = static_cast<size_t>(std::upper_bound(point_power_sums_.begin(), point_power_sums_.end(), u) -
-                                point_power_sums_.begin());
-    const double power = point_power_sums_[first] - (first > 0 ? point_power_sums_[first - 1] : 0.0);
-    scale = static_cast<float>(total / power);
+    const double power = point_power_sums_[chosen] - (chosen > 0 ? point_power_sums_[chosen - 1] : 0.0);
+    scale = static_cast<float>(1 / LightChance(power, total, choices));
+    first = chosen;
     last = first + 1;
   }
   for (size_t i = first; i < last; ++i) {

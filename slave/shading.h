@@ -60,13 +60,16 @@ class Shader {
   const int max_depth_;
   const uint64_t seed_;
   const bool background_;
-  // Path tracing's choice of a light, by power (a point light's 4 pi x intensity, the
-  // emitters' AreaLights::power(), intensities and radiances measured as the mean of their
-  // channels): the running sums of the point lights' powers, and the emitters' power.
+  // Path tracing's choice of a light (LightChance): by power (a point light's 4 pi x intensity,
+  // the emitters' AreaLights::power(), intensities and radiances measured as the mean of their
+  // channels) nine times in ten, uniformly in one. The running sums of the point lights'
+  // powers, and the emitters' power.
   std::vector<double> point_power_sums_;
   double emitters_power_ = 0;
   // 1 / the chance of choosing the emitters, where they may be chosen (EmissionWeight).
   float emitters_scale_ = 1;
+  // The chance of choice `power` of `total` among `choices`.
+  static double LightChance(double power, double total, size_t choices);
 };
 
 }  // namespace raystack::slave

@@ -19,7 +19,7 @@ inline uint64_t MixBits(uint64_t v) {  // splitmix64 finaliser
 // What a random number is for, so two uses at one bounce never share a value.
 enum class RandomUse : uint32_t {
   kPixelJitterX = 0, kPixelJitterY, kLightChoice, kBsdfU, kBsdfV, kLobe, kRoulette,
-  kEmitterChoice, kEmitterU, kEmitterV, kEmitterChoiceLow
+  kEmitterChoice, kEmitterU, kEmitterV, kEmitterChoiceLow, kLightChoiceLow
 };
 
 class SampleRandom {
