@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <system_error>
 #include <utility>
 
 #include "common/base/interrupt.h"
@@ -120,12 +121,16 @@ void FrameWriter::Loop() {
       // unprivileged one cannot raise it back, so this thread stays at the job's priority for
       // the last frame (whose compression threads start from it). A refused nice only leaves
       // the priority where it was.
-      std::thread low([&] {
-        SetThreadName("rs-write-low");
-        (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 19);
+      try {
+        std::thread low([&] {
+          SetThreadName("rs-write-low");
+          (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), 19);
+          write(image::ExrThreads::kCallingThread);
+        });
+        low.join();
+      } catch (const std::system_error&) {  // no thread to be had (a limit): on this one
         write(image::ExrThreads::kCallingThread);
-      });
-      low.join();
+      }
     } else {
       write(image::ExrThreads::kAllCores);
     }

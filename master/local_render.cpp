@@ -6,6 +6,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <mutex>
+#include <new>
 #include <string>
 #include <thread>
 #include <vector>
@@ -151,7 +152,15 @@ Status RenderLocally(const RenderArgs& args) {
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
                           scene->integrator.spp, plan.total_samples() - total);
       std::thread render([&] {
-        Status s = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
+        // An exception must not leave this thread (std::terminate): it fails the frame.
+        Status s;
+        try {
+          s = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
+        } catch (const std::bad_alloc&) {
+          s = Status::Error("out of memory (a smaller image, --cache-mb or fewer threads may fit)");
+        } catch (const std::exception& e) {
+          s = Status::Error(e.what());
+        }
         const std::lock_guard lock(finish_mutex);
         status = std::move(s);
         finished = true;

@@ -132,10 +132,18 @@ EngineMemory EngineMemoryOf(const slave::EngineOptions& engine, const store::Sto
 }
 
 Status CheckSlaveMemory(const EngineMemory& m, int slaves_here, const std::string& host) {
-  const std::optional<uint64_t> available = MemoryThisProcessMayTake();
+  const auto mb = [](uint64_t bytes) { return static_cast<double>(bytes) / 1e6; };
+  // The machine's memory is shared by its slaves; an address-space limit is each process's own
+  // (counted against the machine's total, two slaves each within their own were refused).
+  const std::optional<uint64_t> own = MemoryThisProcessMayTake();
+  if (own && m.bytes > *own && !(MemoryAvailable() && m.bytes > *MemoryAvailable()))
+    return Status::Error(StrFormat("on %s: needs about %.0f MB of memory for %s; its "
+                                   "address-space limit (ulimit -v) leaves this process %.0f MB "
+                                   "(%s)", host.c_str(), mb(m.bytes), m.what.c_str(), mb(*own),
+                                   m.advice.c_str()));
+  const std::optional<uint64_t> available = MemoryAvailable();
   const uint64_t needed = m.bytes * static_cast<uint64_t>(std::max(slaves_here, 1));
   if (!available || needed <= *available) return OkStatus();
-  const auto mb = [](uint64_t bytes) { return static_cast<double>(bytes) / 1e6; };
   const std::string each =
       slaves_here > 1 ? StrFormat(", %.0f MB for each of its %d slaves", mb(m.bytes), slaves_here)
                       : std::string();

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <cstring>
 #include <new>
+#include <system_error>
 
 #include "common/base/build_id.h"
 #include "master/render_command.h"
@@ -29,6 +30,10 @@ int main(int argc, char** argv) {
     } catch (const std::bad_alloc&) {  // memory is checked up front; this is the last resort
       std::fputs("raystack render: out of memory (a smaller image, --cache-mb or fewer threads "
                  "may fit)\n", stderr);
+      return 1;
+    } catch (const std::system_error& e) {  // a thread refused: ulimit -u, -v
+      std::fprintf(stderr, "raystack render: cannot start a thread (%s): a limit on threads or "
+                   "address space (ulimit -u, -v)?\n", e.what());
       return 1;
     }
   }

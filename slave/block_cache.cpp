@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <new>
 
 #include "common/base/check.h"
 #include "common/base/log.h"
@@ -133,9 +134,16 @@ BlockCache::Claim BlockCache::BeginLoad(uint32_t id, bool wait) {
 
 Status BlockCache::FinishLoad(uint32_t id, std::span<const uint8_t> stored, int pins,
                               store::AlignedBuffer* scratch) {
-  auto data = std::make_unique<Resident>();
-  data->raw.ReserveIn(&arena_, Charge(id));  // when no gap fits: the C heap, in Decode
-  Expected<store::BlockView> view = store_.Decode(id, stored, scratch, &data->raw);
+  std::unique_ptr<Resident> data;
+  Expected<store::BlockView> view = Status::Error("");
+  try {
+    data = std::make_unique<Resident>();
+    data->raw.ReserveIn(&arena_, Charge(id));  // when no gap fits: the C heap, in Decode
+    view = store_.Decode(id, stored, scratch, &data->raw);
+  } catch (const std::bad_alloc&) {  // (an address-space limit): the block fails, named
+    view = Status::Error(StrFormat("block %u: out of memory to decode it (a smaller --cache-mb "
+                                   "or fewer threads may fit)", id));
+  }
   std::lock_guard lock(mu_);
   Entry& e = entries_[id];
   loads_.fetch_add(1, std::memory_order_relaxed);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <system_error>
 
 #include "common/base/log.h"
 #include "common/base/thread_cpu.h"
@@ -45,6 +46,20 @@ BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, Blo
       max_workers_(static_cast<size_t>(std::max(1, options.io_threads))),
       allowed_workers_(std::min<size_t>(max_workers_, Cores())),
       aio_(source->OpenAio(static_cast<int>(max_workers_))) {
+  try {
+    StartThreads();
+  } catch (...) {  // a thread limit: the threads started are ended first (else std::terminate)
+    {
+      std::lock_guard lock(aio_mu_);
+      aio_stop_ = true;
+    }
+    aio_cv_.notify_all();
+    for (std::thread& w : workers_) w.join();
+    throw;
+  }
+}
+
+void BlockLoader::StartThreads() {
   if (aio_) {
     // Threads that wait for direct reads and decode them, as many as the cores: decoding is
     // CPU work, and one thread alone fell behind the disk (the ray threads idled 0.5 s of a
@@ -67,13 +82,24 @@ BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, Blo
 }
 
 // Called by the loader thread only, so workers_ needs no lock (Stop joins the loader first).
-void BlockLoader::StartWorker() {
-  workers_.emplace_back([this] {
-    SetThreadName("rs-io");
-    SetBatchScheduling();
-    WorkerLoop();
-    AddCpu(ThreadCpuSeconds());
-  });
+bool BlockLoader::StartWorker() {
+  try {
+    workers_.emplace_back([this] {
+      SetThreadName("rs-io");
+      SetBatchScheduling();
+      WorkerLoop();
+      AddCpu(ThreadCpuSeconds());
+    });
+    return true;
+  } catch (const std::system_error& e) {
+    // A thread or address-space limit (ulimit -u, -v): the loader goes on with the workers it
+    // has (the exception escaped the loader thread: std::terminate).
+    std::lock_guard lock(runs_mu_);
+    allowed_workers_ = workers_.size();
+    LOG_WARNING("loader", "cannot start another I/O thread (%s): going on with %zu", e.what(),
+                workers_.size());
+    return false;
+  }
 }
 
 BlockLoader::~BlockLoader() { Stop(); }
@@ -224,10 +250,21 @@ void BlockLoader::Submit(Run run, bool may_read_here) {
     // disk or a network needs many reads in flight, up to io_threads.
     start = run_queue_.size() > idle_workers_ && workers_.size() < allowed_workers_;
   }
-  if (start) {
-    StartWorker();
-  } else {
+  if (start && StartWorker()) return;  // the new worker takes it
+  if (!workers_.empty()) {
     runs_cv_.notify_one();
+  } else {
+    // No worker to take the queue (none could be started): the loader reads it itself.
+    for (;;) {
+      Run queued;
+      {
+        std::lock_guard lock(runs_mu_);
+        if (run_queue_.empty()) break;
+        queued = std::move(run_queue_.front());
+        run_queue_.pop_front();
+      }
+      ReadInline(queued);
+    }
   }
 }
 

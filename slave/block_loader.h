@@ -116,7 +116,8 @@ class BlockLoader {
   void ReadInline(const Run& run);  // on the loader thread
   // Reads `run` from the source and completes its blocks; returns whether the read waited.
   bool ReadAndComplete(const Run& run, std::vector<uint8_t>* bytes, store::AlignedBuffer* scratch);
-  void StartWorker();
+  bool StartWorker();  // false: the thread could not be started (a limit)
+  void StartThreads();  // the constructor's: AIO's, then the loader
   void BusyBegin();
   void BusyEnd();
   void AddCpu(double seconds);

@@ -1,6 +1,7 @@
 #include "slave/block_source.h"
 
 #include <chrono>
+#include <new>
 #include <thread>
 
 #include "common/base/log.h"
@@ -29,7 +30,12 @@ Status DiskBlockSource::ReadRun(std::span<const uint32_t> ids, std::vector<uint8
   if (faults_.io_latency_us > 0)
     std::this_thread::sleep_for(std::chrono::microseconds(faults_.io_latency_us));
   RAYSTACK_RETURN_IF_ERROR(begun);
-  bytes->resize(run.size);
+  try {
+    bytes->resize(run.size);
+  } catch (const std::bad_alloc&) {  // (an address-space limit): the read fails, named
+    return Status::Error(StrFormat("blocks %u-%u: out of memory for a read of %zu bytes",
+                                   ids.front(), ids.back(), static_cast<size_t>(run.size)));
+  }
   RAYSTACK_RETURN_IF_ERROR(store_.ReadRange(run.offset, run.size, bytes->data()));
   EndRead(k, *bytes);
   return OkStatus();

@@ -325,7 +325,11 @@ void PeerBlocks::ServeLoop() {
       s = to_serve_.front();
       to_serve_.pop_front();
     }
-    Answer(s.to, s.request, s.runs, &bytes);
+    try {
+      Answer(s.to, s.request, s.runs, &bytes);
+    } catch (const std::exception& e) {  // out of memory: the asker reads them itself (lost)
+      LOG_WARNING("peers", "cannot answer rank %d's request for blocks: %s", s.to, e.what());
+    }
   }
 }
 

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <new>
+#include <system_error>
 #include <thread>
 
 #include "common/base/log.h"
@@ -84,7 +86,14 @@ Status RenderEngine::Preload(double* seconds) {
     }
   };
   std::vector<std::thread> threads;
-  for (int i = 0; i < options_.threads; ++i) threads.emplace_back(work);
+  for (int i = 0; i < options_.threads; ++i) {
+    try {
+      threads.emplace_back(work);
+    } catch (const std::system_error&) {  // a limit on threads (ulimit -u, -v): fewer of them
+      break;
+    }
+  }
+  if (threads.empty()) work();
   for (std::thread& t : threads) t.join();
   *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return error;
@@ -171,26 +180,39 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
 
   std::unique_ptr<BlockLoader> loader;
   cache_->Reopen();  // the last frame's loader shut it
-  if (shared.stack) {
-    loader = std::make_unique<BlockLoader>(
-        store_, cache_.get(), source_, options_.loader,
-        [&threads](uint32_t thread, uint32_t block, const Status& status) {
-          threads[thread]->Deliver(block, status);
-        },
-        &read_buffers_);
-    shared.loader = loader.get();
-  }
-
   const auto start = std::chrono::steady_clock::now();
   std::vector<std::thread> workers;
-  for (auto& t : threads)
-    workers.emplace_back([&shared, rt = t.get()] {
-      SetThreadName("rs-ray");
-      if (shared.stack)
-        rt->RunStack();
-      else
-        rt->RunSync();
-    });
+  try {
+    if (shared.stack) {
+      loader = std::make_unique<BlockLoader>(
+          store_, cache_.get(), source_, options_.loader,
+          [&threads](uint32_t thread, uint32_t block, const Status& status) {
+            threads[thread]->Deliver(block, status);
+          },
+          &read_buffers_);
+      shared.loader = loader.get();
+    }
+    for (auto& t : threads)
+      workers.emplace_back([&shared, rt = t.get()] {
+        SetThreadName("rs-ray");
+        try {
+          if (shared.stack)
+            rt->RunStack();
+          else
+            rt->RunSync();
+        } catch (const std::bad_alloc&) {  // out of a thread: std::terminate; the frame fails
+          shared.Fail(Status::Error("out of memory (a smaller image, --cache-mb or fewer threads "
+                                    "may fit)"));
+        } catch (const std::exception& e) {
+          shared.Fail(Status::Error(e.what()));
+        }
+      });
+  } catch (const std::system_error& e) {
+    // A limit on threads or address space (ulimit -u, -v): the frame fails with why, and the
+    // threads started end first (a thread destroyed while running is std::terminate).
+    shared.Fail(Status::Error(StrFormat("cannot start the render's threads (%s): a limit on "
+                                        "threads or address space (ulimit -u, -v)?", e.what())));
+  }
   for (std::thread& w : workers) w.join();
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   s.direct_reads = store_.direct_reads();

@@ -14,7 +14,8 @@ std::optional<uint64_t> MemoryAvailable();
 
 // What this process may still allocate: MemoryAvailable(), or less under an address-space limit
 // (RLIMIT_AS: `ulimit -v`, some batch schedulers' memory limit, e.g. SGE's h_vmem), which
-// counts address space reserved, not memory used. For the checks before a render or a prep, not
+// counts address space reserved, not memory used: the room left under it, less 96 MB for what
+// a render reserves as it runs (thread stacks, malloc's arenas, buffers). For the checks before a render or a prep, not
 // for the page cache (which no such limit bounds).
 std::optional<uint64_t> MemoryThisProcessMayTake();
 // The parts, for tests: the room under an address-space limit of `limit` bytes for a process

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <iterator>
+#include <new>
 #include <optional>
 #include <thread>
 
@@ -258,6 +259,17 @@ void MpiTransport::NoteRankDied(int rank) {
 // ones wait, so each sender's messages keep their order) until it completes, or until the
 // sender is known dead (NoteRankDied), when it is dropped.
 Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
+    std::chrono::milliseconds timeout) {
+  // Failures are returned, never thrown: out of memory for a message (an address-space limit)
+  // ended the receiving thread's process with std::terminate.
+  try {
+    return ReceiveOrThrow(timeout);
+  } catch (const std::bad_alloc&) {
+    return Status::Error(StrFormat("rank %d: out of memory to receive a message", rank_));
+  }
+}
+
+Expected<std::optional<transport::Envelope>> MpiTransport::ReceiveOrThrow(
     std::chrono::milliseconds timeout) {
   std::lock_guard lock(receive_mu_);
   const auto deadline = std::chrono::steady_clock::now() + timeout;

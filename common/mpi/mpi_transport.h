@@ -47,6 +47,8 @@ class MpiTransport final : public transport::Transport {
   // the finished ones, and those to a rank known dead.
   Status Post(int to, std::vector<uint8_t> bytes) override;
   Expected<std::optional<transport::Envelope>> Receive(std::chrono::milliseconds timeout) override;
+  // Receive, but out of memory is thrown (Receive turns it into an error).
+  Expected<std::optional<transport::Envelope>> ReceiveOrThrow(std::chrono::milliseconds timeout);
   uint64_t posted_bytes() const override { return posted_bytes_.load(); }
   void SetIdlePause(std::chrono::microseconds pause) override { idle_pause_us_ = pause.count(); }
   void BeginWait() override;

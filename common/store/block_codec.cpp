@@ -5,6 +5,7 @@
 
 #include <cstdlib>
 #include <cstring>
+#include <new>
 
 #include "common/base/check.h"
 
@@ -79,8 +80,9 @@ void AlignedBuffer::Reserve(uint64_t bytes) {
   if (bytes <= capacity_) return;
   const uint64_t rounded = (bytes + 63) & ~uint64_t{63};
   auto* p = static_cast<uint8_t*>(std::aligned_alloc(64, rounded));
+  // Out of memory is the caller's to report (a block that cannot be decoded), not a crash.
+  if (p == nullptr) throw std::bad_alloc();
   data_ = std::unique_ptr<uint8_t, Free>(p, Free{});  // a heap buffer's deleter, not an arena's
-  CHECK(data_ != nullptr);
   capacity_ = rounded;
 }
 

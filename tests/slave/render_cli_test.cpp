@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <sched.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cmath>
@@ -262,6 +263,41 @@ TEST_F(RenderCli, HelpNamesTheDocumentsBesideTheInstalledProgram) {
   const ProcessResult r = RunProcess({prefix + "/bin/raystack", "render", "--help"}, dir_->path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find(prefix + "/share/doc/raystack/"), std::string::npos) << r.out;
+}
+
+// Found by the day's review: under a limit on threads (ulimit -u) or address space (-v), a
+// thread that could not start threw std::system_error out of a thread (std::terminate: exit 134,
+// the output's lock left). At every limit the render now ends with a message, or finishes with
+// fewer I/O threads. The limit counts a user's threads, which root's are not held to: the
+// render runs as nobody.
+TEST_F(RenderCli, ALimitOnThreadsEndsWithAMessageNeverAnAbort) {
+  if (geteuid() != 0) GTEST_SKIP() << "running as another user needs root (CI runs as root)";
+  std::filesystem::permissions(dir_->path(), std::filesystem::perms::all);
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir_->path()))
+    std::filesystem::permissions(entry.path(), std::filesystem::perms::all);
+  const std::string scene = Scene();
+  int finished = 0;
+  for (const rlim_t threads : {1, 2, 3, 4, 5, 6, 8, 12, 64}) {
+    const std::string out = dir_->File("limited-" + std::to_string(threads) + ".exr");
+    const ProcessResult r = RunProcess(
+        {kRaystack, "render", scene, "--threads", "2", "--cache-mb", "1", "--no-png", "-q",
+         "--output", out},
+        dir_->path(), [threads] {
+          const rlimit limit{threads, threads};
+          if (setgid(65534) != 0 || setuid(65534) != 0 || setrlimit(RLIMIT_NPROC, &limit) != 0)
+            _exit(125);
+        });
+    ASSERT_NE(r.exit_code, 125) << "cannot become nobody with a limit of " << threads;
+    EXPECT_EQ(r.signal, 0) << threads << " threads: " << r.err;
+    if (r.exit_code == 0) {
+      ++finished;
+      continue;
+    }
+    EXPECT_EQ(r.exit_code, 1) << threads << " threads: " << r.err;
+    EXPECT_NE(r.err.find("a limit on threads or address space"), std::string::npos)
+        << threads << " threads: " << r.err;
+  }
+  EXPECT_GT(finished, 0) << "no limit let the render finish";
 }
 
 TEST_F(RenderCli, ModesWriteTheSameImage) {
