@@ -31,13 +31,34 @@ Status WriteStats(const std::string& path, const std::string& json) {
 
 namespace {
 
-// `text` as a JSON string, quotes, backslashes and control characters escaped.
+// The length of the UTF-8 sequence at text[i] (1 to 4), or 0 when it is not valid UTF-8.
+size_t Utf8Length(const std::string& text, size_t i) {
+  const auto byte = [&](size_t k) { return static_cast<unsigned char>(text[k]); };
+  const unsigned char b = byte(i);
+  const size_t n = b < 0x80 ? 1 : (b >> 5) == 0x6 ? 2 : (b >> 4) == 0xe ? 3 : (b >> 3) == 0x1e ? 4 : 0;
+  if (n == 0 || i + n > text.size()) return 0;
+  for (size_t k = 1; k < n; ++k)
+    if ((byte(i + k) >> 6) != 0x2) return 0;
+  return n;
+}
+
+// `text` as a JSON string: quotes, backslashes and control characters escaped, and each byte
+// that is not part of valid UTF-8 (a path in another encoding) as \u00XX, so the file stays
+// JSON (it was not, with a Latin-1 output name).
 std::string JsonQuoted(const std::string& text) {
   std::string q = "\"";
-  for (const char c : text) {
-    if (c == '"' || c == '\\') q += '\\', q += c;
-    else if (static_cast<unsigned char>(c) < 0x20) q += StrFormat("\\u%04x", c);
-    else q += c;
+  for (size_t i = 0; i < text.size();) {
+    const char c = text[i];
+    const size_t n = Utf8Length(text, i);
+    if (n == 0 || static_cast<unsigned char>(c) < 0x20) {
+      q += StrFormat("\\u%04x", static_cast<unsigned char>(c));
+      ++i;
+    } else if (c == '"' || c == '\\') {
+      q += '\\', q += c, ++i;
+    } else {
+      q.append(text, i, n);
+      i += n;
+    }
   }
   return q + "\"";
 }
@@ -380,17 +401,18 @@ Status ResumeInto(const RenderArgs& args, const render::Scene& scene, size_t f,
                   render::FramePlan* plan, render::Film* film) {
   if (!args.resume) return OkStatus();
   const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
-  // A checkpoint is continued only from the store it was rendered from, which the provenance
-  // tells by the index's checksum. A master that cannot read the index (under mpirun only the
-  // slaves need the store) cannot tell: it took a checkpoint of another model at the same path
-  // and finished it, a mixed image marked complete.
-  if (!StoreChecksum(scene.store))
-    return Status::Error(StrFormat("--resume: cannot read %s/%s here, so the checkpoint's store "
-                                   "cannot be told from this one; run the master where the store "
-                                   "is readable", scene.store.c_str(), store::kIndexFile));
   Expected<ResumePlan> resume =
       PlanResume(exr, plan->width, plan->height, plan->spp(), Provenance(scene, f));
   if (!resume.ok()) return resume.status();
+  // A checkpoint is continued only from the store it was rendered from, which the provenance
+  // tells by the index's checksum. A master that cannot read the index (under mpirun only the
+  // slaves need the store) cannot tell: it took a checkpoint of another model at the same path
+  // and finished it, a mixed image marked complete. (Without a checkpoint there is nothing to
+  // tell: a requeued job that always passes --resume starts.)
+  if (!resume->finished.empty() && !StoreChecksum(scene.store))
+    return Status::Error(StrFormat("--resume: cannot read %s/%s here, so %s's store cannot be "
+                                   "told from this one; run the master where the store is "
+                                   "readable", scene.store.c_str(), store::kIndexFile, exr.c_str()));
   const size_t tiles = DropFinishedTiles(*resume, plan);
   ApplyResume(*resume, film);
   if (!args.quiet && resume->finished.empty())

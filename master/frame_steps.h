@@ -86,8 +86,6 @@ Status LoadReference(const RenderArgs& args, size_t f, size_t frames, const rend
 Expected<std::unique_ptr<ConvergenceLog>> OpenLog(const RenderArgs& args);
 // Says why the frame stopped early, if a stop rule (--time-limit, --target-error) ended it.
 void ReportStop(const RenderArgs& args, const ConvergenceMonitor& monitor);
-// Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
-// returns the EXR's path, or the error of an earlier frame's write.
 // Frame f's record in --stats, as "  \"key\": value,\n" lines: its index, image, size, samples
 // per pixel, why it stopped early (null: it did not), and the build and host that rendered it
 // (found by a researcher: a stats file could not be traced to its run, nor its entries to their
@@ -95,6 +93,8 @@ void ReportStop(const RenderArgs& args, const ConvergenceMonitor& monitor);
 std::string FrameRecordJson(size_t f, const std::string& exr, int width, int height, uint32_t spp,
                             const std::string& stopped);
 
+// Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
+// returns the EXR's path, or the error of an earlier frame's write.
 // `stopped`: why a stop rule ended the frame early (ConvergenceMonitor::stop_reason), or empty.
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,

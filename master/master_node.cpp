@@ -414,7 +414,8 @@ Status MasterNode::Handle(Frame* f, transport::Envelope e) {
                                         {"block_wait_seconds", d.block_wait_seconds},
                                         {"engine_seconds", d.engine_seconds},
                                         {"loader_busy_seconds", d.loader_busy_seconds}})
-        if (!(value >= 0) || !std::isfinite(value))
+        // (Bounded too: two slaves' 1e308 added up to an infinite imbalance.)
+        if (!(value >= 0) || !(value <= 1e9))
           return Status::Error(StrFormat("rank %d reports frame %u done with %s %g", e.from,
                                          d.frame, name, value));
       if (!(d.cache_hit_rate >= 0 && d.cache_hit_rate <= 1))

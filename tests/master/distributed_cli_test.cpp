@@ -102,7 +102,7 @@ TEST(DistributedMemory, ASlaveWhoseEngineCannotFitSaysSoNamingItsHost) {
 // Slaves that share a machine share its memory: each checked its own engine against the room
 // left, all at the same moment, so five slaves whose blocks fit one at a time started together
 // and were killed by the kernel as they loaded. Now each counts the slaves on its machine (Open
-// MPI's shared-memory communicator). The same cap as above: --mode incore's ~61 MB of blocks fit
+// MPI's environment: OMPI_COMM_WORLD_LOCAL_SIZE). The same cap as above: --mode incore's ~61 MB of blocks fit
 // once, not five times.
 TEST(DistributedMemory, SlavesOnOneMachineCheckTheirMemoryTogether) {
   std::string why;
@@ -264,6 +264,18 @@ TEST_F(DistributedCli, EachSlavesStatisticsHaveTheOneProcessFigures) {
   EXPECT_NE(job.out.find("peak RSS "), std::string::npos) << job.out;
 }
 
+// Found by the day's review: an output name that is not UTF-8 (a Latin-1 é) went into --stats
+// as it was, and the file was not JSON. Bytes that are not UTF-8 are escaped; quotes too.
+TEST_F(DistributedCli, StatisticsStayJsonWhateverTheOutputsName) {
+  const std::string scene = Scene(R"({ "type": "whitted" })");
+  const std::string out = dir_->File("caf\xe9 \"q\".exr");
+  const ProcessResult r = Render(scene, 0, out, "loc", {"--stats", dir_->File("stats.json")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  nlohmann::json stats;
+  ASSERT_NO_THROW(stats = nlohmann::json::parse(Slurp(dir_->File("stats.json"))));
+  EXPECT_EQ(stats[0]["output"], dir_->File("caf\u00e9 \"q\"-0.exr"));
+}
+
 // kill -9 of a slave mid-render (the slave does it to itself at its 3rd tile, so the test
 // knows it happens mid-render), a slave whose whole process stops for longer than the
 // master waits for word from it, and a slave whose store reads fail: the master drops it, the
@@ -389,7 +401,8 @@ TEST_F(DistributedCli, ARemShareTooLargeForTheCacheEndsTheJobBeforeItStarts) {
   const ProcessResult r = RunProcess(argv, dir_->path());
   EXPECT_NE(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("a slave's share of the store"), std::string::npos) << r.err;
-  EXPECT_EQ(r.out.find("frame 0:"), std::string::npos) << r.out;
+  // No frame began (progress lines go to stderr; two cameras: "frame 0 (1 of 2)").
+  EXPECT_EQ(r.err.find("frame 0 ("), std::string::npos) << r.err;
 }
 
 // A scene with nothing to light it (found by a real-model user: the documented minimal scene
@@ -482,7 +495,7 @@ TEST_F(DistributedCli, ARankWithAnotherStoreOrSceneEndsTheJobNamingIt) {
     EXPECT_NE(r.err.find("rank 2 (on "), std::string::npos) << r.err;
     EXPECT_NE(r.err.find(c.error), std::string::npos) << r.err;
     EXPECT_TRUE(Slurp(dir_->File("mixed-0.exr")).empty()) << "an image was written";
-    EXPECT_EQ(r.err.find("frame 0:"), std::string::npos) << "a progress line before the error";
+    EXPECT_EQ(r.err.find("frame 0 ("), std::string::npos) << "a progress line before the error";
   }
   // The same files on every rank, through the same MPMD form: the image as ever.
   std::vector<std::string> same = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe",
@@ -542,10 +555,10 @@ TEST_F(DistributedCli, AMasterThatCannotReadTheStoreRefusesToResume) {
                             "exec \"$@\"\n";
   std::filesystem::permissions(wrapper, std::filesystem::perms::owner_all);
   const std::string scene = Scene(R"({ "type": "whitted", "max_depth": 3, "spp": 1, "seed": 1 })");
-  const auto run = [&](const std::vector<std::string>& extra) {
+  const auto run = [&](const std::vector<std::string>& extra, const std::string& out = "blind.exr") {
     std::vector<std::string> argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np",
                                      "3", wrapper, kRaystack, "render", scene, "--no-png", "-q",
-                                     "--cache-mb", "1", "--output", dir_->File("blind.exr")};
+                                     "--cache-mb", "1", "--output", dir_->File(out)};
     argv.insert(argv.end(), extra.begin(), extra.end());
     return RunProcess(argv, dir_->path());
   };
@@ -558,6 +571,9 @@ TEST_F(DistributedCli, AMasterThatCannotReadTheStoreRefusesToResume) {
   EXPECT_NE(resumed.exit_code, 0);
   EXPECT_NE(resumed.err.find("--resume: cannot read " + dir_->File("store") + "/index.bin here"),
             std::string::npos) << resumed.err;
+  // With no checkpoint there is nothing to tell apart: a job that always passes --resume starts.
+  const ProcessResult first = run({"--resume"}, "first.exr");
+  EXPECT_EQ(first.exit_code, 0) << first.err;
 }
 
 }  // namespace
