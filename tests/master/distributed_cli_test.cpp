@@ -70,28 +70,43 @@ class DistributedCli : public StoreDirFixture {
   }
 };
 
+// The jobs of these tests run in a real cgroup-v1 memory cap of 256 MB, on the default scene's
+// 2 M triangles (~61 MB of decoded blocks).
+class DistributedMemory : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string why;
+    group_ = MemoryCgroup::CreateOwnChild("raystack-slave-cap", &why);
+    if (!group_) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
+    ASSERT_TRUE(group_->Limit(uint64_t{256} << 20)) << "cannot set the limit of " << group_->path();
+    Expected<TempDir> dir = TempDir::Create();
+    ASSERT_TRUE(dir.ok());
+    dir_ = std::make_unique<TempDir>(std::move(*dir));
+    const ProcessResult prep = RunProcess(
+        {kPrepBinary, "--generate", "spheres:2000000", "-o", dir_->File("store"), "-q"}, dir_->path());
+    ASSERT_EQ(prep.exit_code, 0) << prep.err;
+    std::ofstream(dir_->File("scene.json")) << R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 } })";
+  }
+  // mpirun -np `np` in the cap, with --mode `mode`.
+  ProcessResult Render(int np, const std::string& mode) {
+    return RunProcess({RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np",
+                       std::to_string(np), kRaystack, "render", dir_->File("scene.json"), "--mode",
+                       mode, "--no-png", "-q", "--output", dir_->File("out.exr")},
+                      dir_->path(), group_->Joiner());
+  }
+  std::unique_ptr<MemoryCgroup> group_;
+  std::unique_ptr<TempDir> dir_;
+};
+
 // Found by a user with a model too big for RAM: under mpirun a slave never checked its memory,
 // and one whose engine could not fit was killed by the kernel, the master seeing only a rank gone
 // silent. Now each slave checks its own machine's (or cgroup's) room before it starts and the
-// job ends with why, naming the host. The whole job runs in a real cgroup-v1 memory cap.
-TEST(DistributedMemory, ASlaveWhoseEngineCannotFitSaysSoNamingItsHost) {
-  std::string why;
-  const std::unique_ptr<MemoryCgroup> group = MemoryCgroup::CreateOwnChild("raystack-slave-cap", &why);
-  if (!group) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
-  ASSERT_TRUE(group->Limit(uint64_t{256} << 20)) << "cannot set the limit of " << group->path();
-  Expected<TempDir> dir = TempDir::Create();
-  ASSERT_TRUE(dir.ok());
+// job ends with why, naming the host.
+TEST_F(DistributedMemory, ASlaveWhoseEngineCannotFitSaysSoNamingItsHost) {
   // --mode bvh's tree would peak at ~360 MB beside ~60 MB of blocks: more than the cap.
-  const ProcessResult prep = RunProcess(
-      {kPrepBinary, "--generate", "spheres:2000000", "-o", dir->File("store"), "-q"}, dir->path());
-  ASSERT_EQ(prep.exit_code, 0) << prep.err;
-  std::ofstream(dir->File("scene.json")) << R"({ "store": "store",
-      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 } })";
-  const ProcessResult r = RunProcess(
-      {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", "3", kRaystack, "render",
-       dir->File("scene.json"), "--mode", "bvh", "--no-png", "-q", "--output", dir->File("out.exr")},
-      dir->path(), group->Joiner());
-  ASSERT_NE(r.exit_code, 125) << "the child could not join " << group->path();
+  const ProcessResult r = Render(3, "bvh");
+  ASSERT_NE(r.exit_code, 125) << "the child could not join " << group_->path();
   EXPECT_EQ(r.signal, 0) << r.err;
   EXPECT_NE(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("needs about"), std::string::npos) << r.err;
@@ -102,29 +117,12 @@ TEST(DistributedMemory, ASlaveWhoseEngineCannotFitSaysSoNamingItsHost) {
 // Slaves that share a machine share its memory: each checked its own engine against the room
 // left, all at the same moment, so five slaves whose blocks fit one at a time started together
 // and were killed by the kernel as they loaded. Now each counts the slaves on its machine (Open
-// MPI's environment: OMPI_COMM_WORLD_LOCAL_SIZE). The same cap as above: --mode incore's ~61 MB of blocks fit
-// once, not five times.
-TEST(DistributedMemory, SlavesOnOneMachineCheckTheirMemoryTogether) {
-  std::string why;
-  const std::unique_ptr<MemoryCgroup> group = MemoryCgroup::CreateOwnChild("raystack-slaves-cap", &why);
-  if (!group) GTEST_SKIP() << "no cgroup-v1 memory cap possible: " << why;
-  ASSERT_TRUE(group->Limit(uint64_t{256} << 20)) << "cannot set the limit of " << group->path();
-  Expected<TempDir> dir = TempDir::Create();
-  ASSERT_TRUE(dir.ok());
-  const ProcessResult prep = RunProcess(
-      {kPrepBinary, "--generate", "spheres:2000000", "-o", dir->File("store"), "-q"}, dir->path());
-  ASSERT_EQ(prep.exit_code, 0) << prep.err;
-  std::ofstream(dir->File("scene.json")) << R"({ "store": "store",
-      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 } })";
-  const auto render = [&](int np) {
-    return RunProcess({RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np",
-                       std::to_string(np), kRaystack, "render", dir->File("scene.json"), "--mode",
-                       "incore", "--no-png", "-q", "--output", dir->File("out.exr")},
-                      dir->path(), group->Joiner());
-  };
+// MPI's environment: OMPI_COMM_WORLD_LOCAL_SIZE): --mode incore's blocks fit once, not five times.
+TEST_F(DistributedMemory, SlavesOnOneMachineCheckTheirMemoryTogether) {
+  const auto render = [&](int np) { return Render(np, "incore"); };
   // One slave's blocks fit: the check does not refuse what fits.
   const ProcessResult one = render(2);
-  ASSERT_NE(one.exit_code, 125) << "the child could not join " << group->path();
+  ASSERT_NE(one.exit_code, 125) << "the child could not join " << group_->path();
   ASSERT_EQ(one.exit_code, 0) << one.err;
   const ProcessResult five = render(6);
   EXPECT_EQ(five.signal, 0) << five.err;
