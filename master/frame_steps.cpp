@@ -11,6 +11,7 @@
 #include "common/base/interrupt.h"
 #include "common/base/log.h"
 #include "common/base/process_names.h"
+#include "common/base/utf8.h"
 #include "common/image/exr_io.h"
 #include "common/image/output_file.h"
 #include "common/store/format.h"
@@ -30,17 +31,6 @@ Status WriteStats(const std::string& path, const std::string& json) {
 }
 
 namespace {
-
-// The length of the UTF-8 sequence at text[i] (1 to 4), or 0 when it is not valid UTF-8.
-size_t Utf8Length(const std::string& text, size_t i) {
-  const auto byte = [&](size_t k) { return static_cast<unsigned char>(text[k]); };
-  const unsigned char b = byte(i);
-  const size_t n = b < 0x80 ? 1 : (b >> 5) == 0x6 ? 2 : (b >> 4) == 0xe ? 3 : (b >> 3) == 0x1e ? 4 : 0;
-  if (n == 0 || i + n > text.size()) return 0;
-  for (size_t k = 1; k < n; ++k)
-    if ((byte(i + k) >> 6) != 0x2) return 0;
-  return n;
-}
 
 // `text` as a JSON string: quotes, backslashes and control characters escaped, and each byte
 // that is not part of valid UTF-8 (a path in another encoding) as \u00XX, so the file stays

@@ -72,8 +72,11 @@ Status FrameWriter::WriteImage(const Image& image, image::ExrThreads threads) {
     return s;
   };
   Status s = write();
-  // A checkpoint is tried again at its next interval.
-  if (s.ok() || image.done || retry_seconds_ <= 0) return s;
+  // A checkpoint is tried again at its next interval. Out of memory is not a disk's to free:
+  // waiting 10 minutes for it held a job (an address-space limit) for nothing.
+  if (s.ok() || image.done || retry_seconds_ <= 0 ||
+      s.message().find("out of memory") != std::string::npos)
+    return s;
   const auto start = std::chrono::steady_clock::now();
   double wait_s = 1;
   ClearProgressLine();  // (a later frame's bar may be on the line)
@@ -113,7 +116,11 @@ void FrameWriter::Loop() {
     lock.unlock();
     Status s;
     auto write = [&](image::ExrThreads threads) {
-      s = WriteImage(image, threads);
+      try {
+        s = WriteImage(image, threads);
+      } catch (...) {  // out of this thread: std::terminate; nothing allocated here (status.h)
+        s = Status::Error(kOutOfMemory);
+      }
       if (image.done) image.done(s);
     };
     if (image.background) {

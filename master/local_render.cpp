@@ -156,10 +156,8 @@ Status RenderLocally(const RenderArgs& args) {
         Status s;
         try {
           s = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
-        } catch (const std::bad_alloc&) {
-          s = Status::Error("out of memory (a smaller image, --cache-mb or fewer threads may fit)");
-        } catch (const std::exception& e) {
-          s = Status::Error(e.what());
+        } catch (...) {  // nothing allocated here (status.h): said in full after the join
+          s = Status::Error(kOutOfMemory);
         }
         const std::lock_guard lock(finish_mutex);
         status = std::move(s);
@@ -204,6 +202,7 @@ Status RenderLocally(const RenderArgs& args) {
         preview->Update([&] { return tiles.Given(); });
       }
       render.join();
+      status = ExplainShortFailure(status);
       progress.Update(film.samples_merged() - shown);
       if (!status.ok()) {
         progress.Abandon();

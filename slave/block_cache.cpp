@@ -140,15 +140,14 @@ Status BlockCache::FinishLoad(uint32_t id, std::span<const uint8_t> stored, int 
     data = std::make_unique<Resident>();
     data->raw.ReserveIn(&arena_, Charge(id));  // when no gap fits: the C heap, in Decode
     view = store_.Decode(id, stored, scratch, &data->raw);
-  } catch (const std::bad_alloc&) {  // (an address-space limit): the block fails, named
-    view = Status::Error(StrFormat("block %u: out of memory to decode it (a smaller --cache-mb "
-                                   "or fewer threads may fit)", id));
+  } catch (const std::bad_alloc&) {  // (an address-space limit): the block fails
+    view = Status::Error(kOutOfMemory);  // nothing allocated here (status.h)
   }
   std::lock_guard lock(mu_);
   Entry& e = entries_[id];
   loads_.fetch_add(1, std::memory_order_relaxed);
   if (!view.ok()) {
-    failures_.emplace(id, view.status());
+    KeepFailure(id, view.status());
     used_ -= Charge(id);
     e.state.store(kFailedState, std::memory_order_release);
     changed_.notify_all();
@@ -187,7 +186,7 @@ void BlockCache::Reopen() {
 
 void BlockCache::FailLoad(uint32_t id, const Status& why) {
   std::lock_guard lock(mu_);
-  failures_.emplace(id, why);
+  KeepFailure(id, why);
   used_ -= Charge(id);
   entries_[id].state.store(kFailedState, std::memory_order_release);
   changed_.notify_all();
@@ -203,6 +202,16 @@ BlockCache::Claim BlockCache::WaitWhileLoading(uint32_t id) {
     case kResidentState: return Claim::kResident;
     case kFailedState: return Claim::kFailed;
     default: return Claim::kLoad;  // evicted again already: the caller starts over
+  }
+}
+
+void BlockCache::KeepFailure(uint32_t id, const Status& why) {
+  // Out of memory for the record itself: the block still fails (its state is set by the
+  // caller), and FailureOf says it was not loaded. Thrown here, it left the block loading and
+  // its askers waiting for good.
+  try {
+    failures_.emplace(id, why);
+  } catch (const std::bad_alloc&) {
   }
 }
 

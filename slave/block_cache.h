@@ -125,6 +125,7 @@ class BlockCache {
   uint64_t used_ = 0;                   // resident + reserved bytes (under mu_)
   std::vector<uint32_t> resident_;      // ids of resident blocks (under mu_)
   std::unordered_map<uint32_t, Status> failures_;  // (under mu_)
+  void KeepFailure(uint32_t id, const Status& why);  // into failures_, never throws (mu_ held)
   std::atomic<uint64_t> peak_{0};
   std::atomic<uint64_t> loads_{0}, distinct_{0}, evictions_{0};
 };

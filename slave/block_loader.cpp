@@ -40,9 +40,9 @@ void BufferShelf::Put(std::unique_ptr<ReadBuffers> buffers) {
 }
 
 BlockLoader::BlockLoader(const store::StoreReader& store, BlockCache* cache, BlockSource* source,
-                         LoaderOptions options, Deliver deliver, BufferShelf* shelf)
+                         LoaderOptions options, Deliver deliver, BufferShelf* shelf, Fail fail)
     : store_(store), cache_(cache), source_(source), options_(options),
-      deliver_(std::move(deliver)), shelf_(shelf ? shelf : &own_shelf_),
+      deliver_(std::move(deliver)), fail_(std::move(fail)), shelf_(shelf ? shelf : &own_shelf_),
       max_workers_(static_cast<size_t>(std::max(1, options.io_threads))),
       allowed_workers_(std::min<size_t>(max_workers_, Cores())),
       aio_(source->OpenAio(static_cast<int>(max_workers_))) {
@@ -69,16 +69,24 @@ void BlockLoader::StartThreads() {
       workers_.emplace_back([this] {
         SetThreadName("rs-aio");
         SetBatchScheduling();
-        AioLoop();
+        Guarded(&BlockLoader::AioLoop);
         AddCpu(ThreadCpuSeconds());
       });
   }
   loader_ = std::thread([this] {
     SetThreadName("rs-loader");
     SetBatchScheduling();
-    LoaderLoop();
+    Guarded(&BlockLoader::LoaderLoop);
     AddCpu(ThreadCpuSeconds());
   });
+}
+
+void BlockLoader::Guarded(void (BlockLoader::*loop)()) {
+  try {
+    (this->*loop)();
+  } catch (...) {  // nothing allocated here (status.h)
+    if (fail_) fail_(Status::Error(kOutOfMemory));
+  }
 }
 
 // Called by the loader thread only, so workers_ needs no lock (Stop joins the loader first).
@@ -87,17 +95,18 @@ bool BlockLoader::StartWorker() {
     workers_.emplace_back([this] {
       SetThreadName("rs-io");
       SetBatchScheduling();
-      WorkerLoop();
+      Guarded(&BlockLoader::WorkerLoop);
       AddCpu(ThreadCpuSeconds());
     });
     return true;
-  } catch (const std::system_error& e) {
-    // A thread or address-space limit (ulimit -u, -v): the loader goes on with the workers it
-    // has (the exception escaped the loader thread: std::terminate).
+  } catch (...) {
+    // A thread or address-space limit (ulimit -u, -v; std::thread's state may not be allocated
+    // either): the loader goes on with the workers it has (the exception escaped the loader
+    // thread: std::terminate), and tries no more (it tried again at each read that waited).
     std::lock_guard lock(runs_mu_);
     allowed_workers_ = workers_.size();
-    LOG_WARNING("loader", "cannot start another I/O thread (%s): going on with %zu", e.what(),
-                workers_.size());
+    threads_refused_ = true;
+    LOG_WARNING("loader", "cannot start another I/O thread: going on with %zu", workers_.size());
     return false;
   }
 }
@@ -280,7 +289,7 @@ bool BlockLoader::ReadAndComplete(const Run& run, std::vector<uint8_t>* bytes,
   const bool waited = VoluntarySwitches() != waits_before;
   if (waited) {
     std::lock_guard lock(runs_mu_);
-    allowed_workers_ = std::min(max_workers_, allowed_workers_ + 1);
+    if (!threads_refused_) allowed_workers_ = std::min(max_workers_, allowed_workers_ + 1);
   }
   CompleteRun(run, read, bytes->data(), scratch);
   BusyEnd();

@@ -70,10 +70,16 @@ class BlockLoader {
   // taken) or failed (`status` names the block; no pin).
   using Deliver = std::function<void(uint32_t thread, uint32_t block, const Status& status)>;
 
+  // Called from a loader thread that cannot go on (out of memory in it: an address-space
+  // limit), with a status made without allocating: the frame must fail, or its rays would wait
+  // for blocks no thread reads.
+  using Fail = std::function<void(const Status& status)>;
+
   // `shelf`: where the loader's threads take their buffers and put them back when it stops (it
   // must outlive the loader); without one, the loader keeps its own.
   BlockLoader(const store::StoreReader& store, BlockCache* cache, BlockSource* source,
-              LoaderOptions options, Deliver deliver, BufferShelf* shelf = nullptr);
+              LoaderOptions options, Deliver deliver, BufferShelf* shelf = nullptr,
+              Fail fail = {});
   ~BlockLoader();
 
   // Ray thread `thread` needs block `block`. Non-blocking.
@@ -127,6 +133,11 @@ class BlockLoader {
   BlockSource* source_;
   const LoaderOptions options_;
   const Deliver deliver_;
+  const Fail fail_;
+  bool threads_refused_ = false;  // an I/O thread could not start: no more tries (runs_mu_)
+  // Runs `loop` (a thread's body); an exception out of it fails the frame (fail_) instead of
+  // ending the process (std::terminate).
+  void Guarded(void (BlockLoader::*loop)());
   BufferShelf own_shelf_;  // used when none is given
   BufferShelf* const shelf_;
 

@@ -32,11 +32,10 @@ Status DiskBlockSource::ReadRun(std::span<const uint32_t> ids, std::vector<uint8
   RAYSTACK_RETURN_IF_ERROR(begun);
   try {
     bytes->resize(run.size);
-  } catch (const std::bad_alloc&) {  // (an address-space limit): the read fails, named
-    return Status::Error(StrFormat("blocks %u-%u: out of memory for a read of %zu bytes",
-                                   ids.front(), ids.back(), static_cast<size_t>(run.size)));
+    RAYSTACK_RETURN_IF_ERROR(store_.ReadRange(run.offset, run.size, bytes->data()));
+  } catch (const std::bad_alloc&) {  // (an address-space limit): the read fails
+    return Status::Error(kOutOfMemory);  // nothing allocated here (status.h)
   }
-  RAYSTACK_RETURN_IF_ERROR(store_.ReadRange(run.offset, run.size, bytes->data()));
   EndRead(k, *bytes);
   return OkStatus();
 }

@@ -327,8 +327,12 @@ void PeerBlocks::ServeLoop() {
     }
     try {
       Answer(s.to, s.request, s.runs, &bytes);
-    } catch (const std::exception& e) {  // out of memory: the asker reads them itself (lost)
-      LOG_WARNING("peers", "cannot answer rank %d's request for blocks: %s", s.to, e.what());
+    } catch (...) {  // out of memory: a failed answer, so the asker reads them itself at once
+      try {
+        (void)net_->Post(s.to, wire::EncodeBlockData(static_cast<uint32_t>(net_->rank()),
+                                                     wire::BlockDataHeader{s.request, static_cast<uint32_t>(s.runs.size()), 1, 0}, {}));
+      } catch (...) {  // not even that: the asker gives up waiting and reads them (a minute)
+      }
     }
   }
 }

@@ -64,7 +64,7 @@ Status RenderEngine::Preload(double* seconds) {
   std::atomic<uint32_t> next{0};
   std::mutex mu;
   Status error;
-  auto work = [&] {
+  auto work_on = [&] {
     std::vector<uint8_t> stored;
     store::AlignedBuffer scratch;
     for (;;) {
@@ -85,18 +85,27 @@ Status RenderEngine::Preload(double* seconds) {
       }
     }
   };
+  auto work = [&] {
+    try {
+      work_on();
+    } catch (...) {  // out of memory (an address-space limit): out of a thread, std::terminate
+      std::lock_guard lock(mu);
+      if (error.ok()) error = Status::Error(kOutOfMemory);
+      next.store(static_cast<uint32_t>(store_.blocks().size()));
+    }
+  };
   std::vector<std::thread> threads;
   for (int i = 0; i < options_.threads; ++i) {
     try {
       threads.emplace_back(work);
-    } catch (const std::system_error&) {  // a limit on threads (ulimit -u, -v): fewer of them
+    } catch (...) {  // a limit on threads (ulimit -u, -v): fewer of them
       break;
     }
   }
   if (threads.empty()) work();
   for (std::thread& t : threads) t.join();
   *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return error;
+  return ExplainShortFailure(error);
 }
 
 void RenderEngine::BuildBvh(double* seconds) {
@@ -183,13 +192,14 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   const auto start = std::chrono::steady_clock::now();
   std::vector<std::thread> workers;
   try {
+    workers.reserve(threads.size());
     if (shared.stack) {
       loader = std::make_unique<BlockLoader>(
           store_, cache_.get(), source_, options_.loader,
           [&threads](uint32_t thread, uint32_t block, const Status& status) {
             threads[thread]->Deliver(block, status);
           },
-          &read_buffers_);
+          &read_buffers_, [&shared](const Status& status) { shared.Fail(status); });
       shared.loader = loader.get();
     }
     for (auto& t : threads)
@@ -200,18 +210,15 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
             rt->RunStack();
           else
             rt->RunSync();
-        } catch (const std::bad_alloc&) {  // out of a thread: std::terminate; the frame fails
-          shared.Fail(Status::Error("out of memory (a smaller image, --cache-mb or fewer threads "
-                                    "may fit)"));
-        } catch (const std::exception& e) {
-          shared.Fail(Status::Error(e.what()));
+        } catch (...) {  // out of a thread: std::terminate; the frame fails (nothing allocated)
+          shared.Fail(Status::Error(kOutOfMemory));
         }
       });
-  } catch (const std::system_error& e) {
-    // A limit on threads or address space (ulimit -u, -v): the frame fails with why, and the
-    // threads started end first (a thread destroyed while running is std::terminate).
-    shared.Fail(Status::Error(StrFormat("cannot start the render's threads (%s): a limit on "
-                                        "threads or address space (ulimit -u, -v)?", e.what())));
+  } catch (...) {
+    // A limit on threads or address space (ulimit -u, -v; std::thread's own state may not be
+    // allocated either): the frame fails, and the threads started end first (a thread destroyed
+    // while running is std::terminate). Nothing allocated here: said in full below.
+    shared.Fail(Status::Error(kThreadRefused));
   }
   for (std::thread& w : workers) w.join();
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -259,8 +266,8 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   s.peak_rss_bytes = PeakRssBytes();
   if (stats) *stats = s;
   std::lock_guard lock(shared.error_mu);
-  failed_ = shared.error;
-  return shared.error;
+  failed_ = ExplainShortFailure(shared.error);  // every thread has ended: memory is back
+  return failed_;
 }
 
 }  // namespace raystack::slave

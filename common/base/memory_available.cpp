@@ -103,18 +103,18 @@ std::optional<uint64_t> VmSizeIn(const std::string& proc_status) {
   return std::nullopt;
 }
 
-std::optional<uint64_t> MemoryThisProcessMayTake() {
+std::optional<uint64_t> MemoryThisProcessMayTake(uint64_t reserve) {
   std::optional<uint64_t> room = MemoryAvailable();
   rlimit limit{};
   if (getrlimit(RLIMIT_AS, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return room;
   const std::optional<uint64_t> vm = VmSizeIn(ReadAll("/proc/self/status"));
   if (!vm) return room;
-  // What the job reserves beyond its data as it runs: thread stacks, malloc's per-thread arenas,
-  // decode buffers (an mpirun slave under 330 MB passed the check on its blocks alone and ran
-  // out at once; under 400 MB it rendered: ~100 MB more, on 2 ray threads and the loader's).
-  constexpr uint64_t kRunningReserve = uint64_t{96} << 20;
+  // kRenderReserve: what a render reserves beyond its data as it runs, thread stacks, malloc's
+  // per-thread arenas, decode buffers (an mpirun slave under 330 MB passed the check on its
+  // blocks alone and ran out at once; under 400 MB it rendered: ~100 MB more, on 2 ray threads
+  // and the loader's). More threads reserve more: the check is a floor, not a promise.
   const uint64_t free_space = AddressSpaceRoom(limit.rlim_cur, *vm);
-  const uint64_t under_limit = free_space > kRunningReserve ? free_space - kRunningReserve : 0;
+  const uint64_t under_limit = free_space > reserve ? free_space - reserve : 0;
   return room ? std::min(*room, under_limit) : under_limit;
 }
 

@@ -14,10 +14,12 @@ std::optional<uint64_t> MemoryAvailable();
 
 // What this process may still allocate: MemoryAvailable(), or less under an address-space limit
 // (RLIMIT_AS: `ulimit -v`, some batch schedulers' memory limit, e.g. SGE's h_vmem), which
-// counts address space reserved, not memory used: the room left under it, less 96 MB for what
-// a render reserves as it runs (thread stacks, malloc's arenas, buffers). For the checks before a render or a prep, not
+// counts address space reserved, not memory used: the room left under it, less `reserve`. For the checks before a render or a prep, not
 // for the page cache (which no such limit bounds).
-std::optional<uint64_t> MemoryThisProcessMayTake();
+// `reserve`: what the process will reserve as it runs beyond the data it is checking for (a
+// render's threads: kRenderReserve; the converter's budget counts its own).
+inline constexpr uint64_t kRenderReserve = uint64_t{96} << 20;
+std::optional<uint64_t> MemoryThisProcessMayTake(uint64_t reserve = kRenderReserve);
 // The parts, for tests: the room under an address-space limit of `limit` bytes for a process
 // of `vm_size` bytes (0 once at or over it).
 uint64_t AddressSpaceRoom(uint64_t limit, uint64_t vm_size);

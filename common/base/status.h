@@ -24,6 +24,22 @@ class [[nodiscard]] Status {
 
 inline Status OkStatus() { return Status(); }
 
+// Failures said where memory may have run out: messages short enough to live inside the string
+// (no allocation: a handler of std::bad_alloc that allocates throws again, out of a thread:
+// std::terminate). ExplainShortFailure gives the user's message once the memory is back.
+inline constexpr const char kOutOfMemory[] = "out of memory";    // 13 bytes, in place
+inline constexpr const char kThreadRefused[] = "thread refused";  // 14 bytes, in place
+static_assert(sizeof(kOutOfMemory) <= 16 && sizeof(kThreadRefused) <= 16);
+// `s`, its short failure (kOutOfMemory, kThreadRefused) said in full; other statuses as they are.
+inline Status ExplainShortFailure(const Status& s) {
+  if (s.message() == kOutOfMemory)
+    return Status::Error("out of memory (a smaller image, --cache-mb or fewer threads may fit)");
+  if (s.message() == kThreadRefused)
+    return Status::Error("cannot start a thread: a limit on threads or address space (ulimit -u, "
+                         "-v)?");
+  return s;
+}
+
 // A value or the Status explaining why there is none (a small std::expected).
 template <typename T>
 class [[nodiscard]] Expected {

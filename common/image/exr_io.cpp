@@ -204,6 +204,8 @@ Status WriteExr(const std::string& path, const ImageLayers& image, ExrThreads th
     Imf::OutputFile file(output->temp_path().c_str(), header, pool.threads());
     file.setFrameBuffer(frame);
     file.writePixels(image.height);
+  } catch (const std::bad_alloc&) {  // said so (FrameWriter does not wait for a disk for it)
+    return Status::Error(path + ": cannot write EXR: out of memory");
   } catch (const std::exception& e) {
     return Status::Error(path + ": cannot write EXR: " + e.what());
   }

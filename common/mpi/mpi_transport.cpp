@@ -265,7 +265,7 @@ Expected<std::optional<transport::Envelope>> MpiTransport::Receive(
   try {
     return ReceiveOrThrow(timeout);
   } catch (const std::bad_alloc&) {
-    return Status::Error(StrFormat("rank %d: out of memory to receive a message", rank_));
+    return Status::Error(kOutOfMemory);  // nothing allocated here (status.h)
   }
 }
 
@@ -323,12 +323,13 @@ Expected<std::optional<transport::Envelope>> MpiTransport::ReceiveOrThrow(
       const int rc = MPI_Test(&in.request, &done, MPI_STATUS_IGNORE);
       if (!done && rc == MPI_SUCCESS) {
         if (dead_[static_cast<size_t>(from)].load()) {  // it will never come
-          MPI_Request_free(&in.request);
           // Kept to the end: "dead" may be a verdict on a rank that only stalled, and MPI
-          // would write the rest of its message here when it runs again.
+          // would write the rest of its message here when it runs again. Kept before the
+          // request is freed: if keeping it runs out of memory, the receive is still whole.
           std::lock_guard posted_lock(posted_mu_);
           abandoned_.push_back(std::move(in.bytes));
           in.active = false;
+          MPI_Request_free(&in.request);
         }
         continue;
       }

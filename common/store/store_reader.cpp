@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <new>
 
 #include "common/base/check.h"
 #include "common/base/log.h"
@@ -41,7 +42,7 @@ std::string NoStoreThere(const std::string& dir) {
 uint8_t* DirectBuffer::Reserve(uint64_t bytes) {
   if (bytes > capacity_) {
     data_.reset(static_cast<uint8_t*>(std::aligned_alloc(kDirectAlign, bytes)));
-    CHECK(data_ != nullptr);
+    if (data_ == nullptr) throw std::bad_alloc();  // the read's to report, not a crash
     capacity_ = bytes;
   }
   return data_.get();

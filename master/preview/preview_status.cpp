@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "common/base/log.h"
+#include "common/base/utf8.h"
 
 namespace raystack::master::preview {
 namespace {
@@ -13,23 +14,6 @@ constexpr double kUnknown = std::numeric_limits<double>::quiet_NaN();
 
 // JSON has no NaN: unknown figures are null, which the page shows as "—".
 std::string Number(double v) { return std::isfinite(v) ? StrFormat("%.6g", v) : "null"; }
-
-// The length of the UTF-8 sequence at text[i], or 0 if none is there (a WebSocket text message
-// must be valid UTF-8, or the browser drops the connection; a path in an error may not be).
-size_t Utf8Length(const std::string& text, size_t i) {
-  const auto c = static_cast<unsigned char>(text[i]);
-  const size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xe ? 3 : (c >> 3) == 0x1e ? 4 : 0;
-  if (n == 0 || i + n > text.size() || (n == 2 && c < 0xc2) || (n == 4 && c > 0xf4)) return 0;
-  for (size_t k = 1; k < n; ++k)
-    if ((static_cast<unsigned char>(text[i + k]) >> 6) != 0x2) return 0;
-  // The second byte's range where the lead allows less: no overlong form, no surrogate, nothing
-  // past U+10FFFF (RFC 3629).
-  const auto second = static_cast<unsigned char>(n > 1 ? text[i + 1] : 0);
-  if ((c == 0xe0 && second < 0xa0) || (c == 0xed && second > 0x9f) || (c == 0xf0 && second < 0x90) ||
-      (c == 0xf4 && second > 0x8f))
-    return 0;
-  return n;
-}
 
 // A JSON string: quotes, backslashes and control characters escaped, bytes that are not UTF-8
 // as '?'.

@@ -272,6 +272,11 @@ TEST_F(DistributedCli, StatisticsStayJsonWhateverTheOutputsName) {
   nlohmann::json stats;
   ASSERT_NO_THROW(stats = nlohmann::json::parse(Slurp(dir_->File("stats.json"))));
   EXPECT_EQ(stats[0]["output"], dir_->File("caf\u00e9 \"q\"-0.exr"));
+  // Byte patterns that only look like UTF-8 (the second review): an overlong '/', a surrogate.
+  const std::string odd = dir_->File("x\xc0\xaf-\xed\xa0\x80.exr");
+  ASSERT_EQ(Render(scene, 0, odd, "loc", {"--stats", dir_->File("odd.json")}).exit_code, 0);
+  ASSERT_NO_THROW(stats = nlohmann::json::parse(Slurp(dir_->File("odd.json"))));
+  EXPECT_EQ(stats[0]["output"], dir_->File("x\u00c0\u00af-\u00ed\u00a0\u0080-0.exr"));
 }
 
 // kill -9 of a slave mid-render (the slave does it to itself at its 3rd tile, so the test

@@ -181,7 +181,7 @@ double PeakRssMb() {
 // A budget above what this process may fill (the machine's available memory, or a cgroup
 // limit nearer) ends in the kernel's OOM killer, without a word from us: say so first.
 void WarnIfBudgetAboveMemory(uint64_t budget) {
-  const std::optional<uint64_t> room = MemoryThisProcessMayTake();
+  const std::optional<uint64_t> room = MemoryThisProcessMayTake(/*reserve=*/0);
   if (room && budget > *room)
     LOG_WARNING("prep", "--mem-limit %llu MB is above the %llu MB this process may fill now (the "
                 "memory available, its cgroup's limit or its address-space limit): it may fail "
