@@ -99,17 +99,24 @@ Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes, const std::
   const std::optional<uint64_t> available = MemoryThisProcessMayTake();
   if (!available || needed <= *available) return OkStatus();
   const render::CameraDesc& c = scene.cameras[which];
-  // Megabytes below 10 GB: "0.1 GB needed, 0.1 GB available" said nothing.
+  // Megabytes below 10 GB ("0.1 GB needed, 0.1 GB available" said nothing), tenths below 10 MB
+  // ("needs about 0 MB" neither).
   const auto size = [](uint64_t bytes) {
-    return bytes < uint64_t{10} * 1000 * 1000 * 1000
-               ? StrFormat("%.0f MB", static_cast<double>(bytes) / 1e6)
-               : StrFormat("%.1f GB", static_cast<double>(bytes) / 1e9);
+    const double mb = static_cast<double>(bytes) / 1e6;
+    return mb < 10 ? StrFormat("%.1f MB", mb)
+                   : bytes < uint64_t{10} * 1000 * 1000 * 1000 ? StrFormat("%.0f MB", mb)
+                                                               : StrFormat("%.1f GB", mb / 1e3);
   };
+  // Where the address-space limit is what leaves too little, it is named.
+  const std::optional<uint64_t> machine = MemoryAvailable();
+  const char* where = machine && *machine > *available ? " under this process's address-space limit "
+                                                          "(ulimit -v, less 96 MB for the run)"
+                                                        : " here";
   return Status::Error(StrFormat("camera %zu: a %dx%d image needs about %s of memory for its film "
-                                 "and images%s; %s is available here (%s)",
+                                 "and images%s; %s is available%s (%s)",
                                  which, c.width, c.height, size(needed).c_str(),
                                  cache_bytes > 0 ? std::string(" and " + what).c_str() : "",
-                                 size(*available).c_str(),
+                                 size(*available).c_str(), where,
                                  cache_bytes > 0 ? advice.c_str() : "a smaller image would fit"));
 }
 
