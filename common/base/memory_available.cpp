@@ -32,20 +32,25 @@ std::string ReadAll(const std::string& file) {
 // petabyte is no limit in practice.
 constexpr uint64_t kNoLimit = uint64_t{1} << 50;
 
-}  // namespace
-
-std::optional<uint64_t> MemAvailableIn(const std::string& meminfo) {
-  std::istringstream in(meminfo);
+// The value in bytes of a "Key:   1234 kB" line of /proc's text (meminfo, status).
+std::optional<uint64_t> KilobytesFieldIn(const std::string& text, const std::string& key) {
+  std::istringstream in(text);
   std::string line;
   while (std::getline(in, line)) {
-    if (line.rfind("MemAvailable:", 0) != 0) continue;
-    std::istringstream fields(line.substr(13));
+    if (line.rfind(key, 0) != 0) continue;
+    std::istringstream fields(line.substr(key.size()));
     uint64_t kb = 0;
     std::string unit;
     if (fields >> kb >> unit && unit == "kB") return kb * 1024;
     return std::nullopt;
   }
   return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<uint64_t> MemAvailableIn(const std::string& meminfo) {
+  return KilobytesFieldIn(meminfo, "MemAvailable:");
 }
 
 std::optional<uint64_t> CgroupRoom(const std::string& cgroup_fs, const std::string& path,
@@ -90,17 +95,7 @@ uint64_t AddressSpaceRoom(uint64_t limit, uint64_t vm_size) {
 }
 
 std::optional<uint64_t> VmSizeIn(const std::string& proc_status) {
-  std::istringstream lines(proc_status);
-  std::string line;
-  while (std::getline(lines, line)) {
-    if (line.rfind("VmSize:", 0) != 0) continue;
-    std::istringstream fields(line.substr(7));
-    uint64_t kb = 0;
-    std::string unit;
-    if (fields >> kb >> unit && unit == "kB") return kb * 1024;
-    return std::nullopt;
-  }
-  return std::nullopt;
+  return KilobytesFieldIn(proc_status, "VmSize:");
 }
 
 std::optional<uint64_t> MemoryThisProcessMayTake(uint64_t reserve) {
