@@ -21,7 +21,8 @@ case "$cmd" in
     if [ "$n" -lt 1 ] || [ "$n" -gt 200 ]; then echo "netns-cluster: N must be 1..200" >&2; exit 2; fi
     # A cluster of that name already up is left as it is (the clean-up below of a failed `up`
     # removed it: found by an operator who ran `up` twice).
-    if ip netns list | awk '{print $1}' | grep -qE "^$name-(sw|h[0-9]+)$"; then
+    namespaces="$(ip netns list | awk '{print $1}')"  # not piped into grep -q: SIGPIPE under pipefail
+    if grep -qE "^$name-(sw|h[0-9]+)$" <<<"$namespaces"; then
       echo "netns-cluster: a cluster named $name is up already (netns-cluster.sh down $name first)" >&2
       exit 1
     fi

@@ -13,7 +13,8 @@ esac
 # The "hosts" share one filesystem and hostname: each gets a temporary folder of its own, or
 # Open MPI's daemons would race for the same session folder.
 ns="$RAYSTACK_NETNS-h$index"
-if ! ip netns list | cut -d' ' -f1 | grep -qxF "$ns"; then
+namespaces="$(ip netns list | cut -d' ' -f1)"
+if ! printf '%s\n' "$namespaces" | grep -qxF "$ns"; then
   echo "netns-rsh: no network namespace $ns (host $host): is netns cluster $RAYSTACK_NETNS up?" >&2
   exit 1
 fi
