@@ -47,6 +47,8 @@ void Checkpoints::Maybe(const render::Film& film) {
 }
 
 Expected<uint64_t> Checkpoints::Final(const render::Film& film, uint32_t spp) {
+  if (Status earlier = writer_->Finish(); !earlier.ok())
+    return Status::Error("an earlier frame's image was not written: " + earlier.message());
   auto result = std::make_shared<Status>();
   FrameWriter::Image image;
   image.exr = path_;

@@ -31,11 +31,15 @@ class Checkpoints {
 
   // Queues a checkpoint of `film` when one is due.
   void Maybe(const render::Film& film);
-  // Writes a checkpoint of `film` now, whatever the interval (also with every_s 0), on every
-  // core, and waits until it and everything queued before it are written: the job is being
-  // interrupted, and the process ends next. Returns how many pixels have all `spp` samples
-  // (those --resume keeps). With none, nothing is written: --resume could keep nothing, and the
-  // file there (a finished image of an earlier run, say) would be lost for nothing.
+  // The job is being interrupted, and the process ends next. First waits until everything
+  // queued before is written: the images of frames that finished rendering, which the writer
+  // may still hold (it can lag two frames behind), are their frames' only copies (found by an
+  // animator: a Ctrl-C with no pixel of the current frame finished ended the process without
+  // them, two finished frames lost). Then writes a checkpoint of `film` now, whatever the
+  // interval (also with every_s 0), on every core, and waits until it is written. Returns how
+  // many pixels have all `spp` samples (those --resume keeps). With none, no checkpoint is
+  // written: --resume could keep nothing, and the file there (a finished image of an earlier
+  // run, say) would be lost for nothing. An earlier frame's failed write is the error returned.
   Expected<uint64_t> Final(const render::Film& film, uint32_t spp);
 
  private:

@@ -116,7 +116,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     return ranks;
   };
   const InterruptsHeld held;  // to the last write (declared before `writer`: outlives it)
-  FrameWriter writer(!args.quiet, args.fail_writes);
+  FrameWriter writer(!args.quiet, args.fail_writes, FrameWriter::kRetrySeconds, args.slow_writes_s);
   std::string json = "[\n";
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference

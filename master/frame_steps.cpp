@@ -122,7 +122,12 @@ Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& sc
     LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
                 static_cast<unsigned long long>(film.nonfinite_dropped()));
   const std::string exr = image.exr;
-  RAYSTACK_RETURN_IF_ERROR(writer->Write(std::move(image)));
+  if (Status refused = writer->Write(std::move(image)); !refused.ok()) {
+    // An earlier frame's image failed. The one the writer still holds may fail too (an interrupt
+    // ended the first one's retries): waited for, so the error names every frame not written.
+    const Status all = writer->Finish();
+    return all.ok() ? refused : all;
+  }
   return exr;
 }
 
@@ -325,8 +330,8 @@ void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& fi
   const uint64_t pixels = static_cast<uint64_t>(film.width()) * static_cast<uint64_t>(film.height());
   const std::string said =
       !finished.ok()
-          ? StrFormat("interrupted (%s); the frame's samples so far could not be written: %s",
-                      name, finished.status().message().c_str())
+          ? StrFormat("interrupted (%s); not written: %s", name,
+                      finished.status().message().c_str())
       : *finished == 0
           ? StrFormat("interrupted (%s): no pixel has all its %u samples yet (each pass covers "
                       "every pixel a little), so nothing is kept for --resume and %s is left as "

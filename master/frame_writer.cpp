@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
 #include <system_error>
@@ -17,9 +18,25 @@
 #include "common/image/png_writer.h"
 
 namespace raystack::master {
+namespace {
 
-FrameWriter::FrameWriter(bool announce, int64_t fail_first, double retry_seconds)
-    : announce_(announce), fail_first_(fail_first), retry_seconds_(retry_seconds) {
+// What a user can do about a failed write, from the system's words in its message: "free some
+// space" was the advice for a folder made read-only too.
+const char* RetryAdvice(const std::string& message) {
+  std::string lower = message;
+  for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  const auto says = [&](const char* words) { return lower.find(words) != std::string::npos; };
+  if (says("no space left") || says("disk quota")) return "free some space";
+  if (says("permission denied") || says("operation not permitted") || says("read-only file system"))
+    return "make the folder writable";
+  if (says("no such file or directory") || says("not a directory")) return "restore the folder";
+  return "fix the cause";
+}
+
+}  // namespace
+
+FrameWriter::FrameWriter(bool announce, int64_t fail_first, double retry_seconds, double slow_s)
+    : announce_(announce), fail_first_(fail_first), retry_seconds_(retry_seconds), slow_s_(slow_s) {
   thread_ = std::thread([this] {
     SetThreadName("rs-write");
     Loop();
@@ -62,6 +79,8 @@ Status FrameWriter::Finish() {
 
 Status FrameWriter::WriteImage(const Image& image, image::ExrThreads threads) {
   const auto write = [&] {
+    if (!image.done && slow_s_ > 0)
+      std::this_thread::sleep_for(std::chrono::duration<double>(slow_s_));
     if (!image.done && fail_first_ > 0) {
       --fail_first_;
       return Status::Error(image.exr + ": cannot write EXR: no space left on device "
@@ -73,18 +92,18 @@ Status FrameWriter::WriteImage(const Image& image, image::ExrThreads threads) {
   };
   Status s = write();
   // A checkpoint is tried again at its next interval. Out of memory is not a disk's to free:
-  // waiting 10 minutes for it held a job (an address-space limit) for nothing.
+  // waiting 10 minutes for it held a job (an address-space limit) for nothing. After SIGINT or
+  // SIGTERM the job is ending: "trying again" would be untrue.
   if (s.ok() || image.done || retry_seconds_ <= 0 ||
-      s.message().find("out of memory") != std::string::npos)
+      s.message().find("out of memory") != std::string::npos || InterruptSignal() != 0)
     return s;
   const auto start = std::chrono::steady_clock::now();
   double wait_s = 1;
   ClearProgressLine();  // (a later frame's bar may be on the line)
   const std::string how_long = retry_seconds_ >= 120 ? StrFormat("%.0f minutes", retry_seconds_ / 60)
                                                      : StrFormat("%.0f s", retry_seconds_);
-  std::fprintf(stderr, "raystack render: %s; trying again every few seconds for %s (free some "
-               "space, or restore the folder; Ctrl-C gives up)\n", s.message().c_str(),
-               how_long.c_str());
+  std::fprintf(stderr, "raystack render: %s; trying again every few seconds for %s (%s; Ctrl-C "
+               "gives up)\n", s.message().c_str(), how_long.c_str(), RetryAdvice(s.message()));
   for (;;) {
     // Slept in short steps, so that SIGINT or SIGTERM (noted, not fatal: InterruptsHeld) ends it.
     const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
@@ -145,7 +164,13 @@ void FrameWriter::Loop() {
     lock.lock();
     spare_ = std::move(image.layers);  // a frame's or a checkpoint's: the next resolve's memory
     writing_ = false;
-    if (error_.ok() && !image.done) error_ = s;
+    // The first failed frame image is the error; those written after it fails too (an
+    // interrupt ended the first's retries with the next one queued) are named in it, so the
+    // job's last message lists every frame rendered and not written.
+    if (!image.done && !s.ok())
+      error_ = error_.ok() ? s
+                           : Status::Error(error_.message() + "; " + image.exr +
+                                           " is not written either");
     cv_.notify_all();
   }
 }

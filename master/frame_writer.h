@@ -51,8 +51,10 @@ class FrameWriter {
 
   // announce: print "  wrote PATH" once an EXR is written. fail_first (a fault for tests): the
   // first that many writes of frame images fail, as on a full disk. retry_seconds: how long a
-  // frame's image is tried again.
-  explicit FrameWriter(bool announce, int64_t fail_first = 0, double retry_seconds = kRetrySeconds);
+  // frame's image is tried again. slow_s (a fault for tests): each frame image's write first
+  // waits that long, as on a slow disk, so the writer falls behind the render.
+  explicit FrameWriter(bool announce, int64_t fail_first = 0, double retry_seconds = kRetrySeconds,
+                       double slow_s = 0);
   // Writes what is queued, then ends (what it had to write is never lost).
   ~FrameWriter();
   FrameWriter(const FrameWriter&) = delete;
@@ -78,6 +80,7 @@ class FrameWriter {
   const bool announce_;
   int64_t fail_first_;  // (writer thread only)
   const double retry_seconds_;
+  const double slow_s_;
   std::mutex mu_;
   std::condition_variable cv_;
   std::optional<Image> queued_;  // (under mu_)

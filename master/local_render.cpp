@@ -122,7 +122,7 @@ Status RenderLocally(const RenderArgs& args) {
   LogFirstPass(args, coarse_rounds, why);
   std::string stats_json = "[\n";
   const InterruptsHeld held;  // to the last write (declared before `writer`: outlives it)
-  FrameWriter writer(!args.quiet, args.fail_writes);
+  FrameWriter writer(!args.quiet, args.fail_writes, FrameWriter::kRetrySeconds, args.slow_writes_s);
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
   for (size_t f = 0; f < frames; ++f) {

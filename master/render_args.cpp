@@ -120,6 +120,8 @@ fault injection (for tests and drills):
   --fault-fail-checkpoints N  the first N checkpoint writes fail, as on a full disk
   --fault-fail-writes N     the first N writes of frame images fail, as on a full disk (each
                             is tried again, 1, 2, 4 ... s apart)
+  --fault-slow-writes S     each write of a frame image first waits S seconds, as on a slow
+                            disk (the images of finished frames queue behind the render)
 )";
 
 namespace {
@@ -291,6 +293,8 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->fail_checkpoints, 0, 1e12));
     } else if (arg == "--fault-fail-writes") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->fail_writes, 0, 1e12));
+    } else if (arg == "--fault-slow-writes") {
+      RAYSTACK_RETURN_IF_ERROR(number(&a->slow_writes_s, 0.0, 3600.0));
     } else if (arg == "--fault-fail-read") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->fail_read, 0, 1e12));
     } else if (arg == "-q" || arg == "--quiet") {

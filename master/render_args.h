@@ -50,6 +50,7 @@ struct RenderArgs {
   int64_t kill_after_checkpoints = -1;
   int64_t fail_checkpoints = 0;
   int64_t fail_writes = 0;  // --fault-fail-writes: the first N frame images fail to write
+  double slow_writes_s = 0;  // --fault-slow-writes: each frame image's write waits S first
   preview::LivePreviewOptions preview;
   // Options given that only slaves of a distributed job use (--blocks, --lost-after, the
   // slaves' faults), for a warning when one process renders alone.

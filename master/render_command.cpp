@@ -10,6 +10,23 @@
 #include "master/render_args.h"
 
 namespace raystack::master {
+namespace {
+
+// A job that fails after SIGINT or SIGTERM was noted (a frame's write given up by Ctrl-C, say)
+// ends with the signal's code and says it was interrupted: it ended with 1 and no word of the
+// interrupt, which a script took for a render error.
+int FailureCode(const std::string& prefix, const std::string& message) {
+  const int signal = InterruptSignal();
+  if (signal == 0) {
+    std::fprintf(stderr, "%s: %s\n", prefix.c_str(), message.c_str());
+    return 1;
+  }
+  std::fprintf(stderr, "%s: interrupted (%s): %s\n", prefix.c_str(), InterruptName(signal),
+               message.c_str());
+  return 128 + signal;
+}
+
+}  // namespace
 
 int RenderCommand(int argc, char** argv) {
   RenderArgs args;
@@ -40,8 +57,15 @@ int RenderCommand(int argc, char** argv) {
       CatchInterrupts(rank == 0);
       if (rank > 0) args.quiet = true;  // the master reports
       s = RenderDistributed(args, net->get());
+      int code = 0;
       if (!s.ok()) {
-        std::fprintf(stderr, "raystack render (rank %d): %s\n", rank, s.message().c_str());
+        const std::string prefix = "raystack render (rank " + std::to_string(rank) + ")";
+        if (rank == 0) {
+          code = FailureCode(prefix, s.message());
+        } else {
+          std::fprintf(stderr, "%s: %s\n", prefix.c_str(), s.message().c_str());
+          code = 1;
+        }
         // A slave whose master is gone ends alone (MPI_Abort could end a master that is only
         // cut off from this host, with its image nearly done).
         if (rank > 0 && (*net)->dead(0)) mpi::MpiTransport::ExitWithoutFinalize(1);
@@ -51,19 +75,15 @@ int RenderCommand(int argc, char** argv) {
       }
       // A rank that will not end with the job (another build's, one that did not acknowledge
       // the end) would keep mpirun waiting, under --enable-recovery forever.
-      if ((*net)->rank_will_not_end()) (*net)->Abort(s.ok() ? 0 : 1);
-      if ((*net)->rank_died()) mpi::MpiTransport::ExitWithoutFinalize(s.ok() ? 0 : 1);
-      return s.ok() ? 0 : 1;
+      if ((*net)->rank_will_not_end()) (*net)->Abort(code);
+      if ((*net)->rank_died()) mpi::MpiTransport::ExitWithoutFinalize(code);
+      return code;
     }
     // mpirun -np 1: one process plays both roles, as without mpirun.
   }
   CatchInterrupts(true);
   s = RenderLocally(args);
-  if (!s.ok()) {
-    std::fprintf(stderr, "raystack render: %s\n", s.message().c_str());
-    return 1;
-  }
-  return 0;
+  return s.ok() ? 0 : FailureCode("raystack render", s.message());
 }
 
 }  // namespace raystack::master

@@ -171,5 +171,50 @@ TEST(Checkpoints, AFailedOneIsNotTheJobsError) {
   EXPECT_TRUE(writer.Finish().ok());
 }
 
+// An interrupt with no pixel of the frame finished writes no checkpoint, but the images of the
+// frames that finished before, still queued behind a slow disk, are written before the process
+// ends (found by an animator: Ctrl-C lost two finished frames the writer still held).
+TEST(Checkpoints, TheFinalOneWaitsForTheFinishedFramesQueuedBefore) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  render::Film film(4, 2);
+  Fill(&film, 5);  // pixel 0 has 1 sample of 4: no pixel finished
+  master::FrameWriter writer(false, 0, master::FrameWriter::kRetrySeconds, /*slow_s=*/0.3);
+  ASSERT_TRUE(writer.Write(Flat(dir->File("frame-0.exr"), 1)).ok());
+  ASSERT_TRUE(writer.Write(Flat(dir->File("frame-1.exr"), 2)).ok());
+  const std::string path = dir->File("frame-2.exr");
+  master::Checkpoints checkpoints(0, path, "test", &writer);
+  Expected<uint64_t> kept = checkpoints.Final(film, 4);
+  ASSERT_TRUE(kept.ok()) << kept.status().message();
+  EXPECT_EQ(*kept, 0u);
+  EXPECT_FALSE(std::filesystem::exists(path)) << "nothing of this frame to keep";
+  for (const char* name : {"frame-0.exr", "frame-1.exr"}) {
+    Expected<image::ImageLayers> read = image::ReadExr(dir->File(name));
+    EXPECT_TRUE(read.ok()) << name << ": " << read.status().message();
+  }
+}
+
+// An earlier frame's failed write is what the final checkpoint returns (the interrupt's message
+// says it), and the frame after it that failed too is named in it.
+TEST(Checkpoints, TheFinalOneSaysWhichEarlierFramesAreNotWritten) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  render::Film film(4, 2);
+  Fill(&film, 5);
+  // Both fail, as on a full disk; frame 1 is queued while frame 0 is written (slowly).
+  master::FrameWriter writer(false, /*fail_first=*/2, /*retry_seconds=*/0, /*slow_s=*/0.2);
+  ASSERT_TRUE(writer.Write(Flat(dir->File("frame-0.exr"), 1)).ok());
+  ASSERT_TRUE(writer.Write(Flat(dir->File("frame-1.exr"), 2)).ok());
+  master::Checkpoints checkpoints(0, dir->File("frame-2.exr"), "test", &writer);
+  Expected<uint64_t> kept = checkpoints.Final(film, 1);
+  ASSERT_FALSE(kept.ok());
+  const std::string said = kept.status().message();
+  EXPECT_NE(said.find("an earlier frame's image was not written: " + dir->File("frame-0.exr")),
+            std::string::npos) << said;
+  EXPECT_NE(said.find(dir->File("frame-1.exr") + " is not written either"), std::string::npos)
+      << said;
+  EXPECT_FALSE(std::filesystem::exists(dir->File("frame-2.exr")));
+}
+
 }  // namespace
 }  // namespace raystack::testing

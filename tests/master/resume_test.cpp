@@ -241,6 +241,70 @@ TEST_F(Resume, AnInterruptedRunLeavesItsFrameForResume) {
   }
 }
 
+// A three-frame job whose frames each stop after --time-limit, written behind the render by
+// a writer that is slow (--fault-slow-writes) or fails (--fault-fail-writes), interrupted
+// `after` seconds once frame `frame` renders. Returns the run's exit code; `err` its stderr.
+int InterruptFrame(const TempDir& dir, int frame, double after, const std::string& fault,
+                   const std::string& value, std::string* err) {
+  std::ofstream(dir.File("three.json")) << R"({ "store": "store",
+    "cameras": [ { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 },
+                 { "position": [1, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 },
+                 { "position": [2, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 } ],
+    "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+    "integrator": { "type": "path", "max_depth": 3, "spp": 60000, "seed": 4 } })";
+  const std::string log = dir.File("three.csv");
+  master::preview::testing::BackgroundProcess run(
+      {kRaystackBinary, "render", dir.File("three.json"), "--threads", "1", "--time-limit", "0.3",
+       "--output", dir.File("frame.exr"), "--no-png", fault, value, "--convergence-log", log,
+       "--log-interval", "0.05"},
+      dir.path());
+  // Progressive passes of 60000 samples: no pixel of a frame is finished when it is interrupted.
+  const std::string row = StrFormat("\n%d,tick,", frame);
+  auto rendering = [&] { return Slurp(log).find(row) != std::string::npos; };
+  for (int i = 0; i < 3000 && !rendering() && !run.Exited(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_TRUE(rendering()) << run.out() << run.err();
+  std::this_thread::sleep_for(std::chrono::duration<double>(after));
+  run.Signal(SIGINT);
+  const int code = run.Wait();
+  *err = run.err();
+  return code;
+}
+
+// Found by an animator: Ctrl-C with no pixel of the frame rendering finished ended the process
+// without the images of the frames that had finished, which the writer still held (it runs at
+// low priority, and fell two frames behind on a busy machine): they are written first.
+TEST_F(Resume, AnInterruptKeepsTheFramesThatFinishedBehindASlowDisk) {
+  std::string err;
+  EXPECT_EQ(InterruptFrame(*dir_, 1, 0, "--fault-slow-writes", "2", &err), 128 + SIGINT) << err;
+  EXPECT_NE(err.find("interrupted (SIGINT): no pixel has all its"), std::string::npos) << err;
+  Expected<image::ImageLayers> frame0 = image::ReadExr(dir_->File("frame-0.exr"));
+  ASSERT_TRUE(frame0.ok()) << frame0.status().message() << "\n" << err;
+  EXPECT_FALSE(frame0->partial);
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("frame-1.exr")));
+}
+
+// Ctrl-C while a finished frame's write is tried again (a full disk) gives it up, and the job
+// ends as interrupted (128 + SIGINT), naming the frames rendered and not written: interrupted
+// as frame 1 renders, and once frame 2 has ended and waits for the writer behind frame 1's
+// image (that job ended with 1 and no word of the interrupt, found by an animator).
+TEST_F(Resume, AnInterruptDuringAWritesRetriesSaysWhatIsNotWritten) {
+  for (const auto& [frame, after] : {std::pair{1, 0.0}, std::pair{2, 1.5}}) {
+    SCOPED_TRACE(frame);
+    std::string err;
+    EXPECT_EQ(InterruptFrame(*dir_, frame, after, "--fault-fail-writes", "1000", &err),
+              128 + SIGINT) << err;
+    EXPECT_NE(err.find("interrupted (SIGINT)"), std::string::npos) << err;
+    EXPECT_NE(err.find(dir_->File("frame-0.exr") + ": cannot write EXR"), std::string::npos) << err;
+    EXPECT_NE(err.find("(free some space; Ctrl-C gives up)"), std::string::npos) << err;
+    if (frame == 2) {
+      EXPECT_NE(err.find(dir_->File("frame-1.exr") + " is not written either"), std::string::npos)
+          << err;
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir_->File("frame-0.exr")));
+  }
+}
+
 // Two renders of one output at once (the same scene run twice): both ended with exit 0, the
 // last image written won, and each replaced the other's checkpoints. The second is refused
 // while the first holds the output's lock; the lock's file goes with the first.

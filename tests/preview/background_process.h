@@ -102,12 +102,13 @@ class BackgroundProcess {
     }
     return WIFEXITED(status_) ? WEXITSTATUS(status_) : -1;
   }
-
- private:
+  // Whether it has ended (without waiting).
   bool Exited() {
     if (!exited_ && waitpid(pid_, &status_, WNOHANG) == pid_) exited_ = true;
     return exited_;
   }
+
+ private:
   std::string out_, err_;
   pid_t pid_ = -1;
   int status_ = 0;
