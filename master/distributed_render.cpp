@@ -94,6 +94,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                  ConvergenceLog* log, bool coarse_rounds, std::optional<bool> remote_blocks) {
   const std::string output = OutputOf(args, scene);
   const size_t frames = scene.cameras.size();
+  const FrameRange range = FramesOf(args, scene);
   MasterOptions options;
   options.lost_after = std::chrono::milliseconds(static_cast<int64_t>(args.lost_after_s * 1000));
   options.beat = true;
@@ -120,7 +121,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
   std::string json = "[\n";
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
-  for (size_t f = 0; f < frames; ++f) {
+  for (size_t f = range.begin; f < range.end; ++f) {
     const render::Camera camera(scene.cameras[f]);
     render::Film& film = FilmFor(camera, &reused_film);
     render::FramePlan plan = PlanOf(args, scene, camera, coarse_rounds);
@@ -140,7 +141,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
       preview->Interrupted(said);
       master.Abandon();
     };
-    EndIfInterruptedBetweenFrames(f, frames, &writer, interrupted);
+    EndIfInterruptedBetweenFrames(f, range, &writer, interrupted);
     {
       ProgressReporter progress(FrameTitle(f, frames), total, "samples",
                                 args.quiet);
@@ -185,7 +186,8 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     }
     Expected<std::string> exr =
         status.ok() ? WriteFrame(args, scene, f, film, std::move(resolved),
-                                   monitor.stopped() ? monitor.stop_reason() : std::string(), &writer)
+                                   monitor.stopped() ? monitor.stop_reason() : std::string(), total,
+                                   &writer)
                     : Expected<std::string>(status);
     if (!exr.ok()) {  // every rank ends, none is left waiting
       master.Shutdown(1);
@@ -242,7 +244,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     json += FiguresJson(FrameRecordJson(f, *exr, camera.width(), camera.height(), plan.spp(),
                                         monitor.stopped() ? monitor.stop_reason() : ""),
                         figures) +
-            (f + 1 < frames ? ",\n" : "\n");
+            (f + 1 < range.end ? ",\n" : "\n");
   }
   if (const Status written = writer.Finish(); !written.ok()) {  // the last frame's write
     master.Shutdown(1);
@@ -338,7 +340,8 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
   slave::NodeFaults faults;
   if (faulty) faults = {args.kill_after_tiles, args.stall_after_tiles, args.stall_s};
   slave::SlaveNode node(net, engine->get(), peers.get(), faults, MasterLostAfter(args));
-  for (size_t f = 0; f < scene.cameras.size(); ++f) {
+  const FrameRange range = FramesOf(args, scene);
+  for (size_t f = range.begin; f < range.end; ++f) {
     const render::Camera camera(scene.cameras[f]);
     slave::RenderStats stats;
     const Status s = node.RunFrame(static_cast<uint32_t>(f), scene, materials, camera, &stats);
@@ -384,7 +387,7 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
                : Expected<OutputLock>(s);
     if (!output_lock.ok()) s = output_lock.status();
     if (s.ok()) s = CheckNoUnfinishedFrame(args, *scene);
-    if (s.ok()) s = CheckReferences(*scene, args.reference);
+    if (s.ok()) s = CheckReferences(*scene, args.reference, FramesOf(args, *scene));
     if (!s.ok()) {  // before the slaves start a frame
       MasterNode(net).Shutdown(1);
       return s;

@@ -77,7 +77,8 @@ Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene) {
   if (!args.stats.empty())
     if (Status s = image::CheckWritable(args.stats); !s.ok())
       return Status::Error("--stats: " + s.message());
-  const Status s = CheckOutputs(scene, OutputOf(args, scene), args.png, args.checkpoint_s > 0);
+  const Status s = CheckOutputs(scene, OutputOf(args, scene), args.png, args.checkpoint_s > 0,
+                                FramesOf(args, scene));
   if (s.ok()) return s;
   return Status::Error((args.output.empty() ? scene.source + ": output" : std::string("--output")) +
                        ": " + s.message());
@@ -85,7 +86,8 @@ Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene) {
 
 Status CheckNoUnfinishedFrame(const RenderArgs& args, const render::Scene& scene) {
   if (args.resume) return OkStatus();
-  for (size_t f = 0; f < scene.cameras.size(); ++f) {
+  const FrameRange range = FramesOf(args, scene);
+  for (size_t f = range.begin; f < range.end; ++f) {
     const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
     if (image::IsPartialFrame(exr))
       return Status::Error(exr + " holds a frame a stopped run left unfinished: --resume "
@@ -106,14 +108,19 @@ Expected<std::unique_ptr<store::StoreReader>> OpenSceneStore(const render::Scene
 
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,
-                                 const std::string& stopped, FrameWriter* writer) {
+                                 const std::string& stopped, uint64_t rendered,
+                                 FrameWriter* writer) {
   const size_t frames = scene.cameras.size();
   const std::string output = OutputOf(args, scene);
   FrameWriter::Image image;
   image.exr = FramePath(output, f, frames, ".exr");
+  if (args.resume && rendered == 0) {
+    if (!args.quiet) std::printf("  kept %s (complete)\n", image.exr.c_str());
+    return image.exr;
+  }
   if (args.png) image.png = FramePath(output, f, frames, ".png");
   image.exposure = args.exposure;
-  image.background = f + 1 < frames;  // the next frame renders while it is written
+  image.background = f + 1 < FramesOf(args, scene).end;  // the next renders while it is written
   image.layers = std::move(layers);
   image.layers.provenance = Provenance(scene, f);
   image.layers.partial = false;  // (the layers may be a checkpoint's, reused)
@@ -142,7 +149,21 @@ render::Film& FilmFor(const render::Camera& camera, std::unique_ptr<render::Film
 Expected<render::Scene> LoadSceneFor(const RenderArgs& args) {
   Expected<render::Scene> scene = render::LoadScene(args.scene);
   if (scene.ok() && args.spp > 0) scene->integrator.spp = static_cast<int>(args.spp);
+  if (!scene.ok()) return scene;
+  const size_t cameras = scene->cameras.size();
+  const size_t asked = args.last_frame == SIZE_MAX ? args.first_frame : args.last_frame;
+  if (asked >= cameras)
+    return Status::Error(StrFormat("--frames: the scene has %zu camera%s (%s), no frame %zu",
+                                   cameras, cameras == 1 ? "" : "s",
+                                   cameras == 1 ? "frame 0"
+                                                : StrFormat("frames 0 to %zu", cameras - 1).c_str(),
+                                   asked));
   return scene;
+}
+
+FrameRange FramesOf(const RenderArgs& args, const render::Scene& scene) {
+  const size_t cameras = scene.cameras.size();
+  return {std::min(args.first_frame, cameras), std::min(args.last_frame, cameras - 1) + 1};
 }
 
 render::FramePlan PlanOf(const RenderArgs& args, const render::Scene& scene,
@@ -304,17 +325,20 @@ void WarnIfCheckpointsKeepLittle(const RenderArgs& args, const render::Scene& sc
               WholeTilesAdvice(spp).c_str());
 }
 
-void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,
+void EndIfInterruptedBetweenFrames(size_t frame, FrameRange range, FrameWriter* writer,
                                    const AfterInterrupt& then) {
   const int signal = InterruptSignal();
   if (signal == 0) return;
   const Status s = writer->Finish();
   const char* name = InterruptName(signal);
   const std::string said =
-      frame == 0 ? StrFormat("interrupted (%s) before the first frame", name)
-                 : StrFormat("interrupted (%s) as frame %zu ended: %s; frames %zu to %zu are not "
-                             "rendered", name, frame - 1,
-                             s.ok() ? "it is written" : s.message().c_str(), frame, frames - 1);
+      frame == range.begin
+          ? StrFormat("interrupted (%s) before the first frame", name)
+          : StrFormat("interrupted (%s) as frame %zu ended: %s; %s not rendered", name, frame - 1,
+                      s.ok() ? "it is written" : s.message().c_str(),
+                      frame + 1 == range.end ? StrFormat("frame %zu is", frame).c_str()
+                                             : StrFormat("frames %zu to %zu are", frame,
+                                                         range.end - 1).c_str());
   std::fprintf(stderr, "raystack render: %s\n", said.c_str());
   std::fflush(nullptr);
   then(said);

@@ -20,6 +20,7 @@
 #include "master/checkpoints.h"
 #include "master/convergence_monitor.h"
 #include "master/frame_writer.h"
+#include "master/preflight.h"
 #include "master/render_args.h"
 
 namespace raystack::master {
@@ -46,8 +47,10 @@ Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene);
 // The scene's store, its errors prefixed by the scene file and key, with what to do when the
 // path holds no store at all (not converted yet, a model file, an empty folder).
 Expected<std::unique_ptr<store::StoreReader>> OpenSceneStore(const render::Scene& scene);
-// The scene file, with the command line's overrides.
+// The scene file, with the command line's overrides; --frames checked against its cameras.
 Expected<render::Scene> LoadSceneFor(const RenderArgs& args);
+// The cameras this run renders (--frames, clamped to the scene's list by LoadSceneFor's check).
+FrameRange FramesOf(const RenderArgs& args, const render::Scene& scene);
 // A scene that can only come out black (no point light, nothing emissive in the store's
 // materials or the scene's, a black background) is most likely a mistake: say so up front.
 // Also emitters that will not light as the user may think: under whitted (point lights only),
@@ -96,9 +99,13 @@ std::string FrameRecordJson(size_t f, const std::string& exr, int width, int hei
 // Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
 // returns the EXR's path, or the error of an earlier frame's write.
 // `stopped`: why a stop rule ended the frame early (ConvergenceMonitor::stop_reason), or empty.
+// `rendered`: the samples this run rendered of it. With none under --resume, the frame's EXR
+// there is already complete and is left as it is (rewritten, every file of a sequence got a
+// new time, and a compositor reloaded them all).
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,
-                                 const std::string& stopped, FrameWriter* writer);
+                                 const std::string& stopped, uint64_t rendered,
+                                 FrameWriter* writer);
 
 // While it lives, SIGINT and SIGTERM are noted, not fatal: from the first frame to the last
 // image written (the frame rendering is written by EndInterrupted, one rendered and queued by
@@ -117,9 +124,9 @@ using AfterInterrupt = std::function<void(const std::string& said)>;
 // their samples at once): checkpoints keep little for --resume until the frame's end, which a
 // user found out only from an interrupted run's message. Warns, with the options that fix it.
 void WarnIfCheckpointsKeepLittle(const RenderArgs& args, const render::Scene& scene);
-// A signal noted before frame `frame` began to render: the frames before it are written (or
-// their writes finished here), the others are not rendered, and the process ends.
-void EndIfInterruptedBetweenFrames(size_t frame, size_t frames, FrameWriter* writer,
+// A signal noted before frame `frame` of `range` began to render: the frames before it are
+// written (or their writes finished here), the others are not rendered, and the process ends.
+void EndIfInterruptedBetweenFrames(size_t frame, FrameRange range, FrameWriter* writer,
                                    const AfterInterrupt& then = [](const std::string&) {});
 // A frame that failed while it rendered (a block that cannot be read, every slave lost): its
 // samples so far, if any, are written where --resume finds them, as on an interrupt, and the

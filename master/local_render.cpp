@@ -70,6 +70,7 @@ Status RenderLocally(const RenderArgs& args) {
   if (!scene.ok()) return scene.status();
   const std::string output = OutputOf(args, *scene);
   const size_t frames = scene->cameras.size();
+  const FrameRange range = FramesOf(args, *scene);
   RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, 0));  // the film alone, before the store is read
   RAYSTACK_RETURN_IF_ERROR(CheckOutputOf(args, *scene));
   WarnIfCheckpointsKeepLittle(args, *scene);
@@ -77,7 +78,7 @@ Status RenderLocally(const RenderArgs& args) {
   Expected<OutputLock> output_lock = OutputLock::Take(FramePath(output, 0, 1, ".exr"));
   if (!output_lock.ok()) return output_lock.status();
   RAYSTACK_RETURN_IF_ERROR(CheckNoUnfinishedFrame(args, *scene));
-  RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference));
+  RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference, range));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
   if (!log.ok()) return log.status();
 
@@ -125,7 +126,7 @@ Status RenderLocally(const RenderArgs& args) {
   FrameWriter writer(!args.quiet, args.fail_writes, FrameWriter::kRetrySeconds, args.slow_writes_s);
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
-  for (size_t f = 0; f < frames; ++f) {
+  for (size_t f = range.begin; f < range.end; ++f) {
     const render::Camera camera(scene->cameras[f]);
     render::Film& film = FilmFor(camera, &reused_film);
     render::FilmSink sink(&film);
@@ -140,7 +141,7 @@ Status RenderLocally(const RenderArgs& args) {
     ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log->get(),
                                reference.get(), args.log_interval_s);
     const AfterInterrupt interrupted = [&](const std::string& said) { preview->Interrupted(said); };
-    EndIfInterruptedBetweenFrames(f, frames, &writer, interrupted);
+    EndIfInterruptedBetweenFrames(f, range, &writer, interrupted);
     {
       ProgressReporter progress(FrameTitle(f, frames), total, "samples",
                                 args.quiet);
@@ -220,12 +221,12 @@ Status RenderLocally(const RenderArgs& args) {
     ReportStop(args, monitor);
     Expected<std::string> exr = WriteFrame(args, *scene, f, film, std::move(resolved),
                                                 monitor.stopped() ? monitor.stop_reason() : std::string(),
-                                                &writer);
+                                                total, &writer);
     if (!exr.ok()) return failed(exr.status());
     if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
     stats_json += stats.ToJson(FrameRecordJson(f, *exr, camera.width(), camera.height(), plan.spp(),
                                                monitor.stopped() ? monitor.stop_reason() : ""));
-    if (f + 1 < frames) stats_json += ",";
+    if (f + 1 < range.end) stats_json += ",";
   }
   if (Status s = writer.Finish(); !s.ok()) return failed(std::move(s));  // the last frame's write
   if (Status s = WriteStats(args.stats, stats_json + "]\n"); !s.ok()) return failed(std::move(s));

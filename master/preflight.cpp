@@ -7,11 +7,13 @@
 #include <cctype>
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
 #include <optional>
 
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
 #include "common/image/output_file.h"
+#include "master/frame_writer.h"
 
 namespace raystack::master {
 
@@ -25,6 +27,40 @@ bool SameIgnoringCase(const std::string& a, const char* b) {
          });
 }
 
+// `number` with at least `width` digits (leading zeros).
+std::string Padded(size_t number, size_t width) {
+  std::string digits = std::to_string(number);
+  if (digits.size() < width) digits.insert(0, width - digits.size(), '0');
+  return digits;
+}
+
+// Where the file name (after the last '/') asks for the frame's number: the last run of '#'
+// (its length the digits) or a printf-style %d or %0Nd. False if it asks for none.
+bool FindFrameField(const std::string& stem, size_t* at, size_t* length, size_t* width) {
+  const size_t name = stem.rfind('/') == std::string::npos ? 0 : stem.rfind('/') + 1;
+  const size_t hash = stem.find_last_of('#');
+  if (hash != std::string::npos && hash >= name) {
+    size_t first = hash;
+    while (first > name && stem[first - 1] == '#') --first;
+    *at = first;
+    *length = *width = hash + 1 - first;
+    return true;
+  }
+  for (size_t i = stem.find('%', name); i != std::string::npos; i = stem.find('%', i + 1)) {
+    size_t j = i + 1;
+    while (j < stem.size() && std::isdigit(static_cast<unsigned char>(stem[j]))) ++j;
+    if (j < stem.size() && stem[j] == 'd' && (j == i + 1 || stem[i + 1] == '0')) {
+      *at = i;
+      *length = j + 1 - i;
+      *width = 0;
+      for (size_t k = i + 1; k < j; ++k)  // (capped: "%0999999999999999999999d" is no width)
+        *width = std::min<size_t>(*width * 10 + static_cast<size_t>(stem[k] - '0'), 1000);
+      return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace
 
 std::string FramePath(const std::string& path, size_t frame, size_t frames, const char* ext) {
@@ -36,16 +72,21 @@ std::string FramePath(const std::string& path, size_t frame, size_t frames, cons
     if (SameIgnoringCase(stem.substr(dot), ext)) suffix = stem.substr(dot);
     stem.resize(dot);
   }
-  if (frames > 1) {
+  size_t at = 0, length = 0, width = 0;
+  if (FindFrameField(stem, &at, &length, &width)) {
+    stem.replace(at, length, Padded(frame, std::min<size_t>(width, 12)));
+  } else if (frames > 1) {
+    // As many digits for every frame as the last one has: a sequence's files sort in frame
+    // order (frame-10 came before frame-2 for ls, a shell's glob and ffmpeg's glob).
     stem.push_back('-');
-    stem.append(std::to_string(frame));
+    stem.append(Padded(frame, std::to_string(frames - 1).size()));
   }
   stem.append(suffix);
   return stem;
 }
 
 Status CheckOutputs(const render::Scene& scene, const std::string& output, bool png,
-                    bool checkpoints) {
+                    bool checkpoints, FrameRange range) {
   const size_t frames = scene.cameras.size();
   // The output names the EXR: its extension gives way to .exr and .png (and -N per frame when
   // the scene has several cameras), so anything but .exr there, or a folder, is a mistake.
@@ -65,22 +106,37 @@ Status CheckOutputs(const render::Scene& scene, const std::string& output, bool 
       return Status::Error(output + ": the output is an OpenEXR image; give a path ending in "
                                     ".exr (the PNG quick look goes beside it)");
   }
-  // Room for every frame's image at its largest (13 uncompressed 32-bit channels in the EXR,
-  // 4 bytes a pixel in the PNG), and for a second copy of the largest EXR while a checkpoint's
-  // temporary sits beside the previous one.
-  uint64_t needed = 0, largest = 0;
-  for (size_t f = 0; f < frames; ++f) {
+  // Each frame's images at their largest: 13 uncompressed 32-bit channels in the EXR, 4 bytes a
+  // pixel in the PNG; less the files already there that they replace.
+  uint64_t all = 0, largest = 0;
+  for (size_t f = range.begin; f < range.end; ++f) {
     RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(output, f, frames, ".exr")));
     if (png) RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(output, f, frames, ".png")));
     for (const char* ext : {".exr", ".png"})  // a killed run's, as large as the images
       image::RemoveStaleTemporaries(FramePath(output, f, frames, ext));
     const uint64_t pixels = static_cast<uint64_t>(scene.cameras[f].width) *
                             static_cast<uint64_t>(scene.cameras[f].height);
-    largest = std::max(largest, pixels * 13 * 4);
-    needed += pixels * 13 * 4 + (png ? pixels * 4 : 0);
+    const uint64_t images = pixels * 13 * 4 + (png ? pixels * 4 : 0);
+    largest = std::max(largest, images);
+    uint64_t there = 0;
+    for (const char* ext : {".exr", ".png"}) {
+      std::error_code ec;
+      const uintmax_t size = std::filesystem::file_size(FramePath(output, f, frames, ext), ec);
+      if (!ec) there += size;
+    }
+    all += images > there ? images - there : 0;
   }
-  if (checkpoints) needed += largest;
-  return image::CheckRoom(FramePath(output, 0, frames, ".exr"), needed);
+  const std::string first = FramePath(output, range.begin, frames, ".exr");
+  const uint64_t temporary = checkpoints ? largest : 0;
+  RAYSTACK_RETURN_IF_ERROR(image::CheckRoom(first, largest + temporary));
+  Expected<uint64_t> room = image::FreeSpace(first);
+  if (room.ok() && *room < all + temporary)
+    LOG_WARNING("render", "%s: the disk holding it has %.1f MB free; the %zu frames' images take "
+                "up to %.1f MB uncompressed (usually far less): if it fills, a frame's write is "
+                "tried again for %.0f minutes while space is freed", first.c_str(),
+                static_cast<double>(*room) / 1e6, range.end - range.begin,
+                static_cast<double>(all + temporary) / 1e6, FrameWriter::kRetrySeconds / 60);
+  return OkStatus();
 }
 
 Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes, const std::string& what,
@@ -161,10 +217,11 @@ Status CheckSlaveMemory(const EngineMemory& m, int slaves_here, const std::strin
                                  each.c_str(), mb(*available), advice.c_str()));
 }
 
-Status CheckReferences(const render::Scene& scene, const std::string& reference) {
+Status CheckReferences(const render::Scene& scene, const std::string& reference,
+                       FrameRange range) {
   if (reference.empty()) return OkStatus();
   const size_t frames = scene.cameras.size();
-  for (size_t f = 0; f < frames; ++f) {
+  for (size_t f = range.begin; f < range.end; ++f) {
     const std::string path = frames > 1 ? FramePath(reference, f, frames, ".exr") : reference;
     if (::access(path.c_str(), R_OK) != 0)
       return Status::Error(StrFormat("%s: cannot read: %s (--reference of camera %zu)",

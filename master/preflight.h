@@ -15,14 +15,26 @@
 namespace raystack::master {
 
 // Frame `frame`'s file of `frames` from the output path: out.exr -> out-1.exr for the second
-// camera (out.exr itself when there is one), `ext` in place of the extension (.exr, .png).
+// camera (out.exr itself when there is one), the number with as many digits as the last frame's
+// (out-01.exr of 12 frames), `ext` in place of the extension (.exr, .png). A file name with a
+// run of '#' or a printf-style %d / %04d gets the number there instead, that many digits
+// (f.####.exr -> f.0001.exr), for image-sequence tools; with one camera too.
 std::string FramePath(const std::string& path, size_t frame, size_t frames, const char* ext);
 
-// The output names the EXR (an .exr path, not a folder); every frame's image can be written
-// there and the disk has room for all of them (and for a checkpoint's second copy when
-// `checkpoints`), PNGs too when `png`. Removes the temporaries a killed run left there.
+// The cameras a run renders: [begin, end) of the scene's list (--frames; every one by default).
+struct FrameRange {
+  size_t begin = 0, end = 0;
+};
+
+// The output names the EXR (an .exr path, not a folder); every frame's image in `frames` can
+// be written there, PNGs too when `png`, and the disk has room for the largest (twice with
+// `checkpoints`: a checkpoint's temporary sits beside the previous one). Room for all of them
+// at their largest (uncompressed; files they replace count as room) is only warned of: EXR compression usually
+// needs far less, and a frame that meets a full disk is tried again while space is freed (a
+// 500-frame job was refused 99 MB it would have written in 27). Removes the temporaries a
+// killed run left there.
 Status CheckOutputs(const render::Scene& scene, const std::string& output, bool png,
-                    bool checkpoints);
+                    bool checkpoints, FrameRange frames);
 
 // The film and the images made from it fit in this machine's memory (or its cgroup's): a
 // 16384 x 16384 frame needs ~55 GB, and running out midway ended the job with an uncaught
@@ -35,7 +47,7 @@ Status CheckMemory(const render::Scene& scene, uint64_t cache_bytes,
 
 // Every camera's reference image (`reference`, REF-f.exr with several cameras) can be read:
 // checked before the first frame rather than when its frame comes (its size is checked then).
-Status CheckReferences(const render::Scene& scene, const std::string& reference);
+Status CheckReferences(const render::Scene& scene, const std::string& reference, FrameRange frames);
 
 // The memory one process's engine holds beside its film: its blocks (every one in core, else at
 // most its cache) and, in --mode bvh, the one tree over every triangle at its peak while it is

@@ -87,6 +87,8 @@ options:
   --log-interval S          seconds between convergence-log rows (default 0.5)
   --reference REF.exr       an image to measure the convergence log's RMSE and relMSE against
                             (same size; with several cameras REF-0.exr, REF-1.exr, ...)
+  --frames A-B              render only cameras A to B of the scene's list (A, A-B or A-: to
+                            the last), counted from 0; their files keep their numbers
   --output FILE.exr         override the scene's output path (the PNG goes beside it;
                             several cameras: FILE-0.exr, FILE-1.exr, ...)
   --no-png                  do not write the PNG quick-look
@@ -130,6 +132,21 @@ template <typename T>
 bool ParseNumber(const std::string& s, T* out) {
   auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *out);
   return ec == std::errc() && p == s.data() + s.size();
+}
+
+// --frames: "A", "A-B" or "A-" (to the last camera).
+Status ParseFrameRange(const std::string& range, size_t* first, size_t* last) {
+  const size_t dash = range.find('-');
+  const std::string a = range.substr(0, dash);
+  const std::string b = dash == std::string::npos ? a : range.substr(dash + 1);
+  const bool to_end = dash != std::string::npos && b.empty();
+  if (!ParseNumber(a, first) || (!to_end && !ParseNumber(b, last)))
+    return Status::Error("--frames " + range + ": give A, A-B or A- (cameras counted from 0, "
+                         "e.g. --frames 10-20)");
+  if (to_end) *last = SIZE_MAX;
+  if (*last < *first)
+    return Status::Error("--frames " + range + ": the last frame comes before the first");
+  return OkStatus();
 }
 
 }  // namespace
@@ -250,6 +267,10 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&a->log_interval_s, 0.01, 1e6));
     } else if (arg == "--reference") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->reference));
+    } else if (arg == "--frames") {
+      std::string range;
+      RAYSTACK_RETURN_IF_ERROR(value(&range));
+      RAYSTACK_RETURN_IF_ERROR(ParseFrameRange(range, &a->first_frame, &a->last_frame));
     } else if (arg == "--output") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->output));
       if (a->output.empty()) return Status::Error("--output needs a path (an .exr file)");

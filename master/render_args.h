@@ -49,6 +49,8 @@ struct RenderArgs {
   int64_t fail_read = -1;
   int64_t kill_after_checkpoints = -1;
   int64_t fail_checkpoints = 0;
+  // --frames A-B: the cameras rendered, first and last (inclusive); the files keep their numbers.
+  size_t first_frame = 0, last_frame = SIZE_MAX;
   int64_t fail_writes = 0;  // --fault-fail-writes: the first N frame images fail to write
   double slow_writes_s = 0;  // --fault-slow-writes: each frame image's write waits S first
   preview::LivePreviewOptions preview;

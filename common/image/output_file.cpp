@@ -127,13 +127,18 @@ Status AtomicOutput::Commit() {
   return OkStatus();
 }
 
-Status CheckRoom(const std::string& path, uint64_t bytes) {
-  const std::string folder = Folder(path);
+Expected<uint64_t> FreeSpace(const std::string& path) {
   struct statvfs vfs;
-  if (statvfs(folder.c_str(), &vfs) != 0)
+  if (statvfs(Folder(path).c_str(), &vfs) != 0)
     return Status::Error(path + ": cannot check the free space of its folder: " +
                          std::strerror(errno));
-  const uint64_t free = static_cast<uint64_t>(vfs.f_bavail) * static_cast<uint64_t>(vfs.f_frsize);
+  return static_cast<uint64_t>(vfs.f_bavail) * static_cast<uint64_t>(vfs.f_frsize);
+}
+
+Status CheckRoom(const std::string& path, uint64_t bytes) {
+  Expected<uint64_t> room = FreeSpace(path);
+  if (!room.ok()) return room.status();
+  const uint64_t free = *room;
   if (free < bytes)
     return Status::Error(StrFormat("%s: the disk holding it has %.1f MB free, the images need "
                                    "up to %.1f MB: free some space or choose another --output",

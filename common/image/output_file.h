@@ -21,6 +21,8 @@ Status CheckWritable(const std::string& path);
 // images a render will write): a full disk is reported then, naming the path, the room there
 // is and the room needed, not after hours of rendering.
 Status CheckRoom(const std::string& path, uint64_t bytes);
+// The bytes free for this user on the file system holding `path` (its folder), or why not.
+Expected<uint64_t> FreeSpace(const std::string& path);
 
 // Removes the temporaries of `path` (AtomicOutput's, ".NAME.tmp-HOST-PID-N") that a process no
 // longer running on this machine left, killed while it wrote: each as large as the image.

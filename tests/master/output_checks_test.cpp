@@ -105,6 +105,26 @@ TEST(OutputChecks, FramePathsKeepTheUsersName) {
   EXPECT_EQ(FramePath("ref.exr", 0, 3, ".exr"), "ref-0.exr");
 }
 
+// Found by an animator: frame-10.png sorted before frame-2.png (ls, globs, ffmpeg's glob), and
+// a compositor's pattern (f.####.exr, f.%04d.exr) was taken literally (f.####-0.exr).
+TEST(OutputChecks, FramePathsSortInFrameOrderAndFollowASequencePattern) {
+  using master::FramePath;
+  EXPECT_EQ(FramePath("f.exr", 2, 10, ".exr"), "f-2.exr");
+  EXPECT_EQ(FramePath("f.exr", 2, 11, ".exr"), "f-02.exr");
+  EXPECT_EQ(FramePath("f.exr", 10, 11, ".png"), "f-10.png");
+  EXPECT_EQ(FramePath("f.exr", 7, 1000, ".exr"), "f-007.exr");
+  EXPECT_EQ(FramePath("out/f.####.exr", 7, 24, ".exr"), "out/f.0007.exr");
+  EXPECT_EQ(FramePath("out/f.####.exr", 7, 24, ".png"), "out/f.0007.png");
+  EXPECT_EQ(FramePath("f_##.exr", 123, 200, ".exr"), "f_123.exr");  // more digits than asked
+  EXPECT_EQ(FramePath("f.%04d.exr", 7, 24, ".exr"), "f.0007.exr");
+  EXPECT_EQ(FramePath("f.%d.exr", 7, 24, ".exr"), "f.7.exr");
+  EXPECT_EQ(FramePath("f.####.exr", 0, 1, ".exr"), "f.0000.exr");  // one camera too
+  EXPECT_EQ(FramePath("a#b/f.exr", 1, 2, ".exr"), "a#b/f-1.exr");  // a folder's '#' is its name
+  EXPECT_EQ(FramePath("100%.exr", 1, 2, ".exr"), "100%-1.exr");
+  EXPECT_EQ(FramePath("f%5d.exr", 1, 2, ".exr"), "f%5d-1.exr");  // space-padded: not ours
+  EXPECT_EQ(FramePath("f%099999999999999999999999d.exr", 1, 2, ".exr"), "f000000000001.exr");
+}
+
 // -q leaves warnings and errors only: the line about a killed run's temporary removed goes
 // with the progress lines (the temporary is removed all the same).
 TEST(OutputChecks, QuietKeepsOnlyWarningsAndErrors) {

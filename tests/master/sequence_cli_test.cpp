@@ -1,0 +1,140 @@
+// A scene of many cameras as an animator renders it (found by one trying a turntable): part of
+// a sequence re-rendered with --frames keeps its frames' numbers and images, one process or
+// mpirun; --resume leaves complete frames' files untouched; a disk with room for a frame but
+// perhaps not for the whole sequence at its largest is a warning, not a refusal.
+
+#include <gtest/gtest.h>
+
+#include <sys/mount.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "common/base/log.h"
+#include "tests/prep/run_process.h"
+#include "tests/support/store_dir_fixture.h"
+
+namespace raystack::testing {
+namespace {
+
+using prep::testing::ProcessResult;
+using prep::testing::RunProcess;
+using prep::testing::Slurp;
+
+class Sequence : public StoreDirFixture {
+ protected:
+  void SetUp() override {
+    MakeStore("spheres:20000");
+    std::string cameras;
+    for (int i = 0; i < 4; ++i)
+      cameras += StrFormat("%s{ \"position\": [%d, 5, 10], \"look_at\": [0, 0.5, 0], \"width\": 40, "
+                           "\"height\": 30 }", i ? ", " : "", i);
+    std::ofstream(dir_->File("turn.json")) << R"({ "store": "store", "cameras": [ )" << cameras
+        << R"( ], "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "integrator": { "type": "path", "max_depth": 3, "spp": 4, "seed": 2 } })";
+  }
+  ProcessResult Render(const std::string& out, int np, std::vector<std::string> extra = {}) {
+    std::vector<std::string> argv;
+    if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
+    for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("turn.json"),
+                                 std::string("--threads"), std::string("1"), std::string("--output"),
+                                 out})
+      argv.push_back(a);
+    for (const std::string& a : extra) argv.push_back(a);
+    return RunProcess(argv, dir_->path());
+  }
+};
+
+TEST_F(Sequence, FramesRendersPartOfTheSequenceUnderItsOwnNumbers) {
+  const ProcessResult full = Render(dir_->File("full.exr"), 0, {"--no-png"});
+  ASSERT_EQ(full.exit_code, 0) << full.err;
+  for (int np : {0, 3}) {
+    SCOPED_TRACE(np);
+    const std::string out = dir_->File("part" + std::to_string(np) + ".exr");
+    const ProcessResult part = Render(out, np, {"--frames", "1-2"});
+    ASSERT_EQ(part.exit_code, 0) << part.err;
+    const std::string stem = dir_->File("part" + std::to_string(np));
+    for (int f : {0, 3}) EXPECT_FALSE(std::filesystem::exists(StrFormat("%s-%d.exr", stem.c_str(), f)));
+    for (int f : {1, 2}) {
+      EXPECT_TRUE(Slurp(StrFormat("%s-%d.exr", stem.c_str(), f)) ==
+                  Slurp(dir_->File(StrFormat("full-%d.exr", f))))
+          << "frame " << f << " is the full sequence's";
+      EXPECT_TRUE(std::filesystem::exists(StrFormat("%s-%d.png", stem.c_str(), f)));
+    }
+  }
+  // To the end, and one frame.
+  ASSERT_EQ(Render(dir_->File("tail.exr"), 0, {"--frames", "3-", "--no-png"}).exit_code, 0);
+  EXPECT_TRUE(Slurp(dir_->File("tail-3.exr")) == Slurp(dir_->File("full-3.exr")));
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("tail-2.exr")));
+  ASSERT_EQ(Render(dir_->File("one.exr"), 0, {"--frames", "0", "--no-png"}).exit_code, 0);
+  EXPECT_TRUE(Slurp(dir_->File("one-0.exr")) == Slurp(dir_->File("full-0.exr")));
+}
+
+TEST_F(Sequence, FramesOutsideTheSceneAreRefusedNamingItsCameras) {
+  for (const auto& [range, code, said] : std::vector<std::tuple<std::string, int, std::string>>{
+           {"4", 1, "--frames: the scene has 4 cameras (frames 0 to 3), no frame 4"},
+           {"2-9", 1, "--frames: the scene has 4 cameras (frames 0 to 3), no frame 9"},
+           {"2-1", 2, "--frames 2-1: the last frame comes before the first"},
+           {"a-b", 2, "--frames a-b: give A, A-B or A-"},
+           {"-3", 2, "--frames -3: give A, A-B or A-"}}) {
+    const ProcessResult r = Render(dir_->File("x.exr"), 0, {"--frames", range});
+    EXPECT_EQ(r.exit_code, code) << range << ": " << r.err;
+    EXPECT_NE(r.err.find(said), std::string::npos) << range << ": " << r.err;
+    EXPECT_FALSE(std::filesystem::exists(dir_->File("x-0.exr")));
+  }
+}
+
+// --resume on a finished sequence renders nothing and leaves every file as it was: rewriting
+// them gave each a new time, and a compositor reloaded the whole sequence.
+TEST_F(Sequence, ResumeLeavesCompleteFramesUntouched) {
+  const std::string out = dir_->File("seq.exr");
+  ASSERT_EQ(Render(out, 0).exit_code, 0);
+  const std::filesystem::path first = dir_->File("seq-0.exr");
+  const auto before = std::filesystem::last_write_time(first);
+  const std::string bytes = Slurp(first);
+  std::filesystem::last_write_time(first, before - std::chrono::hours(1));  // an older render
+  const auto older = std::filesystem::last_write_time(first);
+  const ProcessResult again = Render(out, 0, {"--resume"});
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_NE(again.out.find("  kept " + first.string() + " (complete)"), std::string::npos)
+      << again.out;
+  EXPECT_EQ(std::filesystem::last_write_time(first), older);
+  EXPECT_TRUE(Slurp(first) == bytes);
+}
+
+// 10 cameras of 40 x 30 take up to 672 KB uncompressed; a 256 KB disk holds one frame (and in
+// fact all of them, compressed): a warning, and the render goes on (it was refused).
+TEST(SequenceRoom, ADiskWithRoomForAFrameIsAWarningNotARefusal) {
+  if (geteuid() != 0) GTEST_SKIP() << "mounting a small tmpfs needs root (CI runs as root)";
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  const std::string small = dir->File("small");
+  ASSERT_EQ(mkdir(small.c_str(), 0755), 0);
+  if (mount("tmpfs", small.c_str(), "tmpfs", 0, "size=256k") != 0)
+    GTEST_SKIP() << "cannot mount a tmpfs here: " << std::strerror(errno);
+  std::string cameras;
+  for (int i = 0; i < 10; ++i)
+    cameras += StrFormat("%s{ \"position\": [%d, 5, 10], \"look_at\": [0, 0, 0], \"width\": 40, "
+                         "\"height\": 30 }", i ? ", " : "", i);
+  std::ofstream(dir->File("scene.json")) << R"({ "store": "no-such-store", "cameras": [ )"
+                                         << cameras << " ] }";
+  const ProcessResult r = RunProcess(
+      {kRaystackBinary, "render", dir->File("scene.json"), "--output", small + "/f.exr"},
+      dir->path());
+  umount(small.c_str());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find(small + "/f-0.exr: the disk holding it has 0.3 MB free; the 10 frames' "
+                       "images take up to 0.7 MB uncompressed (usually far less)"),
+            std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("no-such-store"), std::string::npos) << "went on to the store: " << r.err;
+}
+
+}  // namespace
+}  // namespace raystack::testing
