@@ -120,7 +120,8 @@ bool ConvergenceMonitor::Poll() {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   if (rules_.time_limit_s > 0 && now >= rules_.time_limit_s) {
     last_ = Measure();
-    stop_reason_ = StrFormat("--time-limit %g s reached (%llu of %llu samples)",
+    // (The tiles in flight are finished after it: the frame's count ends a little higher.)
+    stop_reason_ = StrFormat("--time-limit %g s reached with %llu of %llu samples merged",
                              rules_.time_limit_s, static_cast<unsigned long long>(last_.samples),
                              static_cast<unsigned long long>(plan_.total_samples()));
     if (log_) log_->Write(frame_, "stop", passes_ended_, last_);

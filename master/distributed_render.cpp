@@ -344,7 +344,9 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
   for (size_t f = range.begin; f < range.end; ++f) {
     const render::Camera camera(scene.cameras[f]);
     slave::RenderStats stats;
-    const Status s = node.RunFrame(static_cast<uint32_t>(f), scene, materials, camera, &stats);
+    render::Scene copy;
+    const Status s = node.RunFrame(static_cast<uint32_t>(f), render::SceneOfFrame(scene, f, &copy),
+                                   materials, camera, &stats);
     if (!s.ok()) {
       // The master has been told (or told us), and the others go on without this slave: wait
       // for the end of the job, and acknowledge it, so every rank ends cleanly.
@@ -382,6 +384,7 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
     Status s = log.ok() ? CheckMemory(*scene, 0) : log.status();
     if (s.ok()) s = CheckOutputOf(args, *scene);
     if (s.ok()) WarnIfCheckpointsKeepLittle(args, *scene);
+    if (s.ok()) WarnIfFrameSizesDiffer(*scene);
     Expected<OutputLock> output_lock =  // held to the end of the job
         s.ok() ? OutputLock::Take(FramePath(OutputOf(args, *scene), 0, 1, ".exr"))
                : Expected<OutputLock>(s);

@@ -309,6 +309,18 @@ std::string WholeTilesAdvice(uint32_t spp) {
 
 }  // namespace
 
+void WarnIfFrameSizesDiffer(const render::Scene& scene) {
+  const render::CameraDesc& first = scene.cameras.front();
+  for (size_t f = 1; f < scene.cameras.size(); ++f) {
+    const render::CameraDesc& c = scene.cameras[f];
+    if (c.width == first.width && c.height == first.height) continue;
+    LOG_WARNING("render", "camera %zu is %dx%d where camera 0 is %dx%d: an image sequence usually "
+                "keeps one size (a video made of these frames scales the odd ones)", f, c.width,
+                c.height, first.width, first.height);
+    return;
+  }
+}
+
 void WarnIfCheckpointsKeepLittle(const RenderArgs& args, const render::Scene& scene) {
   const uint32_t spp = static_cast<uint32_t>(scene.integrator.spp);
   if (!(args.checkpoint_s > 0) || spp <= 1) return;

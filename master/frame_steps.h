@@ -124,6 +124,9 @@ using AfterInterrupt = std::function<void(const std::string& said)>;
 // their samples at once): checkpoints keep little for --resume until the frame's end, which a
 // user found out only from an interrupted run's message. Warns, with the options that fix it.
 void WarnIfCheckpointsKeepLittle(const RenderArgs& args, const render::Scene& scene);
+// Cameras of different sizes in one list: a sequence usually keeps one size, and a video tool
+// quietly scaled the odd frame to the first's (found by an animator). Warns, naming the first.
+void WarnIfFrameSizesDiffer(const render::Scene& scene);
 // A signal noted before frame `frame` of `range` began to render: the frames before it are
 // written (or their writes finished here), the others are not rendered, and the process ends.
 void EndIfInterruptedBetweenFrames(size_t frame, FrameRange range, FrameWriter* writer,

@@ -74,6 +74,7 @@ Status RenderLocally(const RenderArgs& args) {
   RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, 0));  // the film alone, before the store is read
   RAYSTACK_RETURN_IF_ERROR(CheckOutputOf(args, *scene));
   WarnIfCheckpointsKeepLittle(args, *scene);
+  WarnIfFrameSizesDiffer(*scene);
   // Held to the end of the job; named from the output as written ("out" and "out.exr" are one).
   Expected<OutputLock> output_lock = OutputLock::Take(FramePath(output, 0, 1, ".exr"));
   if (!output_lock.ok()) return output_lock.status();
@@ -156,7 +157,9 @@ Status RenderLocally(const RenderArgs& args) {
         // An exception must not leave this thread (std::terminate): it fails the frame.
         Status s;
         try {
-          s = (*engine)->RenderFrame(*scene, materials, camera, tiles, sink, &stats);
+          render::Scene copy;
+          s = (*engine)->RenderFrame(render::SceneOfFrame(*scene, f, &copy), materials, camera,
+                                     tiles, sink, &stats);
         } catch (...) {  // nothing allocated here (status.h): said in full after the join
           s = Status::Error(kOutOfMemory);
         }

@@ -48,6 +48,8 @@ std::string SceneRecord(const render::Scene& scene, size_t camera) {
   const render::IntegratorDesc& i = scene.integrator;
   text += StrFormat("integrator type %d max_depth %d spp %d seed %llu\n", static_cast<int>(i.type),
                     i.max_depth, i.spp, static_cast<unsigned long long>(i.seed));
+  // The frame's index matters only then (records without it stay as they were).
+  if (i.animated_seed) text += StrFormat("animated_seed frame %zu\n", camera);
   return text;
 }
 
@@ -73,7 +75,7 @@ uint64_t SceneChecksum(const render::Scene& scene) {
 }
 
 std::string Provenance(const render::Scene& scene, size_t camera) {
-  // (Not the frame's index: a camera repeated gives the same image, byte for byte.)
+  // (Not the frame's index, unless animated_seed: a camera repeated gives the same image.)
   std::string text = StrFormat("raystack render 1\nbuild %s\nstore %s\n", BuildId(),
                                StoreIdentity(scene.store).c_str()) +
                      SceneRecord(scene, camera);

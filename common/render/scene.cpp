@@ -14,6 +14,7 @@
 
 #include "common/base/log.h"
 #include "common/geometry/float_range.h"
+#include "common/render/random.h"
 
 namespace raystack::render {
 namespace {
@@ -435,7 +436,8 @@ class SceneParser {
   }
 
   Status ReadIntegrator(const Json& v, const std::string& path, IntegratorDesc* integrator) const {
-    RAYSTACK_RETURN_IF_ERROR(CheckKeys(v, path, {"type", "max_depth", "spp", "seed"}));
+    RAYSTACK_RETURN_IF_ERROR(
+        CheckKeys(v, path, {"type", "max_depth", "spp", "seed", "animated_seed"}));
     if (v.contains("type")) {
       const Json& type = v["type"];
       if (!type.is_string()) return TypeError(Child(path, "type"), "a string", type);
@@ -460,6 +462,12 @@ class SceneParser {
         return Error(Child(path, "seed"), "must be an integer in [0, 2^64), got " +
                                               std::string(seed.type_name()) + " " + Show(seed));
       integrator->seed = seed.get<uint64_t>();
+    }
+    if (v.contains("animated_seed")) {
+      const Json& animated = v["animated_seed"];
+      if (!animated.is_boolean())
+        return TypeError(Child(path, "animated_seed"), "true or false", animated);
+      integrator->animated_seed = animated.get<bool>();
     }
     return OkStatus();
   }
@@ -486,6 +494,19 @@ std::string Detail(const char* what) {
 }
 
 }  // namespace
+
+uint64_t IntegratorDesc::SeedOfFrame(size_t frame) const {
+  if (!animated_seed) return seed;
+  return MixBits(seed ^ MixBits(uint64_t{frame} + 0x6a09e667f3bcc909ull));
+}
+
+const Scene& SceneOfFrame(const Scene& scene, size_t frame, Scene* copy) {
+  if (!scene.integrator.animated_seed) return scene;
+  *copy = scene;
+  copy->integrator.seed = scene.integrator.SeedOfFrame(frame);
+  copy->integrator.animated_seed = false;  // (the seed is the frame's now)
+  return *copy;
+}
 
 const char* MaterialTypeName(MaterialType type) {
   switch (type) {

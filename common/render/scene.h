@@ -46,7 +46,19 @@ struct IntegratorDesc {
   int max_depth = 3;
   int spp = 1;
   uint64_t seed = 1;
+  // "animated_seed": each frame's random numbers from the seed and the frame's index, so a moving
+  // camera's noise moves too instead of staying on the screen (an animator saw the grain of a
+  // turntable stand still while the model slid under it). Off: a camera repeated gives the same
+  // image, and a still camera's noise does not flicker.
+  bool animated_seed = false;
+  // The seed frame `frame` renders with.
+  uint64_t SeedOfFrame(size_t frame) const;
 };
+
+struct Scene;
+// The scene frame `frame` renders: `scene` itself, or a copy in `copy` with the frame's seed
+// (IntegratorDesc::animated_seed).
+const Scene& SceneOfFrame(const Scene& scene, size_t frame, Scene* copy);
 
 struct Scene {
   std::string store;                // resolved against the scene file's folder

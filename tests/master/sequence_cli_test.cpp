@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "common/base/log.h"
+#include "common/image/exr_io.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/store_dir_fixture.h"
 
@@ -107,6 +108,62 @@ TEST_F(Sequence, ResumeLeavesCompleteFramesUntouched) {
       << again.out;
   EXPECT_EQ(std::filesystem::last_write_time(first), older);
   EXPECT_TRUE(Slurp(first) == bytes);
+}
+
+// Found by an animator: the noise depends on (seed, pixel, sample) only, so it stayed on the
+// screen as the camera moved, with no way to change that. "animated_seed" gives each frame its
+// own: two frames of one camera differ, and stay the same from one process to mpirun.
+TEST_F(Sequence, AnimatedSeedGivesEachFrameItsOwnNoise) {
+  const std::string same = R"({ "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 40, "height": 30 })";
+  for (const bool animated : {false, true}) {
+    SCOPED_TRACE(animated);
+    std::ofstream(dir_->File("still.json"))
+        << R"({ "store": "store", "cameras": [ )" << same << ", " << same << R"( ],
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "integrator": { "type": "path", "max_depth": 3, "spp": 2, "seed": 2, "animated_seed": )"
+        << (animated ? "true" : "false") << " } }";
+    std::vector<std::string> frames[2];
+    for (int np : {0, 3}) {
+      std::vector<std::string> argv;
+      if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", "3"};
+      const std::string out = dir_->File(StrFormat("still%d%d.exr", animated, np));
+      for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("still.json"),
+                                   std::string("--threads"), std::string("1"), std::string("--no-png"),
+                                   std::string("--output"), out})
+        argv.push_back(a);
+      const ProcessResult r = RunProcess(argv, dir_->path());
+      ASSERT_EQ(r.exit_code, 0) << r.err;
+      for (int f : {0, 1}) {
+        Expected<image::ImageLayers> image =
+            image::ReadExr(dir_->File(StrFormat("still%d%d-%d.exr", animated, np, f)));
+        ASSERT_TRUE(image.ok()) << image.status().message();
+        frames[np > 0].push_back(std::string(reinterpret_cast<const char*>(image->rgba.data()),
+                                             image->rgba.size() * sizeof(float)));
+      }
+    }
+    EXPECT_EQ(frames[0][0] == frames[0][1], !animated) << "the two frames' pixels";
+    EXPECT_TRUE(frames[0] == frames[1]) << "mpirun renders what one process does";
+  }
+}
+
+// Found by an animator: one 640x360 camera among 320x240 ones went unnoticed until a video tool
+// quietly squashed it.
+TEST_F(Sequence, CamerasOfDifferentSizesAreAWarning) {
+  std::ofstream(dir_->File("mixed.json")) << R"({ "store": "store", "cameras": [
+    { "position": [0, 5, 10], "width": 32, "height": 24 },
+    { "position": [1, 5, 10], "width": 32, "height": 24 },
+    { "position": [2, 5, 10], "width": 64, "height": 36 } ] })";
+  for (int np : {0, 3}) {
+    std::vector<std::string> argv;
+    if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", "3"};
+    for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("mixed.json"),
+                                 std::string("--output"), dir_->File("mixed.exr")})
+      argv.push_back(a);
+    const ProcessResult r = RunProcess(argv, dir_->path());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("camera 2 is 64x36 where camera 0 is 32x24: an image sequence usually "
+                         "keeps one size"), std::string::npos) << np << ": " << r.err;
+  }
 }
 
 // 10 cameras of 40 x 30 take up to 672 KB uncompressed; a 256 KB disk holds one frame (and in

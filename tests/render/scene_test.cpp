@@ -109,6 +109,23 @@ TEST(Scene, MinimalSceneGetsTheDefaults) {
   EXPECT_EQ(scene.integrator.max_depth, 3);
   EXPECT_EQ(scene.integrator.spp, 1);
   EXPECT_EQ(scene.integrator.seed, 1u);
+  EXPECT_FALSE(scene.integrator.animated_seed);
+  EXPECT_EQ(scene.integrator.SeedOfFrame(5), 1u);  // every frame the same noise
+}
+
+TEST(Scene, AnAnimatedSeedGivesEachFrameItsOwn) {
+  Expected<Scene> parsed = Parse(Minimal(R"(, "integrator": {"seed": 3, "animated_seed": true})"));
+  ASSERT_TRUE(parsed.ok()) << parsed.status().message();
+  const IntegratorDesc& i = parsed->integrator;
+  EXPECT_TRUE(i.animated_seed);
+  EXPECT_NE(i.SeedOfFrame(0), i.SeedOfFrame(1));
+  EXPECT_EQ(i.SeedOfFrame(1), i.SeedOfFrame(1));
+  Scene copy;
+  const Scene& frame = SceneOfFrame(*parsed, 1, &copy);
+  EXPECT_EQ(&frame, &copy);
+  EXPECT_EQ(frame.integrator.seed, i.SeedOfFrame(1));
+  ExpectError(Minimal(R"(, "integrator": {"animated_seed": 1})"),
+              {"integrator.animated_seed: must be true or false"});
 }
 
 TEST(Scene, ValueDetails) {
