@@ -8,7 +8,14 @@ namespace raystack::master {
 void TileLedger::Assign(const render::Tile& tile, int rank) {
   const uint64_t samples = (tile.sample_end == 0 ? spp_ : tile.sample_end) - tile.sample_begin;
   const uint64_t bits = static_cast<uint64_t>(tile.pixels()) * samples;
-  in_flight_.push_back({tile, rank, 0, render::TileSamples(tile, spp_), {},
+  const uint64_t expected = render::TileSamples(tile, spp_);
+  std::vector<render::SampleResult> kept;
+  if (!spare_kept_.empty()) {
+    kept = std::move(spare_kept_.back());
+    spare_kept_.pop_back();
+  }
+  kept.reserve(expected);  // (the last sample is never kept: the tile then finishes)
+  in_flight_.push_back({tile, rank, 0, expected, std::move(kept),
                         std::vector<uint64_t>((bits + 63) / 64, 0)});
   ++unfinished_;
 }
@@ -32,10 +39,15 @@ bool TileLedger::Holds(const render::Tile& t, const render::SampleResult& s) con
 }
 
 Status TileLedger::Record(int rank, std::span<const render::SampleResult> samples) {
+  const auto found = [&](size_t i, const render::SampleResult& s) {
+    return in_flight_[i].rank == rank && Holds(in_flight_[i].tile, s);
+  };
   for (const render::SampleResult& s : samples) {
-    size_t i = 0;
-    while (i < in_flight_.size() && !(in_flight_[i].rank == rank && Holds(in_flight_[i].tile, s)))
-      ++i;
+    size_t i = last_;
+    if (i >= in_flight_.size() || !found(i, s)) {
+      i = 0;
+      while (i < in_flight_.size() && !found(i, s)) ++i;
+    }
     if (i == in_flight_.size())
       return Status::Error(StrFormat("rank %d sent sample %u of pixel %u, which no tile it is "
                                      "rendering holds", rank, s.sample, s.pixel));
@@ -47,7 +59,10 @@ Status TileLedger::Record(int rank, std::span<const render::SampleResult> sample
       return Status::Error(StrFormat("rank %d sent sample %u of pixel %u twice", rank, s.sample,
                                      s.pixel));
     word |= mask;
+    last_ = i;
     if (++e.received == e.expected) {  // finished: nothing to take back any more
+      e.kept.clear();
+      spare_kept_.push_back(std::move(e.kept));
       in_flight_[i] = std::move(in_flight_.back());
       in_flight_.pop_back();
       --unfinished_;
