@@ -121,6 +121,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
   std::string json = "[\n";
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
+  const SequenceProgress sequence(range, args.quiet);
   for (size_t f = range.begin; f < range.end; ++f) {
     const render::Camera camera(scene.cameras[f]);
     render::Film& film = FilmFor(camera, &reused_film);
@@ -245,6 +246,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                                         monitor.stopped() ? monitor.stop_reason() : ""),
                         figures) +
             (f + 1 < range.end ? ",\n" : "\n");
+    sequence.FrameDone(f);
   }
   if (const Status written = writer.Finish(); !written.ok()) {  // the last frame's write
     master.Shutdown(1);

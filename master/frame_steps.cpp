@@ -309,6 +309,22 @@ std::string WholeTilesAdvice(uint32_t spp) {
 
 }  // namespace
 
+void SequenceProgress::FrameDone(size_t f) const {
+  const size_t frames = range_.end - range_.begin, done = f + 1 - range_.begin;
+  if (quiet_ || frames < 2) return;
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  const auto duration = [](double s) {
+    return s < 120 ? StrFormat("%.0f s", s)
+                   : s < 7200 ? StrFormat("%.0f min", s / 60) : StrFormat("%.1f h", s / 3600);
+  };
+  std::printf("sequence: %zu of %zu frames in %s%s\n", done, frames, duration(seconds).c_str(),
+              done < frames ? (", about " + duration(seconds / static_cast<double>(done) *
+                                                     static_cast<double>(frames - done)) +
+                               " left").c_str()
+                            : "");
+}
+
 void WarnIfFrameSizesDiffer(const render::Scene& scene) {
   const render::CameraDesc& first = scene.cameras.front();
   for (size_t f = 1; f < scene.cameras.size(); ++f) {

@@ -3,6 +3,7 @@
 // distributed job (distributed_render.h) share: the scene with the command line's overrides,
 // each frame's film, plan, reference and resumed pixels, its images, and what a signal does.
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -124,6 +125,20 @@ using AfterInterrupt = std::function<void(const std::string& said)>;
 // their samples at once): checkpoints keep little for --resume until the frame's end, which a
 // user found out only from an interrupted run's message. Warns, with the options that fix it.
 void WarnIfCheckpointsKeepLittle(const RenderArgs& args, const render::Scene& scene);
+// With several frames to render, a line after each: how many of the run's frames are done, in
+// how long, and about how long the rest take at the pace so far (an animator had only each
+// frame's own progress, nothing for the job).
+class SequenceProgress {
+ public:
+  SequenceProgress(FrameRange range, bool quiet) : range_(range), quiet_(quiet) {}
+  void FrameDone(size_t f) const;
+
+ private:
+  const FrameRange range_;
+  const bool quiet_;
+  const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
+
 // Cameras of different sizes in one list: a sequence usually keeps one size, and a video tool
 // quietly scaled the odd frame to the first's (found by an animator). Warns, naming the first.
 void WarnIfFrameSizesDiffer(const render::Scene& scene);

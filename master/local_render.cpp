@@ -127,6 +127,7 @@ Status RenderLocally(const RenderArgs& args) {
   FrameWriter writer(!args.quiet, args.fail_writes, FrameWriter::kRetrySeconds, args.slow_writes_s);
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
+  const SequenceProgress sequence(range, args.quiet);
   for (size_t f = range.begin; f < range.end; ++f) {
     const render::Camera camera(scene->cameras[f]);
     render::Film& film = FilmFor(camera, &reused_film);
@@ -227,6 +228,7 @@ Status RenderLocally(const RenderArgs& args) {
                                                 total, &writer);
     if (!exr.ok()) return failed(exr.status());
     if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
+    sequence.FrameDone(f);
     stats_json += stats.ToJson(FrameRecordJson(f, *exr, camera.width(), camera.height(), plan.spp(),
                                                monitor.stopped() ? monitor.stop_reason() : ""));
     if (f + 1 < range.end) stats_json += ",";

@@ -61,6 +61,10 @@ TEST_F(Sequence, FramesRendersPartOfTheSequenceUnderItsOwnNumbers) {
     const std::string out = dir_->File("part" + std::to_string(np) + ".exr");
     const ProcessResult part = Render(out, np, {"--frames", "1-2"});
     ASSERT_EQ(part.exit_code, 0) << part.err;
+    // The job's progress, after each frame (the first with the time the rest should take).
+    EXPECT_NE(part.out.find("sequence: 1 of 2 frames in "), std::string::npos) << part.out;
+    EXPECT_NE(part.out.find(" left\n"), std::string::npos) << part.out;
+    EXPECT_NE(part.out.find("sequence: 2 of 2 frames in "), std::string::npos) << part.out;
     const std::string stem = dir_->File("part" + std::to_string(np));
     for (int f : {0, 3}) EXPECT_FALSE(std::filesystem::exists(StrFormat("%s-%d.exr", stem.c_str(), f)));
     for (int f : {1, 2}) {
