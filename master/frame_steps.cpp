@@ -1,6 +1,7 @@
 #include "master/frame_steps.h"
 
 #include <cerrno>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -106,6 +107,30 @@ Expected<std::unique_ptr<store::StoreReader>> OpenSceneStore(const render::Scene
   return Status::Error(where + store.status().message());
 }
 
+namespace {
+
+// A frame that shows nothing is most likely a mistake the user cannot see in the numbers: the
+// camera looking away from the model, or inside it with the lights outside (an animator got
+// all-black frames that way without a word). Counted over the pixels that have samples.
+void WarnIfFrameShowsNothing(const image::ImageLayers& layers, size_t f) {
+  bool sampled = false, met = false, lit = false;
+  for (size_t i = 0; i < layers.samples.size() && !(met && lit); ++i) {
+    if (layers.samples[i] == 0) continue;
+    sampled = true;
+    met |= std::isfinite(layers.z[i]);
+    lit |= layers.rgba[4 * i] != 0 || layers.rgba[4 * i + 1] != 0 || layers.rgba[4 * i + 2] != 0;
+  }
+  if (!sampled) return;
+  if (!met)
+    LOG_WARNING("render", "frame %zu: no camera ray met the model (is the camera looking away "
+                "from it? raystack-info STORE gives the model's bounds)", f);
+  else if (!lit)
+    LOG_WARNING("render", "frame %zu is black: every pixel 0 (is the camera inside the model, "
+                "or does no light reach what it sees?)", f);
+}
+
+}  // namespace
+
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,
                                  const std::string& stopped, uint64_t rendered,
@@ -125,6 +150,7 @@ Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& sc
   image.layers.provenance = Provenance(scene, f);
   image.layers.partial = false;  // (the layers may be a checkpoint's, reused)
   image.layers.stopped = stopped;
+  WarnIfFrameShowsNothing(image.layers, f);
   if (film.nonfinite_dropped() > 0)
     LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
                 static_cast<unsigned long long>(film.nonfinite_dropped()));

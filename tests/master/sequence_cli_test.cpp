@@ -21,6 +21,7 @@
 #include "common/image/exr_io.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/store_dir_fixture.h"
+#include "tests/support/test_dir.h"
 
 namespace raystack::testing {
 namespace {
@@ -168,6 +169,28 @@ TEST_F(Sequence, CamerasOfDifferentSizesAreAWarning) {
     EXPECT_NE(r.err.find("camera 2 is 64x36 where camera 0 is 32x24: an image sequence usually "
                          "keeps one size"), std::string::npos) << np << ": " << r.err;
   }
+}
+
+// Found by an animator: a camera inside the model (the light outside) gave an all-black frame,
+// and one looking away from it an empty one, without a word.
+TEST(SequenceWarnings, AFrameThatShowsNothingIsAWarning) {
+  std::unique_ptr<TempDir> dir = MakeTestDir();
+  ASSERT_TRUE(dir);
+  ASSERT_EQ(RunProcess({prep::testing::kPrepBinary, "--generate", "sphere:2000", "-o",
+                        dir->File("store"), "-q"}, dir->path()).exit_code, 0);
+  std::ofstream(dir->File("scene.json")) << R"({ "store": "store", "cameras": [
+    { "position": [0, 0, 4], "look_at": [0, 0, 0], "width": 24, "height": 16 },
+    { "position": [0, 0, 0.2], "look_at": [0, 0, 1], "width": 24, "height": 16 },
+    { "position": [0, 0, 4], "look_at": [0, 0, 8], "width": 24, "height": 16 } ],
+    "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ] })";
+  const ProcessResult r = RunProcess({kRaystackBinary, "render", dir->File("scene.json"), "--output",
+                                      dir->File("f.exr"), "--no-png"}, dir->path());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find("frame 0:"), std::string::npos) << "frame 0 sees the lit sphere: " << r.err;
+  EXPECT_EQ(r.err.find("frame 0 is"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("frame 1 is black: every pixel 0 (is the camera inside the model"),
+            std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("frame 2: no camera ray met the model"), std::string::npos) << r.err;
 }
 
 // 10 cameras of 40 x 30 take up to 672 KB uncompressed; a 256 KB disk holds one frame (and in
