@@ -105,7 +105,7 @@ void Shader::Spawn(const RayRecord& parent, RayType type, Vec3f origin, Vec3f di
   out->children.push_back(r);
 }
 
-void Shader::DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albedo,
+void Shader::DirectLight(const RayRecord& ray, Vec3f p, Vec3f origin, Vec3f n, Vec3f albedo,
                          uint32_t pixel, uint32_t sample, ShadeOutput* out) const {
   const auto& lights = scene_.lights;
   // Path tracing chooses one of the point lights or the emitters (as one more choice). The
@@ -142,7 +142,7 @@ void Shader::DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albe
       if (chosen == lights.size() && !emitters) chosen = lights.size() - 1;  // (rounding)
     }
     if (chosen == lights.size()) {
-      EmitterLight(ray, origin, n, albedo, emitters_scale_, rng, out);
+      EmitterLight(ray, p, origin, n, albedo, emitters_scale_, rng, out);
       return;
     }
     const double power = point_power_sums_[chosen] - (chosen > 0 ? point_power_sums_[chosen - 1] : 0.0);
@@ -151,7 +151,7 @@ void Shader::DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albe
     last = first + 1;
   }
   for (size_t i = first; i < last; ++i) {
-    const Vec3f to_light = lights[i].position - origin;
+    const Vec3f to_light = lights[i].position - p;
     const float d2 = Dot(to_light, to_light);
     if (!(d2 > 0)) continue;
     const float cos_theta = Dot(n, to_light) / std::sqrt(d2);
@@ -160,12 +160,12 @@ void Shader::DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albe
     const Vec3f weight = ray.weight * albedo * lights[i].intensity *
                          (scale * cos_theta / (d2 * std::numbers::pi_v<float>));
     if (!NonZero(weight)) continue;
-    Spawn(ray, RayType::kShadow, origin, to_light, weight, out);
+    Spawn(ray, RayType::kShadow, origin, lights[i].position - origin, weight, out);
   }
 }
 
-void Shader::EmitterLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albedo, float scale,
-                          const SampleRandom& rng, ShadeOutput* out) const {
+void Shader::EmitterLight(const RayRecord& ray, Vec3f p, Vec3f origin, Vec3f n, Vec3f albedo,
+                          float scale, const SampleRandom& rng, ShadeOutput* out) const {
   const double u_choice = double{rng.Uniform(ray.depth, RandomUse::kEmitterChoice)} +
                           double{rng.Uniform(ray.depth, RandomUse::kEmitterChoiceLow)} * 0x1p-24;
   const render::AreaLights::Sample s =
@@ -182,7 +182,7 @@ void Shader::EmitterLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f alb
   for (int a = 0; a < 3; ++a)
     margin[a] = std::max(s.error[a], (std::fabs(origin[a]) + std::fabs(s.point[a])) * 0x1p-22f);
   const Vec3f target = OffsetRayOrigin(s.point, facing, margin);
-  const Vec3f to_light = target - origin;
+  const Vec3f to_light = s.point - p;  // the geometry's; the shadow ray runs origin -> target
   const float d2 = Dot(to_light, to_light);
   if (!(d2 > 0)) return;
   const float d = std::sqrt(d2);
@@ -200,7 +200,7 @@ void Shader::EmitterLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f alb
                        (mis * scale * cos_surface * cos_light /
                         (d2 * std::numbers::pi_v<float> * s.pdf_area));
   if (!NonZero(weight) || !std::isfinite(MaxComponent(weight))) return;
-  Spawn(ray, RayType::kShadow, origin, to_light, weight, out);
+  Spawn(ray, RayType::kShadow, origin, target - origin, weight, out);
 }
 
 float Shader::EmissionWeight(const RayRecord& ray, Vec3f ng) const {
@@ -251,7 +251,7 @@ void Shader::Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample,
   switch (m.type) {
     case MaterialType::kDiffuse: {
       const Vec3f above = OffsetRayOrigin(p, ng, p_error);  // shadow rays and the bounce
-      DirectLight(ray, above, n, m.albedo, pixel, sample, out);
+      DirectLight(ray, p, above, n, m.albedo, pixel, sample, out);
       if (!path_ || !can_bounce || !NonZero(m.albedo)) break;
       Vec3f weight = ray.weight * m.albedo;  // cosine sampling: cos/pdf cancels the 1/pi
       if (ray.depth >= 3) {                  // Russian roulette keeps the estimate unbiased

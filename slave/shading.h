@@ -40,13 +40,16 @@ class Shader {
   bool path() const { return path_; }
 
  private:
-  // `origin`: the hit point moved off the surface (OffsetRayOrigin), where shadow rays start.
-  void DirectLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albedo,
+  // `p`: the hit point, where the light's distance and angles are measured; `origin`: p moved
+  // off the surface (OffsetRayOrigin), where shadow rays start. Measured from `origin`, the
+  // light was off by the move, ~8 ulps of |p|: 0.1 at 1e5 from the axes, where a plane 1 below
+  // its light came out 2% darker on average and up to 24% off (found by a rendering researcher).
+  void DirectLight(const RayRecord& ray, Vec3f p, Vec3f origin, Vec3f n, Vec3f albedo,
                    uint32_t pixel, uint32_t sample, ShadeOutput* out) const;
   // One shadow ray towards a point on an emissive triangle (path tracing), its weight the
   // estimate's times `scale` (1 / the probability of choosing the emitters).
-  void EmitterLight(const RayRecord& ray, Vec3f origin, Vec3f n, Vec3f albedo, float scale,
-                    const render::SampleRandom& rng, ShadeOutput* out) const;
+  void EmitterLight(const RayRecord& ray, Vec3f p, Vec3f origin, Vec3f n, Vec3f albedo,
+                    float scale, const render::SampleRandom& rng, ShadeOutput* out) const;
   // The share of an emitter's radiance a ray that met it adds: all of it, except for a diffuse
   // ray meeting an emitter that EmitterLight samples too (the balance heuristic's weight).
   float EmissionWeight(const RayRecord& ray, Vec3f ng) const;
