@@ -111,22 +111,34 @@ namespace {
 
 // A frame that shows nothing is most likely a mistake the user cannot see in the numbers: the
 // camera looking away from the model, or inside it with the lights outside (an animator got
-// all-black frames that way without a word). Counted over the pixels that have samples.
+// all-black frames that way without a word). Counted over the pixels that have samples. A frame
+// whose brightest pixel is very dim is rounded coarsely by the film's fixed-point sums, and
+// below their step it is black (a researcher's lamp of 1e-15 gave a black image; 1e-10, 3%
+// errors): said, with what to do.
 void WarnIfFrameShowsNothing(const image::ImageLayers& layers, size_t f) {
-  bool sampled = false, met = false, lit = false;
-  for (size_t i = 0; i < layers.samples.size() && !(met && lit); ++i) {
+  bool sampled = false, met = false;
+  float brightest = 0;
+  for (size_t i = 0; i < layers.samples.size(); ++i) {
     if (layers.samples[i] == 0) continue;
     sampled = true;
     met |= std::isfinite(layers.z[i]);
-    lit |= layers.rgba[4 * i] != 0 || layers.rgba[4 * i + 1] != 0 || layers.rgba[4 * i + 2] != 0;
+    for (int c = 0; c < 3; ++c) brightest = std::max(brightest, std::fabs(layers.rgba[4 * i + c]));
   }
   if (!sampled) return;
+  constexpr float kDim = 1e-9f;  // the film's step, 2^-50, is 1e-6 of this
+  const char* dim_advice = "the film sums samples in steps of 2^-50 (~9e-16), so radiance this "
+                           "low is rounded coarsely or lost: scale the lights (and emission, "
+                           "background) up, by a power of two to scale the image exactly";
   if (!met)
     LOG_WARNING("render", "frame %zu: no camera ray met the model (is the camera looking away "
                 "from it? raystack-info STORE gives the model's bounds)", f);
-  else if (!lit)
+  else if (brightest == 0)
     LOG_WARNING("render", "frame %zu is black: every pixel 0 (is the camera inside the model, "
-                "or does no light reach what it sees?)", f);
+                "or does no light reach what it sees? if the lights are very dim: %s)", f,
+                dim_advice);
+  else if (brightest < kDim)
+    LOG_WARNING("render", "frame %zu is very dim (its brightest pixel %g): %s", f,
+                static_cast<double>(brightest), dim_advice);
 }
 
 }  // namespace

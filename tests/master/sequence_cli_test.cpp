@@ -191,6 +191,22 @@ TEST(SequenceWarnings, AFrameThatShowsNothingIsAWarning) {
   EXPECT_NE(r.err.find("frame 1 is black: every pixel 0 (is the camera inside the model"),
             std::string::npos) << r.err;
   EXPECT_NE(r.err.find("frame 2: no camera ray met the model"), std::string::npos) << r.err;
+  // Found by a rendering researcher: a lamp of 1e-15 gave a black image (the film's fixed-point
+  // step is 2^-50), one of 1e-10 errors of 3%, without a word.
+  for (const auto& [intensity, said] : std::vector<std::pair<std::string, std::string>>{
+           {"1e-9", "frame 0 is very dim (its brightest pixel "},
+           {"1e-17", "frame 0 is black: every pixel 0"}}) {
+    std::ofstream(dir->File("dim.json")) << R"({ "store": "store",
+      "camera": { "position": [0, 0, 4], "look_at": [0, 0, 0], "width": 24, "height": 16 },
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [)" << intensity << ", "
+        << intensity << ", " << intensity << "] } ] }";
+    const ProcessResult dim = RunProcess({kRaystackBinary, "render", dir->File("dim.json"),
+                                          "--output", dir->File("dim.exr"), "--no-png"}, dir->path());
+    ASSERT_EQ(dim.exit_code, 0) << dim.err;
+    EXPECT_NE(dim.err.find(said), std::string::npos) << intensity << ": " << dim.err;
+    EXPECT_NE(dim.err.find("scale the lights (and emission, background) up"), std::string::npos)
+        << dim.err;
+  }
 }
 
 // 10 cameras of 40 x 30 take up to 672 KB uncompressed; a 256 KB disk holds one frame (and in
