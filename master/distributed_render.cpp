@@ -388,7 +388,8 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
     if (s.ok()) WarnIfCheckpointsKeepLittle(args, *scene);
     if (s.ok()) WarnIfFrameSizesDiffer(*scene);
     Expected<OutputLock> output_lock =  // held to the end of the job
-        s.ok() ? OutputLock::Take(FramePath(OutputOf(args, *scene), 0, 1, ".exr"))
+        s.ok() ? OutputLock::Take(FramePath(OutputOf(args, *scene), 0, 1, ".exr"),
+                                  FramesOf(args, *scene).begin, FramesOf(args, *scene).end)
                : Expected<OutputLock>(s);
     if (!output_lock.ok()) s = output_lock.status();
     if (s.ok()) s = CheckNoUnfinishedFrame(args, *scene);

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 
 #include "common/base/build_id.h"
@@ -151,11 +152,13 @@ Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& sc
   const std::string output = OutputOf(args, scene);
   FrameWriter::Image image;
   image.exr = FramePath(output, f, frames, ".exr");
-  if (args.resume && rendered == 0) {
+  if (args.png) image.png = FramePath(output, f, frames, ".png");
+  // (A checkpoint with every pixel finished is written as the frame; a missing PNG is made.)
+  if (args.resume && rendered == 0 && !image::IsPartialFrame(image.exr) &&
+      (image.png.empty() || std::filesystem::exists(image.png))) {
     if (!args.quiet) std::printf("  kept %s (complete)\n", image.exr.c_str());
     return image.exr;
   }
-  if (args.png) image.png = FramePath(output, f, frames, ".png");
   image.exposure = args.exposure;
   image.background = f + 1 < FramesOf(args, scene).end;  // the next renders while it is written
   image.layers = std::move(layers);

@@ -100,9 +100,9 @@ std::string FrameRecordJson(size_t f, const std::string& exr, int width, int hei
 // Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
 // returns the EXR's path, or the error of an earlier frame's write.
 // `stopped`: why a stop rule ended the frame early (ConvergenceMonitor::stop_reason), or empty.
-// `rendered`: the samples this run rendered of it. With none under --resume, the frame's EXR
-// there is already complete and is left as it is (rewritten, every file of a sequence got a
-// new time, and a compositor reloaded them all).
+// `rendered`: the samples this run rendered of it. With none under --resume, a complete frame's
+// EXR there (and its PNG) is left as it is (rewritten, every file of a sequence got a new time,
+// and a compositor reloaded them all); a checkpoint with every pixel finished is written.
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,
                                  const std::string& stopped, uint64_t rendered,

@@ -76,7 +76,8 @@ Status RenderLocally(const RenderArgs& args) {
   WarnIfCheckpointsKeepLittle(args, *scene);
   WarnIfFrameSizesDiffer(*scene);
   // Held to the end of the job; named from the output as written ("out" and "out.exr" are one).
-  Expected<OutputLock> output_lock = OutputLock::Take(FramePath(output, 0, 1, ".exr"));
+  Expected<OutputLock> output_lock =
+      OutputLock::Take(FramePath(output, 0, 1, ".exr"), range.begin, range.end);
   if (!output_lock.ok()) return output_lock.status();
   RAYSTACK_RETURN_IF_ERROR(CheckNoUnfinishedFrame(args, *scene));
   RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference, range));

@@ -9,7 +9,7 @@
 
 namespace raystack::master {
 
-Expected<OutputLock> OutputLock::Take(const std::string& output) {
+Expected<OutputLock> OutputLock::Take(const std::string& output, size_t first, size_t end) {
   const std::filesystem::path out(output);
   std::string name = ".";  // (not "." + ...: GCC 12 warns falsely of an overlapping copy)
   name += out.filename().string();
@@ -17,12 +17,16 @@ Expected<OutputLock> OutputLock::Take(const std::string& output) {
   const std::string path = (out.parent_path() / name).string();
   int fd = -1;
   std::string error;
-  switch (TryLockFile(path, /*create=*/true, &fd, &error)) {
+  switch (TryLockFile(path, /*create=*/true, &fd, &error, LockRange{first, end - first})) {
     case LockResult::kLocked:
       return OutputLock(path, fd);
     case LockResult::kHeldElsewhere:
       return Status::Error(output + ": another raystack render is writing this output now (it "
-                           "holds " + path + "); wait for it, or give another --output");
+                           "holds " + path + (end - first > 1 || first > 0
+                                                  ? StrFormat(", for frames among %zu to %zu",
+                                                              first, end - 1)
+                                                  : std::string()) +
+                           "); wait for it, or give another --output or other --frames");
     case LockResult::kNoLocks:
       LOG_WARNING("render", "%s: its filesystem takes no file locks: nothing keeps another "
                   "render from writing this output at once", output.c_str());
@@ -42,10 +46,14 @@ OutputLock::OutputLock(OutputLock&& other) noexcept
 
 OutputLock::~OutputLock() {
   if (fd_ < 0) return;
-  // Removed while held: a render that opened it meanwhile finds it gone and tries again
-  // (TryLockFile checks that the file it locked is still at its path).
-  std::error_code ec;
-  std::filesystem::remove(path_, ec);
+  // Removed while held, and only when no other job holds frames of it: a render that opened it
+  // meanwhile finds it gone and tries again (TryLockFile checks that the file it locked is
+  // still at its path); removed under another job's frames, a third job would have locked a new
+  // file and written those frames too.
+  if (TryLockWholeFile(fd_)) {
+    std::error_code ec;
+    std::filesystem::remove(path_, ec);
+  }
   ::close(fd_);
 }
 

@@ -73,7 +73,7 @@ std::string FramePath(const std::string& path, size_t frame, size_t frames, cons
     stem.resize(dot);
   }
   size_t at = 0, length = 0, width = 0;
-  if (FindFrameField(stem, &at, &length, &width)) {
+  if (frames > 1 && FindFrameField(stem, &at, &length, &width)) {
     stem.replace(at, length, Padded(frame, std::min<size_t>(width, 12)));
   } else if (frames > 1) {
     // As many digits for every frame as the last one has: a sequence's files sort in frame

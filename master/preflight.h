@@ -16,9 +16,10 @@ namespace raystack::master {
 
 // Frame `frame`'s file of `frames` from the output path: out.exr -> out-1.exr for the second
 // camera (out.exr itself when there is one), the number with as many digits as the last frame's
-// (out-01.exr of 12 frames), `ext` in place of the extension (.exr, .png). A file name with a
-// run of '#' or a printf-style %d / %04d gets the number there instead, that many digits
-// (f.####.exr -> f.0001.exr), for image-sequence tools; with one camera too.
+// (out-01.exr of 12 frames), `ext` in place of the extension (.exr, .png). With several
+// cameras, a file name with a run of '#' or a printf-style %d / %04d gets the number there
+// instead, that many digits (f.####.exr -> f.0001.exr), for image-sequence tools; one camera's
+// name is kept as given (take#2.exr stays).
 std::string FramePath(const std::string& path, size_t frame, size_t frames, const char* ext);
 
 // The cameras a run renders: [begin, end) of the scene's list (--frames; every one by default).

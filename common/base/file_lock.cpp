@@ -22,7 +22,8 @@ bool StillAtPath(int f, const std::string& path) {
 }
 
 // One try: open (or create) and lock without waiting.
-LockResult TryLockFileOnce(const std::string& path, bool create, int* fd, std::string* error) {
+LockResult TryLockFileOnce(const std::string& path, bool create, int* fd, std::string* error,
+                           LockRange range) {
   *fd = -1;
   const int f = ::open(path.c_str(), O_RDWR | O_CLOEXEC | (create ? O_CREAT : 0), 0644);
   if (f < 0) {
@@ -32,7 +33,9 @@ LockResult TryLockFileOnce(const std::string& path, bool create, int* fd, std::s
   }
   struct flock lock {};
   lock.l_type = F_WRLCK;
-  lock.l_whence = SEEK_SET;  // the whole file (l_start = l_len = 0)
+  lock.l_whence = SEEK_SET;  // l_len 0: to the end
+  lock.l_start = static_cast<off_t>(range.start);
+  lock.l_len = static_cast<off_t>(range.length);
   if (::fcntl(f, F_OFD_SETLK, &lock) == 0) {
     *fd = f;
     return LockResult::kLocked;
@@ -53,13 +56,21 @@ LockResult TryLockFileOnce(const std::string& path, bool create, int* fd, std::s
 
 }  // namespace
 
-LockResult TryLockFile(const std::string& path, bool create, int* fd, std::string* error) {
+bool TryLockWholeFile(int fd) {
+  struct flock lock {};
+  lock.l_type = F_WRLCK;
+  lock.l_whence = SEEK_SET;
+  return ::fcntl(fd, F_OFD_SETLK, &lock) == 0;
+}
+
+LockResult TryLockFile(const std::string& path, bool create, int* fd, std::string* error,
+                       LockRange range) {
   // A lock won on an unlinked file is worthless; the holder that unlinked it is gone by then,
   // so the next try meets the new file (or none). A few tries cover any such race.
   constexpr int kTries = 8;
   LockResult result = LockResult::kError;
   for (int i = 0; i < kTries; ++i) {
-    result = TryLockFileOnce(path, create, fd, error);
+    result = TryLockFileOnce(path, create, fd, error, range);
     if (result != LockResult::kLocked || StillAtPath(*fd, path)) return result;
     ::close(*fd);
     *fd = -1;

@@ -4,6 +4,7 @@
 // to the server on NFS, and a process in another PID namespace sees it too, so "locked" means
 // "some live process holds it", wherever that process runs.
 
+#include <cstdint>
 #include <string>
 
 namespace raystack {
@@ -16,8 +17,19 @@ enum class LockResult {
   kError,          // cannot open: *error says why
 };
 
-// Opens `path` (read-write, created if `create`) and tries its lock. *fd is the open
+// The bytes of the file a lock covers: several holders may lock disjoint ranges of one file
+// (the frames of one image sequence, rendered by several jobs). Length 0: to the end, so the
+// default is the whole file.
+struct LockRange {
+  uint64_t start = 0, length = 0;
+};
+
+// Opens `path` (read-write, created if `create`) and tries its lock of `range`. *fd is the open
 // descriptor for kLocked and kNoLocks (the caller closes it to release), -1 otherwise.
-LockResult TryLockFile(const std::string& path, bool create, int* fd, std::string* error);
+LockResult TryLockFile(const std::string& path, bool create, int* fd, std::string* error,
+                       LockRange range = {});
+// Widens the lock `fd` holds to the whole file if no one else holds any of it: true then (the
+// file may be removed: no other holder has it open locked).
+bool TryLockWholeFile(int fd);
 
 }  // namespace raystack

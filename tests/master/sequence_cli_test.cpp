@@ -14,11 +14,13 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <vector>
 
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
+#include "tests/preview/background_process.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/store_dir_fixture.h"
 #include "tests/support/test_dir.h"
@@ -113,6 +115,52 @@ TEST_F(Sequence, ResumeLeavesCompleteFramesUntouched) {
       << again.out;
   EXPECT_EQ(std::filesystem::last_write_time(first), older);
   EXPECT_TRUE(Slurp(first) == bytes);
+}
+
+// The day's review: a checkpoint with every pixel finished (an interrupt at the frame's very
+// end) was skipped by --resume as if complete: left "partial" for good, and no PNG; a complete
+// frame whose PNG is missing got none either.
+TEST_F(Sequence, ResumeFinishesACheckpointWithEveryPixelAndMakesAMissingPng) {
+  const std::string out = dir_->File("cp.exr");
+  ASSERT_EQ(Render(out, 0, {"--frames", "0-1"}).exit_code, 0);
+  Expected<image::ImageLayers> frame = image::ReadExr(dir_->File("cp-0.exr"));
+  ASSERT_TRUE(frame.ok()) << frame.status().message();
+  frame->partial = true;  // the same pixels, written as a checkpoint
+  ASSERT_TRUE(image::WriteExr(dir_->File("cp-0.exr"), *frame).ok());
+  ASSERT_TRUE(image::IsPartialFrame(dir_->File("cp-0.exr")));
+  std::filesystem::remove(dir_->File("cp-0.png"));
+  std::filesystem::remove(dir_->File("cp-1.png"));
+  const ProcessResult again = Render(out, 0, {"--frames", "0-1", "--resume"});
+  ASSERT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_FALSE(image::IsPartialFrame(dir_->File("cp-0.exr")));
+  for (const char* png : {"cp-0.png", "cp-1.png"})
+    EXPECT_TRUE(std::filesystem::exists(dir_->File(png))) << png;
+}
+
+// The day's review: the output's lock covered the whole sequence, so two jobs rendering other
+// frames of one sequence (split between machines) were refused. Each job locks its frames.
+TEST_F(Sequence, JobsOnOtherFramesOfOneSequenceRunSideBySide) {
+  const std::string out = dir_->File("split.exr");
+  const std::string log = dir_->File("split.csv");
+  master::preview::testing::BackgroundProcess first(
+      {kRaystackBinary, "render", dir_->File("turn.json"), "--threads", "1", "--output", out,
+       "--frames", "0-1", "--fault-slow-writes", "3", "--convergence-log", log},
+      dir_->path());
+  // Frame 0 ended (its row "0,end,") and its image is being written, slowly: the job holds its
+  // frames for a while.
+  for (int i = 0; i < 3000 && Slurp(log).find("0,end,") == std::string::npos && !first.Exited(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  ASSERT_NE(Slurp(log).find("0,end,"), std::string::npos) << first.err();
+  const ProcessResult other = Render(out, 0, {"--frames", "2-3"});
+  EXPECT_EQ(other.exit_code, 0) << other.err;
+  const ProcessResult overlapping = Render(out, 0, {"--frames", "1-2"});
+  EXPECT_EQ(overlapping.exit_code, 1);
+  EXPECT_NE(overlapping.err.find("another raystack render is writing this output now"),
+            std::string::npos) << overlapping.err;
+  EXPECT_EQ(first.Wait(), 0) << first.err();
+  for (int f = 0; f < 4; ++f)
+    EXPECT_TRUE(std::filesystem::exists(dir_->File(StrFormat("split-%d.exr", f)))) << f;
+  EXPECT_FALSE(std::filesystem::exists(dir_->File(".split.exr.lock"))) << "the last one removes it";
 }
 
 // Found by an animator: the noise depends on (seed, pixel, sample) only, so it stayed on the
