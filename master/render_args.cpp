@@ -86,11 +86,14 @@ options:
                             --reference (format: README.md, "Error against run time")
   --log-interval S          seconds between convergence-log rows (default 0.5)
   --reference REF.exr       an image to measure the convergence log's RMSE and relMSE against
-                            (same size; with several cameras REF-0.exr, REF-1.exr, ...)
+                            (same size; with several cameras named as the outputs are:
+                            REF-0.exr, REF-1.exr, ..., REF-00.exr ... with 11 or more)
   --frames A-B              render only cameras A to B of the scene's list (A, A-B or A-: to
                             the last), counted from 0; their files keep their numbers
   --output FILE.exr         override the scene's output path (the PNG goes beside it;
-                            several cameras: FILE-0.exr, FILE-1.exr, ...)
+                            several cameras: FILE-0.exr, FILE-1.exr, ..., with as many
+                            digits as the last frame's (FILE-07.exr of 24); a run of '#' or
+                            a %04d in the name takes the frame's number instead)
   --no-png                  do not write the PNG quick-look
   --exposure EV             exposure of the PNG quick-look (default 0)
   --stats FILE              also write the run's statistics as JSON

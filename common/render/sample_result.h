@@ -11,7 +11,8 @@ struct SampleResult {
   uint32_t pixel;      // y * width + x
   uint32_t sample;     // index of the sample within the pixel
   float rgb[3];        // the sample's radiance (already summed order-independently)
-  // Primary-hit data, meaningful for sample 0 only (the pixel-centre ray): distance along the
+  // Primary-hit data, meaningful for sample 0 only (the pixel-centre ray at one sample per
+  // pixel, jittered as the others with more): distance along the
   // primary ray (+inf on a miss), shading normal facing the camera, albedo of the material.
   float z;
   float normal[3];

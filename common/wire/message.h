@@ -175,8 +175,8 @@ struct BlockDataHeader {  // followed by the runs' stored bytes (none when faile
   uint32_t reserved;
 };
 // A pixel batch is this header, `count` SampleRecords, then `primary` PrimaryRecords: those
-// of the first `primary` samples, which are the batch's sample-0 ones (the pixel-centre ray,
-// whose hit gives the Z, normal and albedo layers). Other samples leave them out: the film
+// of the first `primary` samples, which are the batch's sample-0 ones (whose hit gives the Z,
+// normal and albedo layers). Other samples leave them out: the film
 // only keeps sample 0's, and at 8 samples a pixel that is 2.2x fewer bytes.
 struct PixelBatchHeader {
   uint32_t frame;
