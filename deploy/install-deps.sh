@@ -17,7 +17,10 @@ if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
 missing=()
 for p in "${packages[@]}"; do
   status="$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)"
-  [ "$status" = "install ok installed" ] || missing+=("$p")
+  case "$status" in  # (one status per architecture, run together, for a multi-arch package)
+    *"install ok installed"*) ;;
+    *) missing+=("$p") ;;
+  esac
 done
 if [ ${#missing[@]} -gt 0 ]; then
   echo "install-deps: installing ${missing[*]}"

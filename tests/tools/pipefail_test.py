@@ -9,7 +9,26 @@ import re
 import sys
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
-EARLY_READER = re.compile(r"(?<!\|)\|\s*(grep\s+-[A-Za-z]*[qm]|head\b)")
+# After a pipe: grep that may stop early (-q, -m, -l, in any of its flags, or spelled out), head,
+# sed that quits, awk that exits.
+EARLY_READER = re.compile(
+    r"(?<!\|)\|\s*(grep\b[^|;]*?\s-[A-Za-z]*[qml]"
+    r"|grep\b[^|;]*--(quiet|silent|max-count|files-with-matches)"
+    r"|head\b|sed\b[^|]*\dq\b|awk\b[^|]*\bexit\b)")
+PIPEFAIL = re.compile(r"^\s*set\s+[^#]*pipefail")
+
+# The checker itself, on the forms it must catch and those it must leave (a review found
+# `grep -E -q`, `--quiet`, `sed 1q`, `awk exit` and `set -Eeuo pipefail` missed).
+for line in ["a | grep -q x", "a | grep -E -q x", "a | grep --quiet x", "a | grep -m1 x",
+             "a | grep -l x", "a | head -n1", "a | sed 1q", "a | awk '{print; exit}'"]:
+    assert EARLY_READER.search(line), line
+for line in ["a || grep -q x", "a | grep -v x", "a | grep -E \"^x-(y|z)$\"", "a | sort",
+             "a | awk '{print $1}'", "grep -q x file"]:
+    assert not EARLY_READER.search(line), line
+for line in ["set -euo pipefail", "set -Eeuo pipefail", "set -e -o pipefail",
+             "set -o errexit -o pipefail"]:
+    assert PIPEFAIL.search(line), line
+assert not PIPEFAIL.search("# set -o pipefail"), "a comment"
 
 
 def shell_scripts():
@@ -28,7 +47,7 @@ checked = 0
 for path in shell_scripts():
     with open(path, encoding="utf-8", errors="replace") as f:
         lines = f.read().splitlines()
-    if not any(re.match(r"\s*set\s+-[a-z]*o\s+pipefail|\s*set\s+-o\s+pipefail", l) for l in lines):
+    if not any(PIPEFAIL.search(l) for l in lines):
         continue
     checked += 1
     for number, line in enumerate(lines, 1):
