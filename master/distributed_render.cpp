@@ -151,7 +151,8 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                               Provenance(scene, f), &writer, args.kill_after_checkpoints,
                               args.fail_checkpoints);
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
-                          scene.integrator.spp, plan.total_samples() - total);
+                          scene.integrator.spp, plan.total_samples() - total,
+                          static_cast<uint32_t>(range.end - 1));
       status = master.RunFrame(static_cast<uint32_t>(f), plan, &film, [&] {
                                  if (const int signal = InterruptSignal())
                                    EndInterrupted(signal, &checkpoints, film,
@@ -386,7 +387,7 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
     Status s = log.ok() ? CheckMemory(*scene, 0) : log.status();
     if (s.ok()) s = CheckOutputOf(args, *scene);
     if (s.ok()) WarnIfCheckpointsKeepLittle(args, *scene);
-    if (s.ok()) WarnIfFrameSizesDiffer(*scene);
+    if (s.ok()) WarnIfFrameSizesDiffer(*scene, FramesOf(args, *scene));
     Expected<OutputLock> output_lock =  // held to the end of the job
         s.ok() ? OutputLock::Take(FramePath(OutputOf(args, *scene), 0, 1, ".exr"),
                                   FramesOf(args, *scene).begin, FramesOf(args, *scene).end)

@@ -366,14 +366,14 @@ void SequenceProgress::FrameDone(size_t f) const {
                             : "");
 }
 
-void WarnIfFrameSizesDiffer(const render::Scene& scene) {
-  const render::CameraDesc& first = scene.cameras.front();
-  for (size_t f = 1; f < scene.cameras.size(); ++f) {
+void WarnIfFrameSizesDiffer(const render::Scene& scene, FrameRange range) {
+  const render::CameraDesc& first = scene.cameras[range.begin];
+  for (size_t f = range.begin + 1; f < range.end; ++f) {
     const render::CameraDesc& c = scene.cameras[f];
     if (c.width == first.width && c.height == first.height) continue;
-    LOG_WARNING("render", "camera %zu is %dx%d where camera 0 is %dx%d: an image sequence usually "
-                "keeps one size (a video made of these frames scales the odd ones)", f, c.width,
-                c.height, first.width, first.height);
+    LOG_WARNING("render", "camera %zu is %dx%d where camera %zu is %dx%d: an image sequence "
+                "usually keeps one size (a video made of these frames scales the odd ones)", f,
+                c.width, c.height, range.begin, first.width, first.height);
     return;
   }
 }

@@ -141,7 +141,7 @@ class SequenceProgress {
 
 // Cameras of different sizes in one list: a sequence usually keeps one size, and a video tool
 // quietly scaled the odd frame to the first's (found by an animator). Warns, naming the first.
-void WarnIfFrameSizesDiffer(const render::Scene& scene);
+void WarnIfFrameSizesDiffer(const render::Scene& scene, FrameRange range);
 // A signal noted before frame `frame` of `range` began to render: the frames before it are
 // written (or their writes finished here), the others are not rendered, and the process ends.
 void EndIfInterruptedBetweenFrames(size_t frame, FrameRange range, FrameWriter* writer,

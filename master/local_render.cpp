@@ -74,7 +74,7 @@ Status RenderLocally(const RenderArgs& args) {
   RAYSTACK_RETURN_IF_ERROR(CheckMemory(*scene, 0));  // the film alone, before the store is read
   RAYSTACK_RETURN_IF_ERROR(CheckOutputOf(args, *scene));
   WarnIfCheckpointsKeepLittle(args, *scene);
-  WarnIfFrameSizesDiffer(*scene);
+  WarnIfFrameSizesDiffer(*scene, range);
   // Held to the end of the job; named from the output as written ("out" and "out.exr" are one).
   Expected<OutputLock> output_lock =
       OutputLock::Take(FramePath(output, 0, 1, ".exr"), range.begin, range.end);
@@ -154,7 +154,8 @@ Status RenderLocally(const RenderArgs& args) {
       std::condition_variable finish_cv;
       bool finished = false;
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
-                          scene->integrator.spp, plan.total_samples() - total);
+                          scene->integrator.spp, plan.total_samples() - total,
+                          static_cast<uint32_t>(range.end - 1));
       std::thread render([&] {
         // An exception must not leave this thread (std::terminate): it fails the frame.
         Status s;

@@ -29,12 +29,13 @@ Expected<LivePreview> LivePreview::Start(const LivePreviewOptions& options) {
 }
 
 void LivePreview::BeginFrame(const render::Film* film, uint32_t frame, uint32_t frames, int spp,
-                             uint64_t samples_restored) {
+                             uint64_t samples_restored, uint32_t last_frame) {
   if (!server_) return;
   film_ = film;
   status_ = PreviewStatus{};
   status_.frame = frame;
   status_.frames = frames;
+  status_.last_frame = last_frame == UINT32_MAX ? frames - 1 : last_frame;
   status_.spp = spp;
   status_.samples_total = static_cast<uint64_t>(film->width()) * static_cast<uint64_t>(film->height()) *
                           static_cast<uint64_t>(spp);

@@ -35,8 +35,9 @@ class LivePreview {
   // Frame `frame` of `frames` renders into `film` (alive until EndFrame) at `spp`;
   // `samples_restored` of its samples are done already and no tile renders them again (--resume:
   // FramePlan's total_samples() - samples_to_render()).
+  // `last_frame`: the job's last frame (--frames), by default frames - 1.
   void BeginFrame(const render::Film* film, uint32_t frame, uint32_t frames, int spp,
-                  uint64_t samples_restored);
+                  uint64_t samples_restored, uint32_t last_frame = UINT32_MAX);
   // Publishes the progress so far (rays/s from the rays the film has been told of); `tiles`
   // is only called when the preview is on.
   void Update(const std::function<std::vector<RankTiles>()>& tiles);

@@ -65,11 +65,12 @@ std::string StatusJson(const PreviewStatus& s, int width, const std::vector<uint
                           ? static_cast<double>(s.samples_total - std::min(done, s.samples_total)) / per_second
                           : kUnknown;
   std::string json = StrFormat(
-      "{\"type\":\"status\",\"frame\":%u,\"frames\":%u,\"samples_done\":%llu,\"samples_total\":%llu,"
+      "{\"type\":\"status\",\"frame\":%u,\"frames\":%u,\"last_frame\":%u,\"samples_done\":%llu,"
+      "\"samples_total\":%llu,"
       "\"progress\":%s,\"elapsed_seconds\":%s,\"samples_per_second\":%s,\"rays_per_second\":%s,"
       "\"seconds_left\":%s,\"error_estimate\":%s,\"finished\":%s,\"failed\":%s,\"interrupted\":%s,"
       "\"note\":%s,\"tiles\":[",
-      s.frame, s.frames, static_cast<unsigned long long>(s.samples_done),
+      s.frame, s.frames, s.last_frame, static_cast<unsigned long long>(s.samples_done),
       static_cast<unsigned long long>(s.samples_total), Number(progress).c_str(),
       Number(s.elapsed_seconds).c_str(), Number(per_second).c_str(),
       Number(s.rays_per_second).c_str(), Number(left).c_str(), Number(s.error_estimate).c_str(),

@@ -20,7 +20,8 @@ struct RankTiles {
 };
 
 struct PreviewStatus {
-  uint32_t frame = 0, frames = 1;  // frame index, and how many the job has
+  uint32_t frame = 0, frames = 1;  // frame index, and how many the scene has
+  uint32_t last_frame = 0;         // the job's last (--frames renders part of the scene's)
   uint64_t samples_done = 0;       // samples merged into the film so far
   uint64_t samples_restored = 0;   // from a checkpoint (--resume): done, but not in the rate
   uint64_t samples_total = 0;      // width * height * spp

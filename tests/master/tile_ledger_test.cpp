@@ -39,6 +39,31 @@ TEST(TileLedger, ATileFinishesWithEachOfItsSamplesOnce) {
   EXPECT_EQ(ledger.unfinished(), 0u);
 }
 
+// A finished tile's vector of kept samples serves the next tile (its memory already mapped):
+// cleared, so a lost slave's next tile gives back only its own samples; and the search that
+// starts at the last sample's tile still finds samples of the others.
+TEST(TileLedger, AFinishedTilesMemoryServesTheNextOneEmpty) {
+  const render::Tile first{4, 8, 8, 12, 1, 3}, second{0, 0, 4, 4, 0, 2}, other{8, 0, 12, 4, 0, 2};
+  TileLedger ledger(kWidth, 4);
+  ledger.Assign(first, 1);
+  const std::vector<render::SampleResult> all = AllOf(first);
+  ASSERT_TRUE(ledger.Record(1, all).ok());
+  EXPECT_EQ(ledger.unfinished(), 0u);
+  ledger.Assign(second, 1);
+  ledger.Assign(other, 2);
+  const std::vector<render::SampleResult> some = {At(0, 0, 0), At(3, 3, 1)};
+  ASSERT_TRUE(ledger.Record(1, some).ok());
+  ASSERT_TRUE(ledger.Record(2, std::vector<render::SampleResult>{At(9, 1, 0)}).ok());
+  ASSERT_TRUE(ledger.Record(1, std::vector<render::SampleResult>{At(1, 1, 1)}).ok());
+  std::vector<render::SampleResult> merged;
+  const std::vector<render::Tile> back = ledger.Release(1, &merged);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].x0, 0);
+  ASSERT_EQ(merged.size(), 3u) << "the first tile's samples are not given back";
+  for (const render::SampleResult& s : merged) EXPECT_LT(s.pixel % kWidth, 4u);
+  EXPECT_EQ(ledger.unfinished(), 1u);
+}
+
 // A sample sent twice (with another never sent, the count would still come out right) is an
 // error naming the sender, and the tile does not finish.
 TEST(TileLedger, ASampleSentTwiceIsAnError) {

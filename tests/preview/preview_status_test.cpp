@@ -13,6 +13,7 @@ TEST(StatusJson, UnknownFiguresAreNullAndFinishedTilesLeaveTheList) {
   PreviewStatus s;
   s.frame = 1;
   s.frames = 2;
+  s.last_frame = 1;  // (--frames: the page ends the job at the range's last frame)
   s.spp = 2;
   s.samples_total = 4 * 2 * 2;
   s.samples_done = 8;
@@ -24,6 +25,7 @@ TEST(StatusJson, UnknownFiguresAreNullAndFinishedTilesLeaveTheList) {
   EXPECT_EQ(j["type"], "status");
   EXPECT_EQ(j["frame"], 1);
   EXPECT_EQ(j["frames"], 2);
+  EXPECT_EQ(j["last_frame"], 1);
   EXPECT_DOUBLE_EQ(j["progress"].get<double>(), 0.5);
   EXPECT_DOUBLE_EQ(j["samples_per_second"].get<double>(), 4.0);
   EXPECT_DOUBLE_EQ(j["seconds_left"].get<double>(), 2.0);  // 8 samples left at 4/s
