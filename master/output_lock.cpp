@@ -22,11 +22,12 @@ Expected<OutputLock> OutputLock::Take(const std::string& output, size_t first, s
       return OutputLock(path, fd);
     case LockResult::kHeldElsewhere:
       return Status::Error(output + ": another raystack render is writing this output now (it "
-                           "holds " + path + (end - first > 1 || first > 0
-                                                  ? StrFormat(", for frames among %zu to %zu",
-                                                              first, end - 1)
-                                                  : std::string()) +
-                           "); wait for it, or give another --output or other --frames");
+                           "holds " + path +
+                           (end - first > 1 ? StrFormat(" for some of frames %zu to %zu", first, end - 1)
+                            : first > 0     ? StrFormat(" for frame %zu", first)
+                                            : std::string()) +
+                           "); wait for it, or give another --output" +
+                           (end - first > 1 || first > 0 ? " or other --frames" : ""));
     case LockResult::kNoLocks:
       LOG_WARNING("render", "%s: its filesystem takes no file locks: nothing keeps another "
                   "render from writing this output at once", output.c_str());
@@ -50,7 +51,7 @@ OutputLock::~OutputLock() {
   // meanwhile finds it gone and tries again (TryLockFile checks that the file it locked is
   // still at its path); removed under another job's frames, a third job would have locked a new
   // file and written those frames too.
-  if (TryLockWholeFile(fd_)) {
+  if (TryLockWholeFile(fd_) && StillAtPath(fd_, path_)) {  // (not another job's new file)
     std::error_code ec;
     std::filesystem::remove(path_, ec);
   }

@@ -185,6 +185,7 @@ void Shader::EmitterLight(const RayRecord& ray, Vec3f p, Vec3f origin, Vec3f n, 
   // and a lamp 0.25 over a floor there had every shadow ray's end below the floor, the floor
   // black outside the lamp's footprint (found by the day's review).
   const float gap = Dot(facing, origin - s.point);
+  if (!(gap > 0)) return;  // in the emitter's plane (or NaN): it lights nothing there
   const float step = std::fabs(facing.x) * margin.x + std::fabs(facing.y) * margin.y +
                      std::fabs(facing.z) * margin.z;
   if (step > 0.5f * gap) margin = margin * (0.5f * gap / step);

@@ -5,12 +5,11 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdint>
 #include <cstring>
 #include <string>
 
 namespace raystack {
-
-namespace {
 
 // Whether `f` is still the file at `path`: a holder may unlink a lock file it created (a failed
 // prep removes its store's), and a process that opened it just before then would lock a file
@@ -21,10 +20,20 @@ bool StillAtPath(int f, const std::string& path) {
          open_file.st_dev == at_path.st_dev && open_file.st_ino == at_path.st_ino;
 }
 
-// One try: open (or create) and lock without waiting.
+namespace {
+
+// One try: open (or create) and lock without waiting. *again: held, but by a holder that is
+// removing the file (it widened its lock to the whole file first, master/output_lock.cpp) or
+// has removed it: the next try meets a new file.
 LockResult TryLockFileOnce(const std::string& path, bool create, int* fd, std::string* error,
-                           LockRange range) {
+                           LockRange range, bool* again) {
   *fd = -1;
+  *again = false;
+  if (range.start > static_cast<uint64_t>(INT64_MAX) ||
+      range.length > static_cast<uint64_t>(INT64_MAX) - range.start) {
+    *error = path + ": cannot lock: the range is too large";
+    return LockResult::kError;
+  }
   const int f = ::open(path.c_str(), O_RDWR | O_CLOEXEC | (create ? O_CREAT : 0), 0644);
   if (f < 0) {
     if (errno == ENOENT && !create) return LockResult::kNoFile;
@@ -42,6 +51,10 @@ LockResult TryLockFileOnce(const std::string& path, bool create, int* fd, std::s
   }
   const int e = errno;
   if (e == EAGAIN || e == EACCES) {
+    struct flock holder = lock;
+    *again = !StillAtPath(f, path) || (::fcntl(f, F_OFD_GETLK, &holder) == 0 &&
+                                       holder.l_type != F_UNLCK && holder.l_start == 0 &&
+                                       holder.l_len == 0 && range.length != 0);
     ::close(f);
     return LockResult::kHeldElsewhere;
   }
@@ -70,7 +83,14 @@ LockResult TryLockFile(const std::string& path, bool create, int* fd, std::strin
   constexpr int kTries = 8;
   LockResult result = LockResult::kError;
   for (int i = 0; i < kTries; ++i) {
-    result = TryLockFileOnce(path, create, fd, error, range);
+    bool again = false;
+    result = TryLockFileOnce(path, create, fd, error, range, &again);
+    if (result == LockResult::kHeldElsewhere && again && i + 1 < kTries) {
+      // A whole-file lock over a range asked for: most likely a job ending, removing the file
+      // (an older build's job, or a store's writer, holds it longer: then it stays held).
+      ::usleep(1000u << i);
+      continue;
+    }
     if (result != LockResult::kLocked || StillAtPath(*fd, path)) return result;
     ::close(*fd);
     *fd = -1;

@@ -28,6 +28,8 @@ struct LockRange {
 // descriptor for kLocked and kNoLocks (the caller closes it to release), -1 otherwise.
 LockResult TryLockFile(const std::string& path, bool create, int* fd, std::string* error,
                        LockRange range = {});
+// Whether the open file `fd` is still the file at `path` (not removed, nor replaced).
+bool StillAtPath(int fd, const std::string& path);
 // Widens the lock `fd` holds to the whole file if no one else holds any of it: true then (the
 // file may be removed: no other holder has it open locked).
 bool TryLockWholeFile(int fd);

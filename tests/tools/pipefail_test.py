@@ -11,24 +11,28 @@ import sys
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
 # After a pipe: grep that may stop early (-q, -m, -l, in any of its flags, or spelled out), head,
 # sed that quits, awk that exits.
+# (A grep's flags end at the next command: &&, ;, > or a quote.)
 EARLY_READER = re.compile(
-    r"(?<!\|)\|\s*(grep\b[^|;]*?\s-[A-Za-z]*[qml]"
-    r"|grep\b[^|;]*--(quiet|silent|max-count|files-with-matches)"
-    r"|head\b|sed\b[^|]*\dq\b|awk\b[^|]*\bexit\b)")
-PIPEFAIL = re.compile(r"^\s*set\s+[^#]*pipefail")
+    r"(?<!\|)\|&?\s*(grep\b[^|;&>'\"]*?\s-[A-Za-z]*[qmlL]"
+    r"|grep\b[^|;&>'\"]*--(quiet|silent|max-count|files-with-matches|files-without-match)"
+    r"|head\b|sed\s+(-n\s+)?['\"]?\d+q\b|sed\b[^|]*/q['\"]|awk\b[^|]*\bexit\b)")
+PIPEFAIL = re.compile(r"^\s*set\s+[^#]*-o\s+pipefail|^\s*set\s+-[A-Za-z]*o\s+pipefail")
 
 # The checker itself, on the forms it must catch and those it must leave (a review found
 # `grep -E -q`, `--quiet`, `sed 1q`, `awk exit` and `set -Eeuo pipefail` missed).
 for line in ["a | grep -q x", "a | grep -E -q x", "a | grep --quiet x", "a | grep -m1 x",
-             "a | grep -l x", "a | head -n1", "a | sed 1q", "a | awk '{print; exit}'"]:
+             "a | grep -l x", "a | grep -L x", "a |& grep -q x", "a | head -n1", "a | sed 1q",
+             "a | sed '/x/q'", "a | awk '{print; exit}'"]:
     assert EARLY_READER.search(line), line
 for line in ["a || grep -q x", "a | grep -v x", "a | grep -E \"^x-(y|z)$\"", "a | sort",
-             "a | awk '{print $1}'", "grep -q x file"]:
+             "a | awk '{print $1}'", "grep -q x file", "a | grep x && wc -l f",
+             "a | grep -i ' -model'", "a | sed 's/v2q/x/'"]:
     assert not EARLY_READER.search(line), line
 for line in ["set -euo pipefail", "set -Eeuo pipefail", "set -e -o pipefail",
              "set -o errexit -o pipefail"]:
     assert PIPEFAIL.search(line), line
-assert not PIPEFAIL.search("# set -o pipefail"), "a comment"
+for line in ["# set -o pipefail", "set +o pipefail"]:
+    assert not PIPEFAIL.search(line), line
 
 
 def shell_scripts():
@@ -46,7 +50,8 @@ found = []
 checked = 0
 for path in shell_scripts():
     with open(path, encoding="utf-8", errors="replace") as f:
-        lines = f.read().splitlines()
+        # A pipe at a line's end continues on the next: joined (numbers stay those of the first).
+        lines = re.sub(r"\|[ \t]*\\?\n", "| ", f.read()).splitlines()
     if not any(PIPEFAIL.search(l) for l in lines):
         continue
     checked += 1
