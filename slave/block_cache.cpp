@@ -111,18 +111,30 @@ bool BlockCache::MakeRoom(uint64_t need) {
 BlockCache::Claim BlockCache::BeginLoad(uint32_t id, bool wait) {
   std::unique_lock lock(mu_);
   Entry& e = entries_[id];
-  switch (e.state.load(std::memory_order_acquire)) {
-    case kResidentState: return Claim::kResident;
-    case kLoadingState: return Claim::kLoading;
-    case kFailedState: return Claim::kFailed;
-    default: break;
-  }
   const uint64_t need = Charge(id);
-  if (!wait && !MakeRoom(need)) return Claim::kNoRoom;
-  ++waiting_;  // before looking, see Release
-  while (!shutdown_ && !MakeRoom(need)) changed_.wait(lock);
-  --waiting_;
-  if (shutdown_) return Claim::kFailed;
+  // The block's state is looked at again after every wait: two sync ray threads missing one
+  // block in a full cache both waited for room, the first loaded it and traced through it, and
+  // the second then claimed it again and freed the first one's data under its pin (found by
+  // ThreadSanitizer; the budget also charged it twice).
+  if (wait) ++waiting_;  // before looking, see Release
+  struct Unwait {
+    std::atomic<int>* waiting;
+    ~Unwait() {
+      if (waiting) --*waiting;
+    }
+  } unwait{wait ? &waiting_ : nullptr};
+  for (;;) {
+    switch (e.state.load(std::memory_order_acquire)) {
+      case kResidentState: return Claim::kResident;
+      case kLoadingState: return Claim::kLoading;
+      case kFailedState: return Claim::kFailed;
+      default: break;
+    }
+    if (shutdown_) return Claim::kFailed;
+    if (MakeRoom(need)) break;
+    if (!wait) return Claim::kNoRoom;
+    changed_.wait(lock);
+  }
   used_ += need;
   CHECK_LE(used_, budget_);
   uint64_t peak = peak_.load();
@@ -154,6 +166,7 @@ Status BlockCache::FinishLoad(uint32_t id, std::span<const uint8_t> stored, int 
     return view.status();
   }
   data->view = *view;
+  CHECK(e.data == nullptr);  // one claim per load (BeginLoad): never a pinned block's data
   e.data = std::move(data);
   e.pins.fetch_add(pins, std::memory_order_relaxed);
   e.last_use.store(clock_.fetch_add(1, std::memory_order_relaxed), std::memory_order_relaxed);

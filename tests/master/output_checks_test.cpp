@@ -234,8 +234,9 @@ TEST(OutputChecks, AnImageLargerThanTheMemoryIsRefusedBeforeRendering) {
 // std::bad_alloc destroyed the running render thread: "terminate called without an active
 // exception", exit 134, its lock left. The limit is now counted before rendering.
 TEST(OutputChecks, AnImageLargerThanTheAddressSpaceLimitIsRefusedBeforeRendering) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "AddressSanitizer reserves terabytes of address space: it cannot start under 2 GB";
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "AddressSanitizer and ThreadSanitizer reserve terabytes of address space: they "
+                  "cannot start under 2 GB";
 #endif
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());

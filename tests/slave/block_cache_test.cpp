@@ -4,6 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <thread>
 #include <vector>
 
 #include "render_fixture.h"
@@ -112,6 +116,54 @@ TEST(BlockCache, AnUnlimitedCacheHandsOutResidentViewsWithoutAPin) {
   auto bounded = slave::BlockCache::Create(*s.reader, uint64_t{64} << 20);
   ASSERT_TRUE(bounded.ok());
   EXPECT_DEATH((*bounded)->ResidentView(0), "budget_ == kUnlimited");
+}
+
+// Two sync ray threads miss one block while the cache is full of pinned blocks: both wait for
+// room. Once there is room the block is loaded once; the other thread finds it loading or
+// resident. It was claimed twice: the second load freed the first one's data under its pin
+// and charged the budget twice (found by ThreadSanitizer in --mode sync).
+TEST(BlockCache, TwoThreadsWaitingForRoomForOneBlockLoadItOnce) {
+  TestStore s = BuildGenerated("spheres:60000");
+  const auto& blocks = s.reader->blocks();
+  ASSERT_GE(blocks.size(), 3u);
+  std::vector<uint32_t> ids(blocks.size());
+  for (uint32_t i = 0; i < ids.size(); ++i) ids[i] = i;
+  const auto charge = [&](uint32_t id) {
+    return (uint64_t{blocks[id].raw_bytes} + 63) & ~uint64_t{63};
+  };
+  std::sort(ids.begin(), ids.end(), [&](uint32_t a, uint32_t b) { return charge(a) > charge(b); });
+  const uint32_t big = ids[0], other = ids[1], wanted = ids.back();
+  Expected<std::unique_ptr<slave::BlockCache>> made =
+      slave::BlockCache::Create(*s.reader, charge(big) + charge(other));
+  ASSERT_TRUE(made.ok()) << made.status().message();
+  slave::BlockCache& cache = **made;
+  std::vector<uint8_t> stored;
+  store::AlignedBuffer scratch;
+  for (const uint32_t id : {big, other}) {  // resident and pinned: the cache is full
+    ASSERT_EQ(cache.BeginLoad(id), slave::BlockCache::Claim::kLoad);
+    ASSERT_TRUE(s.reader->ReadStored(id, &stored).ok());
+    ASSERT_TRUE(cache.FinishLoad(id, stored, 1, &scratch).ok());
+  }
+  std::atomic<int> loads{0}, waiting{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 2; ++t)
+    threads.emplace_back([&] {
+      ++waiting;
+      if (cache.BeginLoad(wanted) != slave::BlockCache::Claim::kLoad) return;
+      ++loads;
+      std::vector<uint8_t> bytes;
+      store::AlignedBuffer buffer;
+      EXPECT_TRUE(s.reader->ReadStored(wanted, &bytes).ok());
+      EXPECT_TRUE(cache.FinishLoad(wanted, bytes, 0, &buffer).ok());
+    });
+  while (waiting.load() < 2) std::this_thread::yield();
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // both inside BeginLoad, waiting
+  cache.Release(big);
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(loads.load(), 1) << "block " << wanted << " was claimed for loading twice";
+  EXPECT_EQ(cache.resident_count(), 2u);
+  EXPECT_LE(cache.used_bytes(), cache.budget());
+  EXPECT_EQ(cache.used_bytes(), charge(other) + charge(wanted));
 }
 
 }  // namespace

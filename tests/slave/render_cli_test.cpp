@@ -306,8 +306,9 @@ TEST_F(RenderCli, ALimitOnThreadsEndsWithAMessageNeverAnAbort) {
 // 6). From a limit the render cannot start under to one it finishes under: a message or the
 // image, never a signal.
 TEST_F(RenderCli, ALimitOnAddressSpaceEndsWithAMessageNeverAnAbort) {
-#if defined(__SANITIZE_ADDRESS__)
-  GTEST_SKIP() << "AddressSanitizer reserves terabytes of address space: it cannot start under one";
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+  GTEST_SKIP() << "AddressSanitizer and ThreadSanitizer reserve terabytes of address space: they "
+                  "cannot start under one";
 #endif
   const std::string scene = PathScene(4);
   int finished = 0;

@@ -39,7 +39,8 @@ render::SampleResult AsReceived(render::SampleResult s) {
 
 TEST(Message, EveryTypeRoundTrips) {
   {
-    const Expected<Message> m = Decode(Encode(3, TileRequest{2, 1}), 3);
+    const std::vector<uint8_t> bytes1 = Encode(3, TileRequest{2, 1});
+    const Expected<Message> m = Decode(bytes1, 3);
     ASSERT_TRUE(m.ok()) << m.status().message();
     EXPECT_EQ(m->type(), MessageType::kTileRequest);
     EXPECT_EQ(m->tile_request().frame, 2u);
@@ -68,7 +69,8 @@ TEST(Message, EveryTypeRoundTrips) {
     done.tile_wait_seconds = 0.125;
     done.block_wait_seconds = 0.0625;
     done.engine_seconds = 1.75;
-    const Expected<Message> m = Decode(Encode(5, done), 5);
+    const std::vector<uint8_t> bytes2 = Encode(5, done);
+    const Expected<Message> m = Decode(bytes2, 5);
     ASSERT_TRUE(m.ok());
     EXPECT_EQ(m->frame_done().samples, 123456789012ull);
     EXPECT_EQ(m->frame_done().seconds, 1.5);
@@ -79,7 +81,8 @@ TEST(Message, EveryTypeRoundTrips) {
     EXPECT_EQ(m->frame_done().engine_seconds, 1.75);
   }
   {
-    const Expected<Message> m = Decode(EncodeError(2, "block 7: damaged\x1b[2J"), 2);
+    const std::vector<uint8_t> bytes3 = EncodeError(2, "block 7: damaged\x1b[2J");
+    const Expected<Message> m = Decode(bytes3, 2);
     ASSERT_TRUE(m.ok());
     EXPECT_EQ(m->error_text(), "block 7: damaged?[2J");  // control characters neutralised
     EXPECT_EQ(EncodeError(2, std::string(100000, 'x')).size(),
@@ -89,7 +92,8 @@ TEST(Message, EveryTypeRoundTrips) {
     Hello hello{8, kHelloRemoteBlocks, 0x1234, 0x5678, {}, {}};
     SetHelloText(hello.build, "0.1.0 (" + std::string(60, 'c') + ")");  // cut to 39 bytes
     SetHelloText(hello.host, "node7");
-    const Expected<Message> m = Decode(Encode(1, hello), 1);
+    const std::vector<uint8_t> bytes4 = Encode(1, hello);
+    const Expected<Message> m = Decode(bytes4, 1);
     ASSERT_TRUE(m.ok());
     const Hello got = m->hello();
     EXPECT_EQ(got.ray_threads, 8u);
@@ -103,15 +107,18 @@ TEST(Message, EveryTypeRoundTrips) {
     std::memset(hostile.host, '\x1b', sizeof hostile.host);
     EXPECT_EQ(HelloText(hostile.host), std::string(40, '?'));
   }
-  ASSERT_TRUE(Decode(Encode(0, Shutdown{0, 0}), 0).ok());
+  const std::vector<uint8_t> bytes5 = Encode(0, Shutdown{0, 0});
+  ASSERT_TRUE(Decode(bytes5, 0).ok());
   {
-    const Expected<Message> m = Decode(Encode(3, Heartbeat{17, 0}), 3);
+    const std::vector<uint8_t> bytes6 = Encode(3, Heartbeat{17, 0});
+    const Expected<Message> m = Decode(bytes6, 3);
     ASSERT_TRUE(m.ok());
     EXPECT_EQ(m->type(), MessageType::kHeartbeat);
     EXPECT_EQ(m->heartbeat().sequence, 17u);
   }
   {
-    const Expected<Message> m = Decode(Encode(0, RankLost{2, 0}), 0);
+    const std::vector<uint8_t> bytes7 = Encode(0, RankLost{2, 0});
+    const Expected<Message> m = Decode(bytes7, 0);
     ASSERT_TRUE(m.ok());
     EXPECT_EQ(m->rank_lost().rank, 2u);
   }
@@ -139,7 +146,8 @@ TEST(Message, PixelBatchRoundTripsBitForBit) {
   // 20 bytes a sample, 28 more for sample 0: a third of the 52 of the whole record.
   EXPECT_EQ(bytes.size(), sizeof(MessageHeader) + sizeof(PixelBatchHeader) + 1000 * 20 + 334 * 28);
   // An empty batch is valid too.
-  ASSERT_TRUE(Decode(EncodePixelBatch(2, 7, {}), 2).ok());
+  const std::vector<uint8_t> bytes8 = EncodePixelBatch(2, 7, {});
+  ASSERT_TRUE(Decode(bytes8, 2).ok());
 }
 
 void ExpectError(const std::vector<uint8_t>& bytes, int from, const std::string& part) {
@@ -229,7 +237,8 @@ TEST(Message, BlockRequestsCarryTheirRuns) {
     EXPECT_EQ(got[i].count, runs[i].count);
   }
   const std::vector<uint8_t> stored(100, 0x5a);
-  const Expected<Message> d = Decode(EncodeBlockData(2, BlockDataHeader{42, 3, 0, 0}, stored), 2);
+  const std::vector<uint8_t> bytes9 = EncodeBlockData(2, BlockDataHeader{42, 3, 0, 0}, stored);
+  const Expected<Message> d = Decode(bytes9, 2);
   ASSERT_TRUE(d.ok()) << d.status().message();
   EXPECT_EQ(d->block_data_header().runs, 3u);
   EXPECT_EQ(d->block_data().size(), stored.size());
