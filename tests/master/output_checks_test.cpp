@@ -24,6 +24,7 @@
 #include "common/image/output_file.h"
 #include "master/preflight.h"
 #include "tests/prep/run_process.h"
+#include "tests/support/small_tmpfs.h"
 #include "tests/support/store_dir_fixture.h"
 
 namespace raystack::testing {
@@ -33,20 +34,17 @@ using prep::testing::ProcessResult;
 using prep::testing::RunProcess;
 
 TEST(OutputChecks, AFullDiskIsReportedBeforeRendering) {
-  if (geteuid() != 0) GTEST_SKIP() << "mounting a small tmpfs needs root (CI runs as root)";
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());
-  const std::string small = dir->File("small");
-  ASSERT_EQ(mkdir(small.c_str(), 0755), 0);
-  if (mount("tmpfs", small.c_str(), "tmpfs", 0, "size=256k") != 0)
-    GTEST_SKIP() << "cannot mount a tmpfs here: " << std::strerror(errno);
+  const SmallTmpfs tmpfs(dir->File("small"), "size=256k");
+  if (tmpfs.path.empty()) GTEST_SKIP() << tmpfs.why;
+  const std::string& small = tmpfs.path;
   std::ofstream(dir->File("scene.json")) << R"({ "store": "no-such-store",
     "camera": { "position": [0, 5, 10], "look_at": [0, 0, 0], "width": 400, "height": 300 } })";
   const ProcessResult r =
       RunProcess({kRaystackBinary, "render", dir->File("scene.json"), "--output",
                   small + "/out.exr", "-q"},
                  dir->path());
-  umount(small.c_str());
   EXPECT_EQ(r.exit_code, 1);
   // Found before the store is even opened (it does not exist).
   EXPECT_NE(r.err.find(small + "/out.exr: the disk holding it has 0.3 MB free, the images need "

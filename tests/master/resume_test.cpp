@@ -18,6 +18,7 @@
 #include "master/resume.h"
 #include "tests/preview/background_process.h"
 #include "tests/prep/run_process.h"
+#include "tests/master/render_runs.h"
 #include "tests/support/store_dir_fixture.h"
 
 namespace raystack::testing {
@@ -38,15 +39,10 @@ class Resume : public StoreDirFixture {
       "integrator": { "type": "path", "max_depth": 3, "spp": 3, "seed": 4 } })";
   }
   ProcessResult Render(const std::string& out, int np, std::vector<std::string> extra = {}) {
-    std::vector<std::string> argv;
-    if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
-    for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("scene.json"),
-                                 std::string("--threads"), std::string("2"), std::string("--cache-mb"),
-                                 std::string("1"), std::string("--tile-size"), std::string("16"),
-                                 std::string("--output"), out, std::string("--no-png")})
-      argv.push_back(a);
-    for (const std::string& a : extra) argv.push_back(a);
-    return RunProcess(argv, dir_->path());
+    std::vector<std::string> args = {dir_->File("scene.json"), "--threads", "2", "--cache-mb", "1",
+                                     "--tile-size", "16", "--output", out, "--no-png"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return RunRender(dir_->path(), np, args);
   }
   // Flags of a render in whole tiles (one pass) with a checkpoint every 0.05 s: 48 samples per
   // pixel, so it outlasts a few checkpoints, and a mid-render checkpoint holds finished pixels.

@@ -20,8 +20,10 @@
 
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
+#include "tests/master/render_runs.h"
 #include "tests/preview/background_process.h"
 #include "tests/prep/run_process.h"
+#include "tests/support/small_tmpfs.h"
 #include "tests/support/store_dir_fixture.h"
 #include "tests/support/test_dir.h"
 
@@ -45,14 +47,9 @@ class Sequence : public StoreDirFixture {
       "integrator": { "type": "path", "max_depth": 3, "spp": 4, "seed": 2 } })";
   }
   ProcessResult Render(const std::string& out, int np, std::vector<std::string> extra = {}) {
-    std::vector<std::string> argv;
-    if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
-    for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("turn.json"),
-                                 std::string("--threads"), std::string("1"), std::string("--output"),
-                                 out})
-      argv.push_back(a);
-    for (const std::string& a : extra) argv.push_back(a);
-    return RunProcess(argv, dir_->path());
+    std::vector<std::string> args = {dir_->File("turn.json"), "--threads", "1", "--output", out};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return RunRender(dir_->path(), np, args);
   }
 };
 
@@ -177,14 +174,9 @@ TEST_F(Sequence, AnimatedSeedGivesEachFrameItsOwnNoise) {
         << (animated ? "true" : "false") << " } }";
     std::vector<std::string> frames[2];
     for (int np : {0, 3}) {
-      std::vector<std::string> argv;
-      if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", "3"};
       const std::string out = dir_->File(StrFormat("still%d%d.exr", animated, np));
-      for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("still.json"),
-                                   std::string("--threads"), std::string("1"), std::string("--no-png"),
-                                   std::string("--output"), out})
-        argv.push_back(a);
-      const ProcessResult r = RunProcess(argv, dir_->path());
+      const ProcessResult r = RunRender(dir_->path(), np, {dir_->File("still.json"), "--threads",
+                                                           "1", "--no-png", "--output", out});
       ASSERT_EQ(r.exit_code, 0) << r.err;
       for (int f : {0, 1}) {
         Expected<image::ImageLayers> image =
@@ -207,12 +199,8 @@ TEST_F(Sequence, CamerasOfDifferentSizesAreAWarning) {
     { "position": [1, 5, 10], "width": 32, "height": 24 },
     { "position": [2, 5, 10], "width": 64, "height": 36 } ] })";
   for (int np : {0, 3}) {
-    std::vector<std::string> argv;
-    if (np > 0) argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", "3"};
-    for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("mixed.json"),
-                                 std::string("--output"), dir_->File("mixed.exr")})
-      argv.push_back(a);
-    const ProcessResult r = RunProcess(argv, dir_->path());
+    const ProcessResult r =
+        RunRender(dir_->path(), np, {dir_->File("mixed.json"), "--output", dir_->File("mixed.exr")});
     EXPECT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.err.find("camera 2 is 64x36 where camera 0 is 32x24: an image sequence usually "
                          "keeps one size"), std::string::npos) << np << ": " << r.err;
@@ -260,13 +248,11 @@ TEST(SequenceWarnings, AFrameThatShowsNothingIsAWarning) {
 // 10 cameras of 40 x 30 take up to 672 KB uncompressed; a 256 KB disk holds one frame (and in
 // fact all of them, compressed): a warning, and the render goes on (it was refused).
 TEST(SequenceRoom, ADiskWithRoomForAFrameIsAWarningNotARefusal) {
-  if (geteuid() != 0) GTEST_SKIP() << "mounting a small tmpfs needs root (CI runs as root)";
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());
-  const std::string small = dir->File("small");
-  ASSERT_EQ(mkdir(small.c_str(), 0755), 0);
-  if (mount("tmpfs", small.c_str(), "tmpfs", 0, "size=256k") != 0)
-    GTEST_SKIP() << "cannot mount a tmpfs here: " << std::strerror(errno);
+  const SmallTmpfs tmpfs(dir->File("small"), "size=256k");
+  if (tmpfs.path.empty()) GTEST_SKIP() << tmpfs.why;
+  const std::string& small = tmpfs.path;
   std::string cameras;
   for (int i = 0; i < 10; ++i)
     cameras += StrFormat("%s{ \"position\": [%d, 5, 10], \"look_at\": [0, 0, 0], \"width\": 40, "
@@ -276,7 +262,6 @@ TEST(SequenceRoom, ADiskWithRoomForAFrameIsAWarningNotARefusal) {
   const ProcessResult r = RunProcess(
       {kRaystackBinary, "render", dir->File("scene.json"), "--output", small + "/f.exr"},
       dir->path());
-  umount(small.c_str());
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find(small + "/f-0.exr: the disk holding it has 0.3 MB free; the 10 frames' "
                        "images take up to 0.7 MB uncompressed (usually far less)"),
