@@ -153,13 +153,15 @@ Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& sc
   FrameWriter::Image image;
   image.exr = FramePath(output, f, frames, ".exr");
   if (args.png) image.png = FramePath(output, f, frames, ".png");
-  // (A checkpoint with every pixel finished is written as the frame; a missing PNG is made,
-  // the EXR with it.)
+  // (A checkpoint with every pixel finished is written as the frame; a missing PNG is made
+  // from the complete EXR's pixels, the EXR left as it is.)
   std::error_code ec;
-  if (args.resume && rendered == 0 && !image::IsPartialFrame(image.exr) &&
-      (image.png.empty() || std::filesystem::exists(image.png, ec))) {
-    if (!args.quiet) std::printf("  kept %s (complete)\n", image.exr.c_str());
-    return image.exr;
+  if (args.resume && rendered == 0 && !image::IsPartialFrame(image.exr)) {
+    if (image.png.empty() || std::filesystem::exists(image.png, ec)) {
+      if (!args.quiet) std::printf("  kept %s (complete)\n", image.exr.c_str());
+      return image.exr;
+    }
+    image.png_only = true;
   }
   image.exposure = args.exposure;
   image.background = f + 1 < FramesOf(args, scene).end;  // the next renders while it is written

@@ -86,7 +86,7 @@ Status FrameWriter::WriteImage(const Image& image, image::ExrThreads threads) {
       return Status::Error(image.exr + ": cannot write EXR: no space left on device "
                            "(--fault-fail-writes)");
     }
-    Status s = image::WriteExr(image.exr, image.layers, threads);
+    Status s = image.png_only ? OkStatus() : image::WriteExr(image.exr, image.layers, threads);
     if (s.ok() && !image.png.empty()) s = image::WritePng(image.png, image.layers, image.exposure);
     return s;
   };
@@ -160,7 +160,8 @@ void FrameWriter::Loop() {
     } else {
       write(image::ExrThreads::kAllCores);
     }
-    if (!image.done && s.ok() && announce_) std::printf("  wrote %s\n", image.exr.c_str());
+    if (!image.done && s.ok() && announce_)
+      std::printf("  wrote %s\n", image.png_only ? image.png.c_str() : image.exr.c_str());
     lock.lock();
     spare_ = std::move(image.layers);  // a frame's or a checkpoint's: the next resolve's memory
     writing_ = false;

@@ -39,6 +39,9 @@ class FrameWriter {
   struct Image {
     std::string exr;
     std::string png;  // empty: no PNG
+    // The EXR is already there, whole (--resume of a complete frame whose PNG is missing): only
+    // the PNG is written, so the EXR keeps its time and a compositor does not reload it.
+    bool png_only = false;
     float exposure = 0;
     bool background = false;  // later frames render while it is written
     image::ImageLayers layers;

@@ -116,7 +116,7 @@ TEST_F(Sequence, ResumeLeavesCompleteFramesUntouched) {
 
 // The day's review: a checkpoint with every pixel finished (an interrupt at the frame's very
 // end) was skipped by --resume as if complete: left "partial" for good, and no PNG; a complete
-// frame whose PNG is missing got none either.
+// frame whose PNG is missing got none either (now the PNG alone: the EXR keeps its time).
 TEST_F(Sequence, ResumeFinishesACheckpointWithEveryPixelAndMakesAMissingPng) {
   const std::string out = dir_->File("cp.exr");
   ASSERT_EQ(Render(out, 0, {"--frames", "0-1"}).exit_code, 0);
@@ -127,11 +127,18 @@ TEST_F(Sequence, ResumeFinishesACheckpointWithEveryPixelAndMakesAMissingPng) {
   ASSERT_TRUE(image::IsPartialFrame(dir_->File("cp-0.exr")));
   std::filesystem::remove(dir_->File("cp-0.png"));
   std::filesystem::remove(dir_->File("cp-1.png"));
+  const std::filesystem::path complete = dir_->File("cp-1.exr");
+  const std::string bytes = Slurp(complete);
+  std::filesystem::last_write_time(complete, std::filesystem::last_write_time(complete) -
+                                                 std::chrono::hours(1));
+  const auto older = std::filesystem::last_write_time(complete);
   const ProcessResult again = Render(out, 0, {"--frames", "0-1", "--resume"});
   ASSERT_EQ(again.exit_code, 0) << again.err;
   EXPECT_FALSE(image::IsPartialFrame(dir_->File("cp-0.exr")));
   for (const char* png : {"cp-0.png", "cp-1.png"})
     EXPECT_TRUE(std::filesystem::exists(dir_->File(png))) << png;
+  EXPECT_EQ(std::filesystem::last_write_time(complete), older) << "the complete EXR is left";
+  EXPECT_TRUE(Slurp(complete) == bytes);
 }
 
 // The day's review: the output's lock covered the whole sequence, so two jobs rendering other
