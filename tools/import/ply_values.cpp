@@ -77,9 +77,11 @@ Status PlyValueReader::NextToken(std::string_view* token) {
 
 Status PlyValueReader::ReadBinary(PlyType type, double* real, int64_t* integer) {
   unsigned char bytes[8];
-  const int size = PlyTypeBytes(type);
+  // At most 8 (a double); the bound also tells GCC so, which otherwise warns, on arm64, that the
+  // reversal below may write past `bytes`.
+  const size_t size = std::min(static_cast<size_t>(PlyTypeBytes(type)), sizeof(bytes));
   value_offset_ = input_.offset();
-  RAYSTACK_RETURN_IF_ERROR(input_.ReadBytes(bytes, static_cast<size_t>(size)));
+  RAYSTACK_RETURN_IF_ERROR(input_.ReadBytes(bytes, size));
   const bool file_big_endian = format_ == PlyFormat::kBinaryBigEndian;
   if (file_big_endian != (std::endian::native == std::endian::big))
     std::reverse(bytes, bytes + size);
