@@ -15,17 +15,20 @@ packages=(build-essential cmake ninja-build pkg-config liblz4-dev libxxhash-dev 
 sudo=""
 if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
 missing=()
+# Installed for this machine's architecture (or for all): a multi-arch package may also be there
+# for another one (deploy/check-arm64.sh adds arm64 copies of liblz4-dev and the like), one
+# line each.
+host="$(dpkg --print-architecture)"
 for p in "${packages[@]}"; do
-  status="$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)"
-  case "$status" in  # (one status per architecture, run together, for a multi-arch package)
-    *"install ok installed"*) ;;
-    *) missing+=("$p") ;;
-  esac
+  status="$(dpkg-query -W -f='${Architecture} ${Status}\n' "$p" 2>/dev/null || true)"
+  grep -qE "^($host|all) install ok installed$" <<<"$status" || missing+=("$p")
 done
 if [ ${#missing[@]} -gt 0 ]; then
   echo "install-deps: installing ${missing[*]}"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  # (env: sudo would drop DEBIAN_FRONTEND; the lock timeout waits out apt's daily run on a new VM)
+  apt=($sudo env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600)
+  "${apt[@]}" update -qq
+  "${apt[@]}" install -y -qq --no-install-recommends "${missing[@]}"
 else
   echo "install-deps: all ${#packages[@]} packages already installed"
 fi

@@ -9,8 +9,10 @@ set(CMAKE_CXX_COMPILER aarch64-linux-gnu-g++)
 set(CMAKE_LIBRARY_ARCHITECTURE aarch64-linux-gnu)
 set(CMAKE_CROSSCOMPILING_EMULATOR qemu-aarch64-static -L /usr/aarch64-linux-gnu)
 
-# Headers and CMake packages from the shared /usr (arch-independent or multiarch), libraries
-# only for the target, programs (pkg-config, cmake helpers) from the host.
+# Headers and CMake packages from the shared /usr (arch-independent or multiarch), programs
+# (pkg-config, cmake helpers) from the host. Libraries are searched in both roots too: the
+# target's are found first because CMAKE_LIBRARY_ARCHITECTURE and PKG_CONFIG_LIBDIR point the
+# searches at /usr/lib/aarch64-linux-gnu.
 set(CMAKE_FIND_ROOT_PATH /usr/aarch64-linux-gnu /usr)
 set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
 set(CMAKE_FIND_ROOT_PATH_MODE_LIBRARY ONLY)

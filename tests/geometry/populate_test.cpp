@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 #include <sys/mman.h>
+#include <unistd.h>
 
 #include <cstdint>
 #include <memory>
@@ -15,6 +16,9 @@ namespace raystack {
 namespace {
 
 constexpr size_t kMB = size_t{1} << 20;
+
+// The kernel's page (4 KB on x86-64; 16 or 64 KB on some arm64 kernels), as PopulateForWrite uses.
+size_t PageBytes() { return static_cast<size_t>(sysconf(_SC_PAGESIZE)); }
 
 struct alignas(64) Line {
   uint32_t value[16];
@@ -36,7 +40,8 @@ TEST(PopulatedAllocator, LargeArraysAreInMemoryBeforeTheFirstWrite) {
   Line* p = populated.allocate(n);
   EXPECT_EQ(reinterpret_cast<uintptr_t>(p) % alignof(Line), 0u);
   // The whole pages of the array (its first and last may share a page with the heap's own).
-  EXPECT_EQ(testing::ResidentShare(reinterpret_cast<char*>(p) + 4096, n * sizeof(Line) - 8192),
+  const size_t page = PageBytes();
+  EXPECT_EQ(testing::ResidentShare(reinterpret_cast<char*>(p) + page, n * sizeof(Line) - 2 * page),
             1.0);
   p[n - 1].value[15] = 3;
   EXPECT_EQ(p[n - 1].value[15], 3u);
@@ -51,7 +56,7 @@ TEST(PopulatedAllocator, LargeArraysAreInMemoryBeforeTheFirstWrite) {
 TEST(PopulateForWrite, MapsTheWholePagesOfARange) {
   if (!testing::KernelPopulatesOnRequest())
     GTEST_SKIP() << "this kernel cannot map pages in on request (MADV_POPULATE_WRITE, Linux 5.14)";
-  const size_t page = 4096, pages = 64;
+  const size_t page = PageBytes(), pages = 64;
   void* mapped = mmap(nullptr, pages * page, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS,
                       -1, 0);
   ASSERT_NE(mapped, MAP_FAILED);
@@ -73,7 +78,7 @@ TEST(ReserveForWrite, MapsALargeVectorBeforeItIsFilled) {
   ReserveForWrite(&large, 6 * kMB);
   EXPECT_EQ(large.size(), 0u);
   ASSERT_GE(large.capacity(), 6 * kMB);
-  const size_t page = 4096;
+  const size_t page = PageBytes();
   const auto first = (reinterpret_cast<uintptr_t>(large.data()) + page - 1) / page * page;
   EXPECT_EQ(testing::ResidentShare(reinterpret_cast<const void*>(first), 4 * kMB), 1.0);
   std::vector<char> small;
