@@ -66,12 +66,13 @@ uint32_t BlockEncoder::VertexOf(const EncodeInput& in, uint32_t tri, int corner,
     uint32_t slot = slots_[h];
     if (slot == 0) {
       const uint32_t index = static_cast<uint32_t>(vertex_source_.size());
-      vertex_source_.push_back(tri * 3 + static_cast<uint32_t>(corner));
+      vertex_source_.push_back(uint64_t{tri} * 3 + static_cast<uint64_t>(corner));
       slots_[h] = index + 1;
       return index;
     }
-    const uint32_t source = vertex_source_[slot - 1];
-    if (KeyOf(in, source / 3, static_cast<int>(source % 3), attributes) == key) return slot - 1;
+    const uint64_t source = vertex_source_[slot - 1];
+    if (KeyOf(in, static_cast<uint32_t>(source / 3), static_cast<int>(source % 3), attributes) == key)
+      return slot - 1;
   }
 }
 
@@ -134,7 +135,7 @@ uint32_t BlockEncoder::Encode(const EncodeInput& in, std::vector<uint8_t>* raw) 
   float* nx = At<float>(raw, l.normals);
   float* uu = At<float>(raw, l.uvs);
   for (uint32_t i = 0; i < v; ++i) {
-    const uint32_t tri = vertex_source_[i] / 3;
+    const auto tri = static_cast<uint32_t>(vertex_source_[i] / 3);
     const int corner = static_cast<int>(vertex_source_[i] % 3);
     const Vec3f& p = in.triangles[tri].p[corner];
     px[i] = p.x;

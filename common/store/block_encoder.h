@@ -63,7 +63,9 @@ class BlockEncoder {
   std::vector<BvhBuildPrimitive> prims_;
   std::vector<uint32_t> order_;
   std::vector<uint32_t> slots_;  // open-addressing vertex table: vertex index + 1, 0 = free
-  std::vector<uint32_t> vertex_source_;  // per vertex: tri * 3 + corner it came from
+  // Per vertex: tri * 3 + corner it came from, in 64 bits: `tri` indexes the converter's whole
+  // bucket, which may hold more than 2^32 / 3 triangles under a large --mem-limit.
+  std::vector<uint64_t> vertex_source_;
   std::vector<uint32_t> corners_;        // per (triangle in BVH order, corner): vertex index
 };
 

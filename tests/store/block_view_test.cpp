@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/mman.h>
+
 #include <cstring>
 #include <limits>
 #include <random>
@@ -74,6 +76,47 @@ TEST(BlockView, EncodedBlockParsesAndKeepsEveryTriangle) {
   for (int s : seen) EXPECT_EQ(s, 1);
   EXPECT_FALSE(v->has_normals());  // the source had none: none stored
   EXPECT_FALSE(v->has_uvs());
+}
+
+// Found by a scale review: the encoder named a vertex's source as `tri * 3 + corner` in 32 bits,
+// where `tri` indexes the converter's whole bucket (up to --mem-limit / 640 triangles: more than
+// 2^32 / 3 from ~850 GB on). Past 1,431,655,765 the name wrapped to another triangle: the block
+// took that one's corners, silently. Two triangles that far into a sparse mapping (66 GB of
+// address space, a few pages touched) must keep their own corners and share their edge.
+TEST(BlockEncoder, TrianglesPastTheFirstBillionAndAHalfKeepTheirOwnCorners) {
+  constexpr size_t kFar = 1'500'000'000;
+  const size_t bytes = (kFar + 2) * sizeof(PackedTriangle);
+  void* mapped = mmap(nullptr, bytes, PROT_READ | PROT_WRITE,
+                      MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
+  if (mapped == MAP_FAILED)
+    GTEST_SKIP() << "cannot map " << bytes << " bytes of address space (ulimit -v or strict overcommit)";
+  const std::span<PackedTriangle> tris(static_cast<PackedTriangle*>(mapped), kFar + 2);
+  const Vec3f a{0.2f, 0.2f, 0.5f}, b{0.8f, 0.2f, 0.5f}, c{0.8f, 0.8f, 0.5f}, d{0.2f, 0.8f, 0.5f};
+  tris[kFar] = {{a, b, c}, 7, kNoMaterial};
+  tris[kFar + 1] = {{a, c, d}, 8, kNoMaterial};
+  const Bounds3f cell{{0, 0, 0}, {1, 1, 1}};
+  const std::vector<uint32_t> refs = {kFar, kFar + 1};
+  const std::vector<Bounds3f> bounds = {prep::ClipTriangleToCell(tris[kFar].p, cell),
+                                        prep::ClipTriangleToCell(tris[kFar + 1].p, cell)};
+  EncodeInput in;
+  in.triangles = tris;
+  in.refs = refs;
+  in.ref_bounds = bounds;
+  in.cell = cell;
+  BlockEncoder encoder;
+  std::vector<uint8_t> raw;
+  EXPECT_EQ(encoder.Encode(in, &raw), 4u);  // a and c shared
+  AlignedBuffer buffer;
+  Expected<BlockView> v = ParseCopy(raw, &buffer, 1);
+  ASSERT_TRUE(v.ok()) << v.status().message();
+  ASSERT_EQ(v->triangle_count(), 2u);
+  for (uint32_t t = 0; t < 2; ++t) {
+    const PackedTriangle& source = tris[kFar + v->TriangleId(t) - 7];
+    Vec3f p0, p1, p2;
+    v->TriangleVertices(t, &p0, &p1, &p2);
+    EXPECT_TRUE(p0 == source.p[0] && p1 == source.p[1] && p2 == source.p[2]) << "triangle " << t;
+  }
+  munmap(mapped, bytes);
 }
 
 // The traversal tests 4 triangles' edges at once and only the survivors one by one; the hits
