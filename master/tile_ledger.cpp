@@ -1,5 +1,6 @@
 #include "master/tile_ledger.h"
 
+#include "common/base/check.h"
 #include "common/base/log.h"
 #include "common/render/frame_plan.h"
 
@@ -15,8 +16,10 @@ void TileLedger::Assign(const render::Tile& tile, int rank) {
     spare_kept_.pop_back();
   }
   kept.reserve(expected);  // (the last sample is never kept: the tile then finishes)
-  in_flight_.push_back({tile, rank, 0, expected, std::move(kept),
-                        std::vector<uint64_t>((bits + 63) / 64, 0)});
+  CHECK(rank >= 0);
+  if (static_cast<size_t>(rank) >= ranks_.size()) ranks_.resize(static_cast<size_t>(rank) + 1);
+  ranks_[static_cast<size_t>(rank)].in_flight.push_back(
+      {tile, 0, expected, std::move(kept), std::vector<uint64_t>((bits + 63) / 64, 0)});
   ++unfinished_;
 }
 
@@ -39,19 +42,22 @@ bool TileLedger::Holds(const render::Tile& t, const render::SampleResult& s) con
 }
 
 Status TileLedger::Record(int rank, std::span<const render::SampleResult> samples) {
-  const auto found = [&](size_t i, const render::SampleResult& s) {
-    return in_flight_[i].rank == rank && Holds(in_flight_[i].tile, s);
-  };
+  if (samples.empty()) return OkStatus();
+  if (rank < 0 || static_cast<size_t>(rank) >= ranks_.size())
+    return Status::Error(StrFormat("rank %d sent sample %u of pixel %u, which no tile it is "
+                                   "rendering holds", rank, samples[0].sample, samples[0].pixel));
+  std::vector<Entry>& in_flight = ranks_[static_cast<size_t>(rank)].in_flight;
+  size_t& last = ranks_[static_cast<size_t>(rank)].last;
   for (const render::SampleResult& s : samples) {
-    size_t i = last_;
-    if (i >= in_flight_.size() || !found(i, s)) {
+    size_t i = last;
+    if (i >= in_flight.size() || !Holds(in_flight[i].tile, s)) {
       i = 0;
-      while (i < in_flight_.size() && !found(i, s)) ++i;
+      while (i < in_flight.size() && !Holds(in_flight[i].tile, s)) ++i;
     }
-    if (i == in_flight_.size())
+    if (i == in_flight.size())
       return Status::Error(StrFormat("rank %d sent sample %u of pixel %u, which no tile it is "
                                      "rendering holds", rank, s.sample, s.pixel));
-    Entry& e = in_flight_[i];
+    Entry& e = in_flight[i];
     const size_t bit = SeenBit(e, s);
     uint64_t& word = e.seen[bit / 64];
     const uint64_t mask = uint64_t{1} << (bit % 64);
@@ -59,12 +65,12 @@ Status TileLedger::Record(int rank, std::span<const render::SampleResult> sample
       return Status::Error(StrFormat("rank %d sent sample %u of pixel %u twice", rank, s.sample,
                                      s.pixel));
     word |= mask;
-    last_ = i;
+    last = i;
     if (++e.received == e.expected) {  // finished: nothing to take back any more
       e.kept.clear();
       spare_kept_.push_back(std::move(e.kept));
-      in_flight_[i] = std::move(in_flight_.back());
-      in_flight_.pop_back();
+      in_flight[i] = std::move(in_flight.back());
+      in_flight.pop_back();
       --unfinished_;
     } else {
       e.kept.push_back(s);
@@ -75,17 +81,15 @@ Status TileLedger::Record(int rank, std::span<const render::SampleResult> sample
 
 std::vector<render::Tile> TileLedger::Release(int rank, std::vector<render::SampleResult>* merged) {
   std::vector<render::Tile> released;
-  for (size_t i = 0; i < in_flight_.size();) {
-    if (in_flight_[i].rank != rank) {
-      ++i;
-      continue;
-    }
-    merged->insert(merged->end(), in_flight_[i].kept.begin(), in_flight_[i].kept.end());
-    released.push_back(in_flight_[i].tile);
-    in_flight_[i] = std::move(in_flight_.back());
-    in_flight_.pop_back();
+  if (rank < 0 || static_cast<size_t>(rank) >= ranks_.size()) return released;
+  RankTiles& r = ranks_[static_cast<size_t>(rank)];
+  for (Entry& e : r.in_flight) {
+    merged->insert(merged->end(), e.kept.begin(), e.kept.end());
+    released.push_back(e.tile);
     --unfinished_;
   }
+  r.in_flight.clear();
+  r.last = 0;
   return released;
 }
 

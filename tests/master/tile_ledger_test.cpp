@@ -110,5 +110,39 @@ TEST(TileLedger, AReleasedTileIsGivenBackWithItsSamples) {
   EXPECT_EQ(ledger.unfinished(), 0u);
 }
 
+// Each rank's tiles are looked up among its own (the ledger keeps them per rank): samples of
+// three ranks' tiles, interleaved, finish each tile once; a rank's samples of a tile another rank
+// holds, or from a rank never given one, are errors; releasing one rank leaves the others'.
+TEST(TileLedger, RanksTilesAreKeptApart) {
+  const render::Tile a{0, 0, 4, 4, 0, 2}, b{4, 0, 8, 4, 0, 2}, c{8, 0, 12, 4, 0, 2},
+                     d{0, 4, 4, 8, 0, 2};
+  TileLedger ledger(kWidth, 2);
+  ledger.Assign(a, 1);
+  ledger.Assign(b, 5);
+  ledger.Assign(c, 1);
+  ledger.Assign(d, 3);
+  const std::vector<render::SampleResult> of_a = AllOf(a), of_b = AllOf(b), of_c = AllOf(c);
+  for (size_t i = 0; i < of_a.size(); ++i) {
+    if (i + 1 < of_a.size()) {  // rank 1 alternates between its two tiles
+      ASSERT_TRUE(ledger.Record(1, std::span(&of_a[i], 1)).ok());
+      ASSERT_TRUE(ledger.Record(1, std::span(&of_c[i], 1)).ok());
+    }
+    ASSERT_TRUE(ledger.Record(5, std::span(&of_b[i], 1)).ok());
+  }
+  EXPECT_EQ(ledger.unfinished(), 3u);  // b finished; a and c one sample short, d untouched
+  EXPECT_FALSE(ledger.Record(3, std::span(&of_a.back(), 1)).ok());   // rank 1's tile
+  EXPECT_FALSE(ledger.Record(2, std::span(&of_a.back(), 1)).ok());   // never given a tile
+  EXPECT_FALSE(ledger.Record(-1, std::span(&of_a.back(), 1)).ok());  // not a rank
+  std::vector<render::SampleResult> merged;
+  const std::vector<render::Tile> back = ledger.Release(1, &merged);
+  EXPECT_EQ(back.size(), 2u);
+  EXPECT_EQ(merged.size(), 2 * (of_a.size() - 1));
+  EXPECT_EQ(ledger.unfinished(), 1u);  // d, rank 3's
+  EXPECT_TRUE(ledger.Release(7, &merged).empty());
+  const std::vector<render::SampleResult> of_d = AllOf(d);
+  ASSERT_TRUE(ledger.Record(3, of_d).ok());
+  EXPECT_EQ(ledger.unfinished(), 0u);
+}
+
 }  // namespace
 }  // namespace raystack::master
