@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "common/base/log.h"
 #include "common/base/status.h"
 #include "master/convergence_monitor.h"
 #include "master/preview/live_preview.h"
@@ -64,6 +65,16 @@ struct RenderArgs {
 inline int DefaultRayThreads(unsigned cores) {
   return static_cast<int>(
       std::clamp(cores, 1u, static_cast<unsigned>(slave::BlockLoader::kMaxRayThreads)));
+}
+
+// What to say when --threads' default leaves cores idle (more than the loader serves), or "".
+inline std::string RayThreadsCapNote(unsigned cores) {
+  const auto most = static_cast<unsigned>(slave::BlockLoader::kMaxRayThreads);
+  if (cores <= most) return "";
+  return StrFormat("this process may use %u cores and renders with %u ray threads, the most one "
+                   "slave runs: run %u or more slaves on this machine, each bound to its share of "
+                   "the cores (e.g. mpirun --map-by socket --bind-to socket), to use them all",
+                   cores, most, (cores + most - 1) / most);
 }
 
 // Fills `a` from the command line; `*help` is set by -h/--help (then nothing else is checked).

@@ -130,6 +130,8 @@ enum OctreeNodeKind : uint8_t { kOctreeEmpty = 0, kOctreeLeaf = 1, kOctreeInner 
 inline constexpr uint32_t kNoMaterial = 0x00ffffffu;
 inline constexpr uint16_t kNoMaterial16 = 0xffffu;
 inline constexpr uint32_t kMaxMaterials = 0xfffeu;
+// Triangle ids are 32-bit and 0xffffffff means none: at most this many triangles in a store.
+inline constexpr uint64_t kMaxTriangles = 0xfffffffeull;  // 4,294,967,294
 
 // Raw block header; followed by the sections described in block_layout.h.
 inline constexpr uint32_t kBlockMagic = 0x4b425352u;  // "RSBK"

@@ -90,7 +90,9 @@ struct ReadOptions {
   uint64_t vertex_memory_bytes = 256ull << 20;  // vertex table budget before spilling to disk
   std::string temp_dir;                         // where the spill file goes ("" = $TMPDIR or /tmp)
   ProgressReporter* progress = nullptr;         // fed with input bytes consumed, if set
-  uint64_t max_triangles = 0xffffffffull;       // more is an error: triangle ids are 32-bit
+  // More is an error: a store's triangle ids are 32-bit (store::kMaxTriangles, which the
+  // importer, a library of its own, does not include).
+  uint64_t max_triangles = 0xfffffffeull;
   PositionShift* shift = nullptr;               // --shift (shared by a run's files), if any
 };
 

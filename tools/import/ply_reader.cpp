@@ -1,5 +1,6 @@
 #include "tools/import/ply_reader.h"
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -213,6 +214,14 @@ void PlyReader::WarnOfColours(const PlyElement& element) const {
 
 Status PlyReader::ReadFaces(const PlyElement& element) {
   WarnOfColours(element);
+  // Said at the header, not after hours of reading: a face gives at least one triangle unless it
+  // has fewer than three corners, so a count past the limit will almost surely end in its error.
+  if (element.count > batcher_.max_triangles() - std::min(info_->triangles, batcher_.max_triangles()))
+    LOG_WARNING("import", "%s: the header declares %llu faces, more than the %llu triangles a "
+                "store can hold (its triangle ids are 32-bit): unless most have fewer than 3 "
+                "corners, the conversion will stop with an error when it reaches the limit",
+                input_.path().c_str(), static_cast<unsigned long long>(element.count),
+                static_cast<unsigned long long>(batcher_.max_triangles()));
   return ReadIndexLists(
       element, [this](const PlyProperty& list) { return ReadFaceCorners(list); },
       [this] {

@@ -245,14 +245,14 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   RAYSTACK_RETURN_IF_ERROR(spool.Close());
   WarnAboutCutNames(sources);
   if (materials.size() > store::kMaxMaterials)
-    return Status::Error(StrFormat("%zu materials: format v1 stores at most %u", materials.size(),
+    return Status::Error(StrFormat("%zu materials: a store holds at most %u", materials.size(),
                                    store::kMaxMaterials));
   report.read_seconds = Since(start);
 
   ReplicatedSource source(spool, sink.bounds(), sink.has_attributes(), args.replicate);
   report.triangles = source.triangles();
   report.copies = source.copies();
-  if (source.triangles() >= 0xffffffffull)
+  if (source.triangles() > store::kMaxTriangles)
     return Status::Error(StrFormat("%llu triangles after replication: a store's triangle ids are 32-bit (at most 4,294,967,294 triangles)",
                                    static_cast<unsigned long long>(source.triangles())));
   if (source.triangles() == 0) {

@@ -8,8 +8,8 @@ namespace raystack::prep {
 
 Status SpoolSink::Consume(std::span<const import::SourceTriangle> batch) {
   for (const import::SourceTriangle& s : batch) {
-    if (next_id_ >= 0xffffffffull)
-      return Status::Error("more than 4,294,967,294 triangles: ids are 32-bit in format v1");
+    if (next_id_ >= store::kMaxTriangles)
+      return Status::Error("more than 4,294,967,294 triangles: a store's triangle ids are 32-bit");
     PackedTriangle t;
     TriangleAttributes a{};
     for (int c = 0; c < 3; ++c) {

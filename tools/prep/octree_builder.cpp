@@ -179,7 +179,7 @@ class Builder {
     for (const auto& [leaf, range] : pipeline_.leaf_blocks()) {
       if (range.count > 0xffff)
         return Status::Error(StrFormat("%u blocks in one octree cell (its triangles cannot be "
-                                       "separated); format v1 allows 65535",
+                                       "separated); a store allows 65535",
                                        range.count));
       nodes_[leaf] = {range.first, static_cast<uint16_t>(range.count), store::kOctreeLeaf, 0};
     }
