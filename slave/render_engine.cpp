@@ -8,6 +8,7 @@
 
 #include "common/base/log.h"
 #include "common/base/thread_name.h"
+#include "common/geometry/wide_bvh.h"
 #include "slave/ray_thread.h"
 #include "slave/shading.h"
 
@@ -39,6 +40,12 @@ Expected<std::unique_ptr<RenderEngine>> RenderEngine::Create(const store::StoreR
                                    BlockLoader::kMaxRayThreads, options.threads));
   if (!(options.feed_fraction >= 0 && options.feed_fraction <= 1))
     return Status::Error("--feed-fraction must be in [0, 1]");
+  // Said before every block is read and the tree built, not by the build's internal check.
+  if (options.mode == TraceMode::kBvh && store.summary().source_triangles > WideBvh::kMaxTriangles)
+    return Status::Error(StrFormat(
+        "%s: %llu triangles; --mode bvh builds one tree of at most %llu: --mode stack renders it",
+        store.dir().c_str(), static_cast<unsigned long long>(store.summary().source_triangles),
+        static_cast<unsigned long long>(WideBvh::kMaxTriangles)));
   std::unique_ptr<RenderEngine> engine(new RenderEngine(store, options));
   if (source) engine->source_ = source;
   const bool everything = options.mode == TraceMode::kIncore || options.mode == TraceMode::kBvh;

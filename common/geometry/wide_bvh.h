@@ -34,6 +34,9 @@ struct TriangleOrigin {
 class WideBvh {
  public:
   static constexpr int kWidth = 8;  // children per node
+  // Leaves are numbered in 29 bits of a child reference, and a leaf holds at least one triangle:
+  // at most this many triangles (RenderEngine refuses --mode bvh for a larger store).
+  static constexpr uint64_t kMaxTriangles = uint64_t{1} << 29;
 
   WideBvh() = default;
   // Triangle i has corners vertices[3i .. 3i+2], source id ids[i] (the tie-breaker of

@@ -12,6 +12,7 @@
 #include "tests/slave/render_fixture.h"
 #include "tests/support/brute_force.h"
 #include "tests/support/model_loader.h"
+#include "tests/support/older_store.h"
 
 namespace raystack::testing {
 namespace {
@@ -228,6 +229,27 @@ TEST(RenderEngine, BudgetSmallerThanABlockIsAClearError) {
                   *s.reader, Mode(TraceMode::kStack, static_cast<uint64_t>(mb * 1024 * 1024)))
                   .ok())
       << m;
+}
+
+// Found by a scale review: --mode bvh on a store of more triangles than the one tree numbers
+// read every block and built the tree, then stopped on an internal check ("group < 2^29"). The
+// store's count is looked at first: its summary is rewritten here to claim 2^29 + 1 triangles.
+TEST(RenderEngine, BvhModeRefusesAStoreLargerThanItsTreeAtOnce) {
+  TestStore s = BuildGenerated("sphere:5000");
+  const std::string dir = s.reader->dir();
+  s.reader.reset();
+  ASSERT_TRUE(raystack::testing::RewriteSummary(dir, [](store::StoreSummary* summary) {
+    summary->source_triangles = WideBvh::kMaxTriangles + 1;
+  }));
+  Expected<std::unique_ptr<store::StoreReader>> reader = store::StoreReader::Open(dir);
+  ASSERT_TRUE(reader.ok()) << reader.status().message();
+  Expected<std::unique_ptr<slave::RenderEngine>> bvh =
+      slave::RenderEngine::Create(**reader, Mode(TraceMode::kBvh, 0));
+  ASSERT_FALSE(bvh.ok());
+  EXPECT_NE(bvh.status().message().find("536870913 triangles; --mode bvh builds one tree of at "
+                                        "most 536870912: --mode stack renders it"),
+            std::string::npos) << bvh.status().message();
+  EXPECT_TRUE(slave::RenderEngine::Create(**reader, Mode(TraceMode::kStack, Budget(**reader, 8))).ok());
 }
 
 TEST(RenderEngine, CacheBudgetHoldsFromAFewBlocksUp) {

@@ -2,7 +2,7 @@
 // A store as a raystack-prep from before lights.bin wrote it: the same blocks, no lights.bin,
 // and an index.bin that does not name one (StoreSummary::lights_checksum 0, resealed). For the
 // tests of what a renderer does with such a store (path tracing finds its emitters only by
-// the rays that meet them).
+// the rays that meet them). And any other change to a store's summary, resealed.
 
 #include <cstring>
 #include <filesystem>
@@ -27,18 +27,16 @@ inline std::vector<uint8_t> ReadWholeFile(const std::string& path) {
 
 // Copies the store `from` to `to` (which must not exist) as an older converter would have
 // written it; false when a file could not be read or written.
-inline bool CopyAsOlderStore(const std::string& from, const std::string& to) {
-  std::error_code ec;
-  std::filesystem::copy(from, to, ec);
-  if (ec) return false;
-  std::filesystem::remove(to + "/" + store::kLightsFile, ec);
-  const std::string index = to + "/" + store::kIndexFile;
+// Rewrites the StoreSummary in `dir`'s index.bin with `change` applied, checksum and all.
+template <typename Change>
+bool RewriteSummary(const std::string& dir, Change&& change) {
+  const std::string index = dir + "/" + store::kIndexFile;
   std::vector<uint8_t> bytes = ReadWholeFile(index);
   if (bytes.size() < sizeof(store::FileHeader) + sizeof(store::StoreSummary)) return false;
   store::StoreSummary summary;
   uint8_t* body = bytes.data() + sizeof(store::FileHeader);
   std::memcpy(&summary, body, sizeof summary);
-  summary.lights_checksum = 0;
+  change(&summary);
   std::memcpy(body, &summary, sizeof summary);
   store::FileHeader header;
   std::memcpy(&header, bytes.data(), sizeof header);
@@ -48,6 +46,14 @@ inline bool CopyAsOlderStore(const std::string& from, const std::string& to) {
   std::ofstream out(index, std::ios::binary | std::ios::trunc);
   out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
   return static_cast<bool>(out);
+}
+
+inline bool CopyAsOlderStore(const std::string& from, const std::string& to) {
+  std::error_code ec;
+  std::filesystem::copy(from, to, ec);
+  if (ec) return false;
+  std::filesystem::remove(to + "/" + store::kLightsFile, ec);
+  return RewriteSummary(to, [](store::StoreSummary* summary) { summary->lights_checksum = 0; });
 }
 
 }  // namespace raystack::testing
