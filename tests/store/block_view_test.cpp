@@ -18,6 +18,19 @@
 namespace raystack::store {
 namespace {
 
+// Encodes the triangles `refs` names (their clipped bounds beside them) as one block of `cell`;
+// returns its vertex count.
+uint32_t EncodeBlock(std::span<const PackedTriangle> tris, std::span<const uint32_t> refs,
+                     std::span<const Bounds3f> bounds, const Bounds3f& cell, std::vector<uint8_t>* raw) {
+  EncodeInput in;
+  in.triangles = tris;
+  in.refs = refs;
+  in.ref_bounds = bounds;
+  in.cell = cell;
+  BlockEncoder encoder;
+  return encoder.Encode(in, raw);
+}
+
 struct Fixture {
   std::vector<PackedTriangle> tris;
   std::vector<uint32_t> refs;
@@ -40,13 +53,7 @@ struct Fixture {
       refs.push_back(static_cast<uint32_t>(i));
       bounds.push_back(prep::ClipTriangleToCell(t.p, cell));
     }
-    EncodeInput in;
-    in.triangles = tris;
-    in.refs = refs;
-    in.ref_bounds = bounds;
-    in.cell = cell;
-    BlockEncoder encoder;
-    encoder.Encode(in, &raw);
+    EncodeBlock(tris, refs, bounds, cell, &raw);
   }
 };
 
@@ -98,14 +105,8 @@ TEST(BlockEncoder, TrianglesPastTheFirstBillionAndAHalfKeepTheirOwnCorners) {
   const std::vector<uint32_t> refs = {kFar, kFar + 1};
   const std::vector<Bounds3f> bounds = {prep::ClipTriangleToCell(tris[kFar].p, cell),
                                         prep::ClipTriangleToCell(tris[kFar + 1].p, cell)};
-  EncodeInput in;
-  in.triangles = tris;
-  in.refs = refs;
-  in.ref_bounds = bounds;
-  in.cell = cell;
-  BlockEncoder encoder;
   std::vector<uint8_t> raw;
-  EXPECT_EQ(encoder.Encode(in, &raw), 4u);  // a and c shared
+  EXPECT_EQ(EncodeBlock(tris, refs, bounds, cell, &raw), 4u);  // a and c shared
   AlignedBuffer buffer;
   Expected<BlockView> v = ParseCopy(raw, &buffer, 1);
   ASSERT_TRUE(v.ok()) << v.status().message();
