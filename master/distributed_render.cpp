@@ -301,6 +301,7 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
     if (s.ok()) s = CheckSlaveMemory(EngineMemoryOf(args.engine, **store), SlavesHere(*net), HostName());
     if (!s.ok()) store = s;
   }
+  if (!args.threads_given) WarnOfIdleCores(SlavesHere(*net));
   std::unique_ptr<slave::PeerBlocks> peers;
   slave::EngineOptions options = args.engine;
   const bool faulty = args.fault_rank == 0 || args.fault_rank == net->rank();

@@ -75,6 +75,7 @@ Status RenderLocally(const RenderArgs& args) {
   RAYSTACK_RETURN_IF_ERROR(CheckOutputOf(args, *scene));
   WarnIfCheckpointsKeepLittle(args, *scene);
   WarnIfFrameSizesDiffer(*scene, range);
+  if (!args.threads_given) WarnOfIdleCores(1);
   // Held to the end of the job; named from the output as written ("out" and "out.exr" are one).
   Expected<OutputLock> output_lock =
       OutputLock::Take(FramePath(output, 0, 1, ".exr"), range.begin, range.end);

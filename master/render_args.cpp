@@ -165,8 +165,14 @@ std::string RenderUsage() {
   return usage;
 }
 
+void WarnOfIdleCores(int slaves_here) {
+  const std::string note = RayThreadsCapNote(static_cast<unsigned>(UsableCores()),
+                                             std::thread::hardware_concurrency(), slaves_here);
+  if (!note.empty()) LOG_WARNING("render", "%s", note.c_str());
+}
+
 Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
-  bool bind_given = false, hold_given = false, threads_given = false;
+  bool bind_given = false, hold_given = false;
   a->engine.threads = DefaultRayThreads(static_cast<unsigned>(UsableCores()));
   bool log_options_given = false, checkpoint_faults_given = false;
   for (int i = 1; i < argc; ++i) {
@@ -221,7 +227,7 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       RAYSTACK_RETURN_IF_ERROR(number(&mb, 0.001, 1 << 24, "MiB"));
       a->engine.cache_bytes = static_cast<uint64_t>(mb * 1024 * 1024);
     } else if (arg == "--threads") {
-      threads_given = true;
+      a->threads_given = true;
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.threads, 1, slave::BlockLoader::kMaxRayThreads));
     } else if (arg == "--feed-fraction") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->engine.feed_fraction, 0, 1));
@@ -346,10 +352,6 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
     return Status::Error("--fault-kill-after-checkpoints and --fault-fail-checkpoints need "
                          "checkpoints: add --checkpoint-s S");
   a->preview.server.exposure = a->exposure;
-  if (!*help && !threads_given) {
-    const std::string note = RayThreadsCapNote(static_cast<unsigned>(UsableCores()));
-    if (!note.empty()) LOG_WARNING("render", "%s", note.c_str());
-  }
   return OkStatus();
 }
 

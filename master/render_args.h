@@ -58,6 +58,7 @@ struct RenderArgs {
   // Options given that only slaves of a distributed job use (--blocks, --lost-after, the
   // slaves' faults), for a warning when one process renders alone.
   std::vector<std::string> slave_options;
+  bool threads_given = false;  // --threads: no word about cores its default would leave idle
 };
 
 // --threads' default: every core, up to the most ray threads the loader can serve
@@ -67,15 +68,32 @@ inline int DefaultRayThreads(unsigned cores) {
       std::clamp(cores, 1u, static_cast<unsigned>(slave::BlockLoader::kMaxRayThreads)));
 }
 
-// What to say when --threads' default leaves cores idle (more than the loader serves), or "".
-inline std::string RayThreadsCapNote(unsigned cores) {
-  const auto most = static_cast<unsigned>(slave::BlockLoader::kMaxRayThreads);
-  if (cores <= most) return "";
-  return StrFormat("this process may use %u cores and renders with %u ray threads, the most one "
-                   "slave runs: run %u or more slaves on this machine, each bound to its share of "
-                   "the cores (e.g. mpirun --map-by socket --bind-to socket), to use them all",
-                   cores, most, (cores + most - 1) / most);
+// What to say when --threads' default (64 at most) leaves cores idle, or "": this process may
+// use `usable` of the machine's `machine` cores, and `slaves_here` slaves render on the machine
+// (1 alone). Slaves bound to shares apart (their shares add up to no more than the machine) are
+// told each of its own; unbound ones (each may use every core) of the machine's.
+inline std::string RayThreadsCapNote(unsigned usable, unsigned machine, int slaves_here) {
+  const auto most = static_cast<uint64_t>(slave::BlockLoader::kMaxRayThreads);
+  const auto slaves = static_cast<uint64_t>(std::max(slaves_here, 1));
+  if (usable <= most) return "";
+  const uint64_t advice = (usable + most - 1) / most;
+  if (slaves > 1 && usable * slaves > machine) {  // unbound: each sees the whole machine
+    if (usable <= slaves * most) return "";
+    return StrFormat("the %llu slaves on this machine may each use all of its %u cores and run at "
+                     "most %llu ray threads each: run %llu or more slaves on it, each bound to its "
+                     "share of the cores (e.g. mpirun --map-by socket --bind-to socket), to use "
+                     "them all", static_cast<unsigned long long>(slaves), usable,
+                     static_cast<unsigned long long>(most), static_cast<unsigned long long>(advice));
+  }
+  return StrFormat("this process may use %u cores and renders with %llu ray threads, the most one "
+                   "slave runs: run %llu or more slaves for these cores, each bound to its share "
+                   "(e.g. mpirun --map-by socket --bind-to socket), to use them all",
+                   usable, static_cast<unsigned long long>(most),
+                   static_cast<unsigned long long>(advice * slaves));
 }
+
+// Logs RayThreadsCapNote for this process and machine, if it has anything to say.
+void WarnOfIdleCores(int slaves_here);
 
 // Fills `a` from the command line; `*help` is set by -h/--help (then nothing else is checked).
 Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help);

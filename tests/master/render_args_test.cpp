@@ -19,14 +19,25 @@ TEST(RenderArgs, TheDefaultThreadsAreTheCoresUpToWhatTheLoaderServes) {
 }
 
 // Found by a scale review: on a 128-core node the default of 64 threads left half the cores idle
-// without a word. It is said now, with what to do.
-TEST(RenderArgs, CoresBeyondWhatOneSlaveRunsAreSaid) {
-  EXPECT_EQ(RayThreadsCapNote(2), "");
-  EXPECT_EQ(RayThreadsCapNote(64), "");
-  const std::string note = RayThreadsCapNote(128);
+// without a word. It is said now (by each process that renders), with what to do; slaves that
+// share a machine are counted together.
+TEST(RenderArgs, CoresBeyondWhatTheSlavesRunAreSaid) {
+  EXPECT_EQ(RayThreadsCapNote(2, 2, 1), "");
+  EXPECT_EQ(RayThreadsCapNote(64, 64, 1), "");
+  std::string note = RayThreadsCapNote(128, 128, 1);
   EXPECT_NE(note.find("may use 128 cores and renders with 64 ray threads"), std::string::npos) << note;
-  EXPECT_NE(note.find("run 2 or more slaves on this machine"), std::string::npos) << note;
-  EXPECT_NE(RayThreadsCapNote(200).find("run 4 or more slaves"), std::string::npos);
+  EXPECT_NE(note.find("run 2 or more slaves"), std::string::npos) << note;
+  EXPECT_NE(RayThreadsCapNote(200, 200, 1).find("run 4 or more slaves"), std::string::npos);
+  // Two unbound slaves on 128 cores use them all; on 256 they do not.
+  EXPECT_EQ(RayThreadsCapNote(128, 128, 2), "");
+  note = RayThreadsCapNote(256, 256, 2);
+  EXPECT_NE(note.find("the 2 slaves on this machine may each use all of its 256 cores"),
+            std::string::npos) << note;
+  EXPECT_NE(note.find("run 4 or more slaves on it"), std::string::npos) << note;
+  // Two slaves bound to 128 cores each of 256: each is told of its own share.
+  note = RayThreadsCapNote(128, 256, 2);
+  EXPECT_NE(note.find("may use 128 cores"), std::string::npos) << note;
+  EXPECT_NE(note.find("run 4 or more slaves for these cores"), std::string::npos) << note;
 }
 
 }  // namespace

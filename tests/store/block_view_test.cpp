@@ -8,6 +8,8 @@
 #include <sys/mman.h>
 
 #include <cstring>
+#include <functional>
+#include <memory>
 #include <limits>
 #include <random>
 
@@ -97,6 +99,8 @@ TEST(BlockEncoder, TrianglesPastTheFirstBillionAndAHalfKeepTheirOwnCorners) {
                       MAP_PRIVATE | MAP_ANONYMOUS | MAP_NORESERVE, -1, 0);
   if (mapped == MAP_FAILED)
     GTEST_SKIP() << "cannot map " << bytes << " bytes of address space (ulimit -v or strict overcommit)";
+  const std::unique_ptr<void, std::function<void(void*)>> unmap(
+      mapped, [bytes](void* p) { munmap(p, bytes); });  // also when an assertion returns early
   const std::span<PackedTriangle> tris(static_cast<PackedTriangle*>(mapped), kFar + 2);
   const Vec3f a{0.2f, 0.2f, 0.5f}, b{0.8f, 0.2f, 0.5f}, c{0.8f, 0.8f, 0.5f}, d{0.2f, 0.8f, 0.5f};
   tris[kFar] = {{a, b, c}, 7, kNoMaterial};
@@ -117,7 +121,6 @@ TEST(BlockEncoder, TrianglesPastTheFirstBillionAndAHalfKeepTheirOwnCorners) {
     v->TriangleVertices(t, &p0, &p1, &p2);
     EXPECT_TRUE(p0 == source.p[0] && p1 == source.p[1] && p2 == source.p[2]) << "triangle " << t;
   }
-  munmap(mapped, bytes);
 }
 
 // The traversal tests 4 triangles' edges at once and only the survivors one by one; the hits

@@ -42,6 +42,7 @@ class PlyReader {
   void WarnAboutTrailingData(PlyFormat format);
   Status ReadVertices(const PlyElement& element);
   void WarnOfColours(const PlyElement& element) const;
+  void WarnOfTooManyFaces(const PlyHeader& header) const;
   template <typename ReadList, typename AfterRecord>
   Status ReadIndexLists(const PlyElement& element, ReadList&& read_list, AfterRecord&& after_record);
   Status ReadFaces(const PlyElement& element);
@@ -67,6 +68,7 @@ Status PlyReader::Read() {
   Expected<PlyHeader> header = ReadPlyHeader(input_);
   if (!header.ok()) return header.status();
   values_ = std::make_unique<PlyValueReader>(input_, header->format);
+  WarnOfTooManyFaces(*header);
   for (const PlyElement& element : header->elements) {
     if (element.name == "vertex") {
       RAYSTACK_RETURN_IF_ERROR(ReadVertices(element));
@@ -202,6 +204,21 @@ Status PlyReader::ReadIndexLists(const PlyElement& element, ReadList&& read_list
 
 // Scanners and MeshLab colour vertices or faces ("red green blue"): the model would come out in
 // its material's colour without a word.
+// Said at the header, not after hours of reading: a face gives at least one triangle unless it
+// has fewer than three corners, so faces past what this file may still add (the limit less what
+// earlier files gave: ReadOptions::max_triangles) will almost surely end in the limit's error.
+void PlyReader::WarnOfTooManyFaces(const PlyHeader& header) const {
+  uint64_t faces = 0;  // (a header declares one face element at most)
+  for (const PlyElement& element : header.elements)
+    if (element.name == "face") faces = element.count;
+  if (faces > batcher_.max_triangles())
+    LOG_WARNING("import", "%s: the header declares %llu faces, more than the %llu triangles the "
+                "store can still take (its triangle ids are 32-bit): unless most have fewer than "
+                "3 corners, the conversion will stop with an error when it reaches the limit",
+                input_.path().c_str(), static_cast<unsigned long long>(faces),
+                static_cast<unsigned long long>(batcher_.max_triangles()));
+}
+
 void PlyReader::WarnOfColours(const PlyElement& element) const {
   for (const char* name : {"red", "diffuse_red", "r"})
     if (element.Find(name) >= 0) {
@@ -214,14 +231,6 @@ void PlyReader::WarnOfColours(const PlyElement& element) const {
 
 Status PlyReader::ReadFaces(const PlyElement& element) {
   WarnOfColours(element);
-  // Said at the header, not after hours of reading: a face gives at least one triangle unless it
-  // has fewer than three corners, so a count past the limit will almost surely end in its error.
-  if (element.count > batcher_.max_triangles() - std::min(info_->triangles, batcher_.max_triangles()))
-    LOG_WARNING("import", "%s: the header declares %llu faces, more than the %llu triangles a "
-                "store can hold (its triangle ids are 32-bit): unless most have fewer than 3 "
-                "corners, the conversion will stop with an error when it reaches the limit",
-                input_.path().c_str(), static_cast<unsigned long long>(element.count),
-                static_cast<unsigned long long>(batcher_.max_triangles()));
   return ReadIndexLists(
       element, [this](const PlyProperty& list) { return ReadFaceCorners(list); },
       [this] {

@@ -226,6 +226,9 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     options.temp_dir = temp->path();
     options.progress = &progress;
     options.shift = args.shift ? &shift : nullptr;
+    // What the store can still take after the files before this one (each file's reader counts
+    // from zero).
+    options.max_triangles = store::kMaxTriangles - std::min(sink.triangles(), store::kMaxTriangles);
     import::ModelInfo info;
     sink.set_material_offset(static_cast<uint32_t>(materials.size()));
     RAYSTACK_RETURN_IF_ERROR(import::ReadModel(input, options, sink, &info));
@@ -252,6 +255,11 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   ReplicatedSource source(spool, sink.bounds(), sink.has_attributes(), args.replicate);
   report.triangles = source.triangles();
   report.copies = source.copies();
+  // (Copies times triangles checked before it is multiplied: 4096^3 copies would wrap.)
+  if (source.copies() > 1 && spool.triangles() > store::kMaxTriangles / source.copies())
+    return Status::Error(StrFormat("%llu triangles x %llu copies: a store's triangle ids are 32-bit (at most 4,294,967,294 triangles)",
+                                   static_cast<unsigned long long>(spool.triangles()),
+                                   static_cast<unsigned long long>(source.copies())));
   if (source.triangles() > store::kMaxTriangles)
     return Status::Error(StrFormat("%llu triangles after replication: a store's triangle ids are 32-bit (at most 4,294,967,294 triangles)",
                                    static_cast<unsigned long long>(source.triangles())));
