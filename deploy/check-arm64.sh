@@ -21,28 +21,14 @@ if [ "$(dpkg --print-architecture)" != amd64 ]; then
 fi
 sudo=""
 if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
-apt=($sudo env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600)
 
-updated=0
 archs="$(dpkg --print-foreign-architectures)"  # captured: grep -q would cut a pipe (pipefail)
 if ! grep -qx arm64 <<<"$archs"; then
   echo "check-arm64: adding the arm64 architecture to dpkg"
-  $sudo dpkg --add-architecture arm64
-  "${apt[@]}" update -qq
-  updated=1
+  $sudo dpkg --add-architecture arm64  # (the installer's apt-get update then reads arm64's lists)
 fi
-packages=(g++-aarch64-linux-gnu qemu-user-static liblz4-dev:arm64 libxxhash-dev:arm64
-          libgtest-dev:arm64)
-missing=()
-for p in "${packages[@]}"; do
-  status="$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)"
-  [ "$status" = "install ok installed" ] || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "check-arm64: installing ${missing[*]}"
-  if [ "$updated" = 0 ]; then "${apt[@]}" update -qq; fi
-  "${apt[@]}" install -y -qq --no-install-recommends "${missing[@]}"
-fi
+deploy/apt-install-missing.sh check-arm64 g++-aarch64-linux-gnu qemu-user-static \
+  liblz4-dev:arm64 libxxhash-dev:arm64 libgtest-dev:arm64
 
 if [ ! -f build/compile_commands.json ]; then deploy/build.sh; fi
 deploy/cross/syntax_check.py build/compile_commands.json aarch64-linux-gnu-g++

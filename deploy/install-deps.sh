@@ -12,23 +12,4 @@ set -euo pipefail
 packages=(build-essential cmake ninja-build pkg-config liblz4-dev libxxhash-dev libopenmpi-dev
           openmpi-bin libboost-dev libopenexr-dev libpng-dev nlohmann-json3-dev libgtest-dev
           chromium clang libclang-rt-14-dev python3-matplotlib)
-sudo=""
-if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
-missing=()
-# Installed for this machine's architecture (or for all): a multi-arch package may also be there
-# for another one (deploy/check-arm64.sh adds arm64 copies of liblz4-dev and the like), one
-# line each.
-host="$(dpkg --print-architecture)"
-for p in "${packages[@]}"; do
-  status="$(dpkg-query -W -f='${Architecture} ${Status}\n' "$p" 2>/dev/null || true)"
-  grep -qE "^($host|all) install ok installed$" <<<"$status" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "install-deps: installing ${missing[*]}"
-  # (env: sudo would drop DEBIAN_FRONTEND; the lock timeout waits out apt's daily run on a new VM)
-  apt=($sudo env DEBIAN_FRONTEND=noninteractive apt-get -o DPkg::Lock::Timeout=600)
-  "${apt[@]}" update -qq
-  "${apt[@]}" install -y -qq --no-install-recommends "${missing[@]}"
-else
-  echo "install-deps: all ${#packages[@]} packages already installed"
-fi
+"$(dirname "$0")/apt-install-missing.sh" install-deps "${packages[@]}"
