@@ -38,14 +38,24 @@ TEST(OutputLock, FramesOfOneOutputLockApartAndOverlapsAreRefused) {
   EXPECT_FALSE(std::filesystem::exists(dir->File(".seq.exr.lock"))) << "the last one removes it";
 }
 
+// An open descriptor of `path` (created) holding a lock on the whole file, as a job ending (it
+// widens its lock before it removes the file) or an older build's job does; -1 on failure.
+int HoldWholeFile(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd >= 0 && !TryLockWholeFile(fd)) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
 TEST(OutputLock, AJobEndingDoesNotRefuseOneStartingOnOtherFrames) {
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());
   const std::string path = dir->File(".seq.exr.lock");
   // A job ending: it holds the whole file (widened), then removes it and lets go.
-  const int ending = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  const int ending = HoldWholeFile(path);
   ASSERT_GE(ending, 0);
-  ASSERT_TRUE(TryLockWholeFile(ending));
   std::thread end([&] {
     std::this_thread::sleep_for(std::chrono::milliseconds(3));
     std::filesystem::remove(path);
@@ -62,9 +72,8 @@ TEST(OutputLock, AWholeFileLockThatStaysRefuses) {
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());
   const std::string path = dir->File(".seq.exr.lock");
-  const int older = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  const int older = HoldWholeFile(path);
   ASSERT_GE(older, 0);
-  ASSERT_TRUE(TryLockWholeFile(older));
   Expected<master::OutputLock> starting = master::OutputLock::Take(dir->File("seq.exr"), 2, 4);
   EXPECT_FALSE(starting.ok());
   ::close(older);
