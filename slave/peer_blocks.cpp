@@ -1,6 +1,7 @@
 #include "slave/peer_blocks.h"
 
 #include <chrono>
+#include <utility>
 
 #include "common/base/log.h"
 #include "common/base/thread_name.h"
@@ -248,6 +249,13 @@ Status PeerBlocks::OnRequest(int from, const wire::Message& m) {
   return OkStatus();
 }
 
+Status PeerBlocks::TakeServeFailure() {
+  std::lock_guard lock(mu_);
+  if (serve_failure_.ok()) return OkStatus();
+  serve_failure_taken_ = true;
+  return std::exchange(serve_failure_, OkStatus());
+}
+
 Status PeerBlocks::OnData(int from, const wire::Message& m, std::vector<uint8_t>* received) {
   const wire::BlockDataHeader d = m.block_data_header();
   std::lock_guard lock(mu_);
@@ -298,7 +306,12 @@ void PeerBlocks::Answer(int to, uint32_t request, std::span<const wire::BlockRun
   Status st;
   for (const wire::BlockRun& run : runs)
     for (uint32_t b = run.first; b < run.first + run.count && st.ok(); ++b) st = Own(b, bytes);
-  if (!st.ok()) LOG_ERROR("slave", "serving rank %d: %s", to, st.message().c_str());
+  if (!st.ok()) {
+    LOG_ERROR("slave", "serving rank %d: %s", to, st.message().c_str());
+    std::lock_guard lock(mu_);
+    if (serve_failure_.ok() && !serve_failure_taken_)
+      serve_failure_ = Status::Error(StrFormat("%s (read for rank %d)", st.message().c_str(), to));
+  }
   const wire::BlockDataHeader h{request, static_cast<uint32_t>(runs.size()), st.ok() ? 0u : 1u, 0};
   // Posted, never a blocking send: this may run on the receiving thread, and a receiver
   // waiting for a peer that is itself waiting to answer this one would never return.

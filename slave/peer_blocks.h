@@ -92,6 +92,10 @@ class PeerBlocks final : public BlockSource {
   // `rank` is gone (the master said so): its blocks are read from disk from now on, and the
   // fetches waiting for its answers read them from disk instead.
   void OwnerLost(int rank);
+  // The first failure to read this slave's own share for a peer (its disk, or its copy of the
+  // store, failed): the slave fails on it as on a failed read for its own rays, so a broken
+  // disk drops the slave whoever the read was for. Given once; OK when there was none.
+  Status TakeServeFailure();
 
  private:
   // One request to one owner: the runs of the fetches that joined it, in the order they joined;
@@ -157,6 +161,8 @@ class PeerBlocks final : public BlockSource {
   bool stopped_ = false;
   std::vector<bool> lost_;  // by rank
   std::deque<Served> to_serve_;
+  Status serve_failure_;  // see TakeServeFailure
+  bool serve_failure_taken_ = false;
   std::vector<uint8_t> receive_scratch_;  // answers built on the receiving thread
   std::vector<wire::BlockRun> receive_runs_;
   std::thread server_;

@@ -329,6 +329,9 @@ void SlaveNode::ReceiveLoop() {
         std::_Exit(128 + signal);
       }
     }
+    if (peers_) {  // a read for a peer failed (on the server thread, or below)
+      if (Status s = peers_->TakeServeFailure(); !s.ok()) Failed(s);
+    }
     if (!got.ok()) {
       Failed(got.status());
       continue;

@@ -27,10 +27,10 @@ namespace {
 
 // Two slaves (ranks 1 and 2; rank 0, the master, is not used) over one in-process hub.
 struct TwoSlaves {
-  explicit TwoSlaves(const store::StoreReader& store)
+  explicit TwoSlaves(const store::StoreReader& store, slave::FaultOptions faults2 = {})
       : hub(3), net1(hub.Endpoint(1)), net2(hub.Endpoint(2)),
         peers1(net1.get(), store, slave::FaultOptions{}),
-        peers2(net2.get(), store, slave::FaultOptions{}) {}
+        peers2(net2.get(), store, faults2) {}
 
   // Receives one message for `rank` (waiting up to a few seconds) and hands it to its
   // PeerBlocks as the slave's receiving thread does; the handler's status.
@@ -215,6 +215,33 @@ TEST(PeerBlocks, AnOwnersLateOrFailedAnswerSendsItsAskersToDisk) {
     EXPECT_EQ(fetch.got, stored);
     EXPECT_EQ(job.peers1.bytes_from_peers(), 0u);
   }
+}
+
+// An owner whose disk fails while it reads a block for a peer: the asker reads it from its own
+// disk, and the owner is told to fail (once) as it would on a read for its own rays. Found as
+// a flaky test: whether the fault hit the owner's own read or a peer's decided whether the
+// broken slave was dropped at all.
+TEST(PeerBlocks, AReadThatFailsForAPeerFailsItsOwner) {
+  TestStore s = BuildGenerated("sphere:20000", 4);
+  const store::StoreReader& store = *s.reader;
+  const uint32_t theirs = FirstOwnedBy(store, 2);
+  slave::FaultOptions broken;
+  broken.fail_read = 0;
+  TwoSlaves job(store, broken);
+  EXPECT_TRUE(job.peers2.TakeServeFailure().ok());
+  OneFetch fetch(&job.peers1, theirs);
+  ASSERT_TRUE(job.Pump(2).ok());  // the request: read on rank 2's server thread, which fails
+  ASSERT_TRUE(job.Pump(1).ok());  // the failed answer
+  fetch.thread.join();
+  ASSERT_TRUE(fetch.status.ok()) << fetch.status.message();
+  EXPECT_EQ(fetch.got, FromDisk(store, theirs, 1));
+  const Status failure = job.peers2.TakeServeFailure();
+  ASSERT_FALSE(failure.ok());
+  EXPECT_NE(failure.message().find("block " + std::to_string(theirs)), std::string::npos)
+      << failure.message();
+  EXPECT_NE(failure.message().find("(read for rank 1)"), std::string::npos) << failure.message();
+  EXPECT_TRUE(job.peers2.TakeServeFailure().ok());  // given once
+  EXPECT_TRUE(job.peers1.TakeServeFailure().ok());  // the asker's own disk is fine
 }
 
 // The loader over PeerBlocks with a budget of a few blocks, many blocks wanted at once: every
