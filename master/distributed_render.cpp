@@ -20,6 +20,7 @@
 #include "master/checkpoints.h"
 #include "master/convergence_monitor.h"
 #include "master/frame_steps.h"
+#include "master/stats_file.h"
 #include "master/frame_writer.h"
 #include "master/master_node.h"
 #include "master/output_lock.h"
@@ -118,7 +119,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
   };
   const InterruptsHeld held;  // to the last write (declared before `writer`: outlives it)
   FrameWriter writer(!args.quiet, args.fail_writes, FrameWriter::kRetrySeconds, args.slow_writes_s);
-  std::string json = "[\n";
+  StatsFile stats_file(args.stats);
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
   const SequenceProgress sequence(range, args.quiet);
@@ -243,10 +244,9 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                     static_cast<double>(s.bytes_received) / 1e6, cache.c_str());
       }
     }
-    json += FiguresJson(FrameRecordJson(f, *exr, camera.width(), camera.height(), plan.spp(),
-                                        monitor.stopped() ? monitor.stop_reason() : ""),
-                        figures) +
-            (f + 1 < range.end ? ",\n" : "\n");
+    stats_file.Append(FiguresJson(FrameRecordJson(f, *exr, camera.width(), camera.height(),
+                                                  plan.spp(), monitor.stopped() ? monitor.stop_reason() : ""),
+                                  figures));
     sequence.FrameDone(f);
   }
   if (const Status written = writer.Finish(); !written.ok()) {  // the last frame's write
@@ -255,7 +255,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     return written;
   }
   if (!master.Shutdown(0)) LOG_WARNING("master", "a slave did not acknowledge the end of the job");
-  if (Status s = WriteStats(args.stats, json + "]\n"); !s.ok()) {
+  if (Status s = stats_file.Finish(); !s.ok()) {
     preview->Fail(s);
     return s;
   }

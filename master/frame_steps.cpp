@@ -23,15 +23,6 @@
 
 namespace raystack::master {
 
-Status WriteStats(const std::string& path, const std::string& json) {
-  if (path.empty()) return OkStatus();
-  std::ofstream out(path);
-  out << json;
-  out.flush();
-  if (!out) return Status::Error(path + ": cannot write the statistics: " + std::strerror(errno));
-  return OkStatus();
-}
-
 namespace {
 
 // `text` as a JSON string: quotes, backslashes and control characters escaped, and each byte

@@ -34,8 +34,6 @@ inline constexpr double kMiB = 1024.0 * 1024.0;
 // output's lock is taken, so that a render still writing it is named as such instead.
 Status CheckNoUnfinishedFrame(const RenderArgs& args, const render::Scene& scene);
 
-// Writes --stats' JSON to `path` (nothing when it is empty).
-Status WriteStats(const std::string& path, const std::string& json);
 // The output the images are named from: --output, else the scene's.
 std::string OutputOf(const RenderArgs& args, const render::Scene& scene);
 // Frame f's name in progress lines: "frame 1 (2 of 3)", "frame 0" alone. Frames are counted

@@ -21,6 +21,7 @@
 #include "master/checkpoints.h"
 #include "master/convergence_monitor.h"
 #include "master/frame_steps.h"
+#include "master/stats_file.h"
 #include "master/frame_writer.h"
 #include "master/output_lock.h"
 #include "master/preflight.h"
@@ -124,7 +125,7 @@ Status RenderLocally(const RenderArgs& args) {
   std::string why;
   const bool coarse_rounds = CoarseRounds(args, store->get(), 0, &why);
   LogFirstPass(args, coarse_rounds, why);
-  std::string stats_json = "[\n";
+  StatsFile stats_file(args.stats);
   const InterruptsHeld held;  // to the last write (declared before `writer`: outlives it)
   FrameWriter writer(!args.quiet, args.fail_writes, FrameWriter::kRetrySeconds, args.slow_writes_s);
   std::unique_ptr<render::Film> reused_film;  // FilmFor
@@ -232,12 +233,11 @@ Status RenderLocally(const RenderArgs& args) {
     if (!exr.ok()) return failed(exr.status());
     if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
     sequence.FrameDone(f);
-    stats_json += stats.ToJson(FrameRecordJson(f, *exr, camera.width(), camera.height(), plan.spp(),
-                                               monitor.stopped() ? monitor.stop_reason() : ""));
-    if (f + 1 < range.end) stats_json += ",";
+    stats_file.Append(stats.ToJson(FrameRecordJson(f, *exr, camera.width(), camera.height(),
+                                                   plan.spp(), monitor.stopped() ? monitor.stop_reason() : "")));
   }
   if (Status s = writer.Finish(); !s.ok()) return failed(std::move(s));  // the last frame's write
-  if (Status s = WriteStats(args.stats, stats_json + "]\n"); !s.ok()) return failed(std::move(s));
+  if (Status s = stats_file.Finish(); !s.ok()) return failed(std::move(s));
   preview->Finish();
   return OkStatus();
 }

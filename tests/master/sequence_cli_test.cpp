@@ -18,6 +18,8 @@
 #include <tuple>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "common/base/log.h"
 #include "common/image/exr_io.h"
 #include "tests/master/render_runs.h"
@@ -112,6 +114,38 @@ TEST_F(Sequence, ResumeLeavesCompleteFramesUntouched) {
       << again.out;
   EXPECT_EQ(std::filesystem::last_write_time(first), older);
   EXPECT_TRUE(Slurp(first) == bytes);
+}
+
+// Found by the scale review: --stats was written once, at the end, from figures kept in memory
+// for every frame; a run that failed (or was killed) on its 3rd frame left no figures at all.
+// Each frame's record is written as it ends, the file a whole JSON array each time.
+TEST_F(Sequence, StatsKeepTheFinishedFramesOfARunThatFails) {
+  // A cache of a few blocks, so that every frame reads some; one thread that reads each block
+  // as it misses it (--mode sync), so that two runs make the same reads.
+  const std::vector<std::string> small = {"--cache-mb", "0.2", "--mode", "sync", "--no-png", "-q"};
+  std::vector<std::string> extra = small;
+  extra.insert(extra.end(), {"--stats", dir_->File("whole.json")});
+  const ProcessResult whole = Render(dir_->File("whole.exr"), 0, extra);
+  ASSERT_EQ(whole.exit_code, 0) << whole.err;
+  const nlohmann::json all = nlohmann::json::parse(Slurp(dir_->File("whole.json")));
+  ASSERT_EQ(all.size(), 4u);
+  std::vector<uint64_t> loads;
+  for (const nlohmann::json& frame : all) loads.push_back(frame["reads"].get<uint64_t>());
+  ASSERT_GE(loads[2], 4u) << "every frame must read blocks";  // --fault-fail-read counts reads
+  // The injected read error comes halfway through frame 2's reads.
+  extra = small;
+  extra.insert(extra.end(), {"--stats", dir_->File("failed.json"), "--fault-fail-read",
+                             std::to_string(loads[0] + loads[1] + loads[2] / 2)});
+  const ProcessResult failed = Render(dir_->File("failed.exr"), 0, extra);
+  EXPECT_EQ(failed.exit_code, 1) << failed.err;
+  EXPECT_NE(failed.err.find("read failed (injected fault)"), std::string::npos) << failed.err;
+  nlohmann::json kept;
+  ASSERT_NO_THROW(kept = nlohmann::json::parse(Slurp(dir_->File("failed.json"))));
+  ASSERT_EQ(kept.size(), 2u) << kept;
+  for (size_t f = 0; f < 2; ++f) {
+    EXPECT_EQ(kept[f]["frame"], f);
+    EXPECT_EQ(kept[f]["samples"], all[f]["samples"]);
+  }
 }
 
 // The day's review: a checkpoint with every pixel finished (an interrupt at the frame's very
