@@ -19,6 +19,7 @@
 #include "tools/prep/interrupt_cleanup.h"
 #include "common/store/store_writer.h"
 #include "tools/import/model_reader.h"
+#include "tools/prep/disk_room.h"
 #include "tools/prep/generator.h"
 #include "tools/prep/model_source.h"
 #include "tools/prep/octree_builder.h"
@@ -300,6 +301,9 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     options.vertices_per_triangle = std::clamp(
         static_cast<float>(static_cast<double>(vertices) / static_cast<double>(sink.triangles())) * 1.15f,
         0.3f, 3.0f);
+  // (The folder the user chose, or the default: the work folder in it has a random name.)
+  WarnIfDiskMayRunOut(EstimateBuildDisk(source, options),
+                      std::filesystem::path(temp->path()).parent_path().string(), args.output);
   Expected<BuildResult> built = BuildOctree(source, options, writer->get());
   if (!built.ok()) return built.status();
   progress.Done();

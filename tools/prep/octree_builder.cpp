@@ -140,24 +140,31 @@ Bounds3f RootCell(const Bounds3f& model) {
   return {{c.x - half, c.y - half, c.z - half}, {c.x + half, c.y + half, c.z + half}};
 }
 
+// Typical raw bytes per triangle in a block: indices, id, shared vertices, and ~0.36 BVH nodes
+// (32 bytes each) with the default in-block BVH (leaves of up to 8; measured on the dragon).
+double RawBytesPerTriangle(float vertices_per_triangle, bool attributes) {
+  return 6.0 + 4.0 + 32.0 * 0.36 + static_cast<double>(vertices_per_triangle) * (attributes ? 32.0 : 12.0);
+}
+
+// Triangles a bucket may hold to be built in memory: two buckets may be in memory at once (one
+// loading, one still encoding).
+uint64_t BucketCapacity(uint64_t memory_bytes, bool attributes) {
+  return std::max<uint64_t>(memory_bytes / 2 / (kBucketBytesPerTriangle + (attributes ? 60 : 0)), 4096);
+}
+
 class Builder {
  public:
   Builder(const BuildOptions& options, store::StoreWriter* writer, bool attributes)
       : options_(options), attributes_(attributes),
         pipeline_(options.threads, writer, options.shuffle, options.max_block_bytes, options.bvh) {
-    // Typical raw bytes per triangle: indices, id, shared vertices, and ~0.36 BVH nodes (32
-    // bytes each) with the default in-block BVH (leaves of up to 8; measured on the dragon).
-    bytes_per_triangle_ = 6.0 + 4.0 + 32.0 * 0.36 +
-                          static_cast<double>(options.vertices_per_triangle) * (attributes ? 32.0 : 12.0);
+    bytes_per_triangle_ = RawBytesPerTriangle(options.vertices_per_triangle, attributes);
     // Leaves come out ~25% below what the ratio rule aims at (measured on the shared
     // models), so it aims that much above the target to land the mean on it.
     aim_bytes_ = kAimOverTarget * options.target_block_bytes;
     // Leaves are cut into chunks expected to fit the cap; the pipeline splits any that do not.
     max_tris_ = static_cast<uint32_t>(std::max(
         1.0, (options.max_block_bytes - sizeof(store::BlockHeader)) / bytes_per_triangle_ * 0.9));
-    // Two buckets may be in memory at once (one loading, one still encoding).
-    bucket_capacity_ = std::max<uint64_t>(
-        options.memory_bytes / 2 / (kBucketBytesPerTriangle + (attributes ? 60 : 0)), 4096);
+    bucket_capacity_ = BucketCapacity(options.memory_bytes, attributes);
   }
 
   Status Run(const TriangleSource& source, BuildResult* result) {
@@ -780,6 +787,22 @@ uint32_t MaxTrianglesPerBlock(uint32_t max_block_bytes, bool attributes) {
     else hi = m - 1;
   }
   return lo;
+}
+
+BuildDiskNeeds EstimateBuildDisk(const TriangleSource& source, const BuildOptions& options) {
+  BuildDiskNeeds needs;
+  const double triangles = static_cast<double>(source.triangles());
+  // The first partition pass writes every triangle once per bucket it reaches (~1.05-1.1
+  // references each), as spooled; later passes split one bucket at a time, their files a
+  // fraction of it. Measured: 6 M triangles, --mem-limit 64: 0.27 GB of buckets after a
+  // 0.26 GB spool, 0.53 GB at the peak.
+  if (source.triangles() > BucketCapacity(options.memory_bytes, source.has_attributes()))
+    needs.temp_bytes = static_cast<uint64_t>(static_cast<double>(source.bytes()) * 1.2);
+  // Blocks: ~1.09 references a triangle at the raw size, lz4 with the shuffle ~1.6x (1.5-1.9
+  // on the shared models).
+  needs.store_bytes = static_cast<uint64_t>(
+      triangles * 1.09 * RawBytesPerTriangle(options.vertices_per_triangle, source.has_attributes()) / 1.6);
+  return needs;
 }
 
 Expected<BuildResult> BuildOctree(const TriangleSource& source, const BuildOptions& options,

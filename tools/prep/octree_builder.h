@@ -79,6 +79,14 @@ struct BuildResult {
 Expected<BuildResult> BuildOctree(const TriangleSource& source, const BuildOptions& options,
                                   store::StoreWriter* writer);
 
+// Disk the build will likely write: bucket files in options.temp_dir (none when the model is
+// built in memory) and the store's blocks. Estimates (the store's bytes depend on how well its
+// blocks compress), for a check of the free space before hours of work.
+struct BuildDiskNeeds {
+  uint64_t temp_bytes = 0, store_bytes = 0;
+};
+BuildDiskNeeds EstimateBuildDisk(const TriangleSource& source, const BuildOptions& options);
+
 // Most triangles a block may hold and still be under `max_block_bytes` in the worst case.
 uint32_t MaxTrianglesPerBlock(uint32_t max_block_bytes, bool attributes);
 

@@ -1,0 +1,60 @@
+#include "tools/prep/disk_room.h"
+
+#include <sys/stat.h>
+#include <sys/statvfs.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+
+#include "common/base/log.h"
+
+namespace raystack::prep {
+namespace {
+
+struct Room {
+  dev_t device;
+  uint64_t free_bytes;
+};
+
+// The file system `path` is on (its nearest existing folder: the store may not exist yet).
+std::optional<Room> RoomOf(std::filesystem::path path) {
+  path = std::filesystem::absolute(path);
+  for (;;) {
+    struct stat st;
+    struct statvfs vfs;
+    if (stat(path.c_str(), &st) == 0 && statvfs(path.c_str(), &vfs) == 0)
+      return Room{st.st_dev, static_cast<uint64_t>(vfs.f_bavail) * static_cast<uint64_t>(vfs.f_frsize)};
+    if (!path.has_relative_path()) return std::nullopt;  // no check rather than a wrong one
+    path = path.parent_path();
+  }
+}
+
+double Gb(uint64_t bytes) { return static_cast<double>(bytes) / 1e9; }
+
+}  // namespace
+
+void WarnIfDiskMayRunOut(const BuildDiskNeeds& needs, const std::string& temp_dir,
+                         const std::string& store_dir) {
+  const std::optional<Room> temp = RoomOf(temp_dir), store = RoomOf(store_dir);
+  if (!temp || !store) return;
+  if (temp->device == store->device) {
+    if (needs.temp_bytes + needs.store_bytes <= temp->free_bytes) return;
+    LOG_WARNING("prep", "the build will likely write about %.2f GB of temporary files in %s and "
+                "%.2f GB of store in %s, on one file system with %.2f GB free: it would fail when the disk fills; free space there, or give --temp-dir "
+                "or -o on another disk", Gb(needs.temp_bytes), temp_dir.c_str(),
+                Gb(needs.store_bytes), store_dir.c_str(), Gb(temp->free_bytes));
+    return;
+  }
+  if (needs.temp_bytes > temp->free_bytes)
+    LOG_WARNING("prep", "the build will likely write about %.2f GB of temporary files in %s, "
+                "whose file system has %.2f GB free: it would fail when the disk fills; free space there, "
+                "or give --temp-dir on a larger disk", Gb(needs.temp_bytes), temp_dir.c_str(),
+                Gb(temp->free_bytes));
+  if (needs.store_bytes > store->free_bytes)
+    LOG_WARNING("prep", "the store will likely take about %.2f GB in %s, whose file system has "
+                "%.2f GB free: it would fail when the disk fills; free space there, or give -o on a larger "
+                "disk", Gb(needs.store_bytes), store_dir.c_str(), Gb(store->free_bytes));
+}
+
+}  // namespace raystack::prep

@@ -1,0 +1,17 @@
+#pragma once
+// Before the octree is built (hours on a model of billions of triangles), the disk it will write
+// is checked against the free space where it goes: a full disk found at the end cost a user the
+// whole run. A warning, since the needs are estimates (EstimateBuildDisk).
+
+#include <string>
+
+#include "tools/prep/octree_builder.h"
+
+namespace raystack::prep {
+
+// Warns when `needs` is more than the free space of the temporary folder's file system and the
+// store's (their sum when they are one file system). `store_dir` need not exist yet.
+void WarnIfDiskMayRunOut(const BuildDiskNeeds& needs, const std::string& temp_dir,
+                         const std::string& store_dir);
+
+}  // namespace raystack::prep
