@@ -45,15 +45,25 @@ ConvergenceMonitor::ConvergenceMonitor(const render::Film& film, const render::F
       reference_(reference),
       log_interval_s_(log_interval_s),
       pass_samples_(plan.passes.size(), 0) {
-  for (const render::Sweep& sweep : plan.sweeps)
-    for (const render::Tile& tile : sweep.tiles) {
+  for (size_t i = 0; i < plan.sweeps.size(); ++i) {
+    const render::Sweep& sweep = plan.sweeps[i];
+    if (sweep.sample_end > 0 && sweep.pass < plan.passes.size() &&
+        sweep.sample_begin >= plan.passes[sweep.pass].begin &&
+        sweep.sample_end <= plan.passes[sweep.pass].end) {
+      // Every tile's samples lie in the sweep's pass: counted whole from that pass on (a plan's
+      // sweeps are not walked tile by tile: it may have tens of millions).
+      for (size_t p = sweep.pass; p < plan.passes.size(); ++p) pass_samples_[p] += sweep.samples;
+      continue;
+    }
+    plan.ForEachTile(i, [&](const render::Tile& tile) {
       const uint32_t tile_end = tile.sample_end == 0 ? plan.spp() : tile.sample_end;
       for (size_t p = 0; p < plan.passes.size(); ++p) {
         render::Tile below = tile;  // its samples below the pass's end
         below.sample_end = std::min(tile_end, plan.passes[p].end);
         if (below.sample_begin < below.sample_end) pass_samples_[p] += render::TileSamples(below, plan.spp());
       }
-    }
+    });
+  }
   // Where every curve starts: nothing rendered yet (against a reference, a black image).
   if (log_) log_->Write(frame_, "start", 0, Measure());
 }

@@ -180,8 +180,7 @@ bool MasterNode::NextTile(Frame* f, int rank, render::Tile* t) {
       return true;
     }
     f->scheduler = ++f->sweep < f->plan->sweeps.size()
-                       ? std::make_unique<TileScheduler>(f->plan->sweeps[f->sweep].tiles,
-                                                         net_->size() - 1)
+                       ? std::make_unique<TileScheduler>(f->plan->Tiles(f->sweep), net_->size() - 1)
                        : nullptr;
   }
   return false;
@@ -193,7 +192,7 @@ bool MasterNode::WorkLeft(const Frame& f) const {
   if (!f.returned.empty() || f.ledger.unfinished() > 0) return true;
   if (f.scheduler && !f.scheduler->exhausted()) return true;
   for (size_t i = f.sweep + 1; i < f.plan->sweeps.size(); ++i)
-    if (!f.plan->sweeps[i].tiles.empty()) return true;
+    if (f.plan->sweeps[i].tile_count > 0) return true;
   return false;
 }
 
@@ -454,7 +453,7 @@ Status MasterNode::RunFrame(uint32_t frame, std::vector<render::Tile> tiles, uin
   plan.width = film->width();
   plan.height = film->height();
   plan.passes.push_back({0, spp});
-  plan.sweeps.push_back({std::move(tiles), 0, true});
+  plan.AddSweep(std::move(tiles), 0, true);
   return RunFrame(frame, plan, film, [&] { on_progress(); return true; }, figures);
 }
 
@@ -466,7 +465,7 @@ Status MasterNode::RunFrame(uint32_t frame, const render::FramePlan& plan, rende
   figures->slaves.assign(static_cast<size_t>(slaves), SlaveFigures{});
   Frame f{frame, film, figures, &plan, 0, nullptr, {}, false, TileLedger(film->width(), plan.spp()),
           std::vector<bool>(static_cast<size_t>(net_->size()), false), 0, {}, {}, {}};
-  if (!plan.sweeps.empty()) f.scheduler = std::make_unique<TileScheduler>(plan.sweeps[0].tiles, slaves);
+  if (!plan.sweeps.empty()) f.scheduler = std::make_unique<TileScheduler>(plan.Tiles(0), slaves);
   {
     std::lock_guard lock(assigned_mu_);
     assigned_.assign(static_cast<size_t>(slaves), {});

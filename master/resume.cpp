@@ -48,11 +48,12 @@ bool ResumePlan::Needs(const render::Tile& t) const {
 }
 
 size_t DropFinishedTiles(const ResumePlan& resume, render::FramePlan* plan) {
+  plan->keep = [finished = std::make_shared<const ResumePlan>(resume)](const render::Tile& t) {
+    return finished->Needs(t);
+  };
+  plan->Count();
   size_t tiles = 0;
-  for (render::Sweep& sweep : plan->sweeps) {
-    std::erase_if(sweep.tiles, [&](const render::Tile& t) { return !resume.Needs(t); });
-    tiles += sweep.tiles.size();
-  }
+  for (const render::Sweep& sweep : plan->sweeps) tiles += sweep.tile_count;
   return tiles;
 }
 

@@ -59,13 +59,17 @@ class PlanTileSource final : public TileSource {
   bool Next(uint32_t, Tile* tile) override {
     std::lock_guard lock(mu_);
     while (!stopped_ && sweep_ < plan_.sweeps.size()) {
-      const std::vector<Tile>& tiles = plan_.sweeps[sweep_].tiles;
-      if (next_ < tiles.size()) {
-        *tile = tiles[next_++];
+      if (!made_) {  // the sweep's tiles, made as it starts (the plan holds none)
+        tiles_ = plan_.Tiles(sweep_);
+        made_ = true;
+      }
+      if (next_ < tiles_.size()) {
+        *tile = tiles_[next_++];
         return true;
       }
       ++sweep_;
       next_ = 0;
+      made_ = false;
     }
     return false;
   }
@@ -79,6 +83,8 @@ class PlanTileSource final : public TileSource {
   const render::FramePlan& plan_;
   std::mutex mu_;
   size_t sweep_ = 0, next_ = 0;
+  std::vector<Tile> tiles_;  // sweep_'s
+  bool made_ = false;
   bool stopped_ = false;
 };
 

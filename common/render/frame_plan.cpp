@@ -35,10 +35,11 @@ FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint
   plan.height = height;
   plan.passes = PassRanges(spp, pass_spp);
   auto grid_of = [&](int size) {
-    return order == PixelOrder::kPriority ? HilbertTiles(width, height, size)
-                                          : ScanlineTiles(width, height, size);
+    return std::make_shared<const std::vector<Tile>>(
+        order == PixelOrder::kPriority ? HilbertTiles(width, height, size)
+                                       : ScanlineTiles(width, height, size));
   };
-  const std::vector<Tile> grid = grid_of(tile_size);
+  const std::shared_ptr<const std::vector<Tile>> grid = grid_of(tile_size);
   // Rounds of the first pass in priority order: ranks [0,1), [1,4), [4,16), [16,64),
   // [64,256): each round halves the spacing of the pixels done so far.
   constexpr uint16_t kRounds[] = {0, 1, 4, 16, 64, 256};
@@ -58,29 +59,74 @@ FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint
       const uint32_t end = std::min(plan.passes[p].end, begin + chunk);
       for (int r = 0; r < rounds; ++r) {
         Sweep sweep;
+        sweep.grid = split && kRoundScale[r] != 1 ? grid_of(tile_size * kRoundScale[r]) : grid;
+        sweep.sample_begin = begin;
+        sweep.sample_end = end;
+        if (split) {
+          sweep.rank_begin = kRounds[r];
+          sweep.rank_end = kRounds[r + 1];
+        }
         sweep.pass = p;
         sweep.pass_end = r + 1 == rounds && end == plan.passes[p].end;
-        const std::vector<Tile> round_grid = split ? grid_of(tile_size * kRoundScale[r]) : grid;
-        for (Tile t : round_grid) {
-          t.sample_begin = begin;
-          t.sample_end = end;
-          if (split) {
-            t.rank_begin = kRounds[r];
-            t.rank_end = kRounds[r + 1];
-          }
-          if (TileSamples(t, spp) > 0) sweep.tiles.push_back(t);
-        }
         plan.sweeps.push_back(std::move(sweep));
       }
     }
   }
+  plan.Count();
   return plan;
+}
+
+void FramePlan::ForEachTile(size_t i, const std::function<void(const Tile&)>& visit) const {
+  const Sweep& sweep = sweeps[i];
+  const uint32_t frame_spp = spp();
+  for (Tile t : *sweep.grid) {
+    if (sweep.sample_end > 0) {
+      t.sample_begin = sweep.sample_begin;
+      t.sample_end = sweep.sample_end;
+    }
+    if (sweep.rank_begin != 0 || sweep.rank_end != kPriorityPeriod * kPriorityPeriod) {
+      t.rank_begin = sweep.rank_begin;
+      t.rank_end = sweep.rank_end;
+    }
+    if (TileSamples(t, frame_spp) == 0 || (keep && !keep(t))) continue;
+    visit(t);
+  }
+}
+
+std::vector<Tile> FramePlan::Tiles(size_t i) const {
+  std::vector<Tile> tiles;
+  tiles.reserve(sweeps[i].tile_count);
+  ForEachTile(i, [&](const Tile& t) { tiles.push_back(t); });
+  return tiles;
+}
+
+void FramePlan::AddSweep(std::vector<Tile> tiles, uint32_t pass, bool pass_end) {
+  Sweep sweep;
+  sweep.grid = std::make_shared<const std::vector<Tile>>(std::move(tiles));
+  sweep.pass = pass;
+  sweep.pass_end = pass_end;
+  sweeps.push_back(std::move(sweep));
+  CountSweep(sweeps.size() - 1);
+}
+
+void FramePlan::CountSweep(size_t i) {
+  const uint32_t frame_spp = spp();
+  uint64_t tiles = 0, samples = 0;
+  ForEachTile(i, [&](const Tile& t) {
+    ++tiles;
+    samples += TileSamples(t, frame_spp);
+  });
+  sweeps[i].tile_count = tiles;
+  sweeps[i].samples = samples;
+}
+
+void FramePlan::Count() {
+  for (size_t i = 0; i < sweeps.size(); ++i) CountSweep(i);
 }
 
 uint64_t FramePlan::samples_to_render() const {
   uint64_t sum = 0;
-  for (const Sweep& sweep : sweeps)
-    for (const Tile& t : sweep.tiles) sum += TileSamples(t, spp());
+  for (const Sweep& sweep : sweeps) sum += sweep.samples;
   return sum;
 }
 

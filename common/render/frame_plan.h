@@ -9,6 +9,8 @@
 // Random numbers depend only on (seed, pixel, sample), so the plan never changes the image.
 
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -30,17 +32,30 @@ struct SampleRange {
 // smaller).
 std::vector<SampleRange> PassRanges(uint32_t spp, uint32_t pass_spp);
 
+// A sweep's tiles are made when it is handed out (FramePlan::Tiles), not with the plan: a plan
+// of 16k x 16k pixels and 4,096 samples a pixel is 64 M tiles (1.9 GB, 30 GB at 65,535
+// samples), where its sweeps share one grid of rectangles.
 struct Sweep {
-  std::vector<Tile> tiles;  // in the order they should be handed out
+  // Its tiles: the grid's, in order, each given the sweep's samples [sample_begin, sample_end)
+  // (the grid's own when sample_end is 0) and pixel ranks [rank_begin, rank_end), less those
+  // left with no sample and those the plan's `keep` leaves out.
+  std::shared_ptr<const std::vector<Tile>> grid;
+  uint32_t sample_begin = 0, sample_end = 0;
+  uint16_t rank_begin = 0, rank_end = kPriorityPeriod * kPriorityPeriod;
   uint32_t pass = 0;        // index into the passes (a pass may take several sweeps)
   bool pass_end = false;    // the last sweep of its pass: after it, every pixel has
                             // passes[pass].end samples
+  uint64_t tile_count = 0, samples = 0;  // of its tiles, as FramePlan::Count found them
 };
 
 struct FramePlan {
   int width = 0, height = 0;
   std::vector<SampleRange> passes;
   std::vector<Sweep> sweeps;
+  // Tiles the plan leaves out (--resume: those a checkpoint finished); null: none. Count()
+  // after it is set.
+  std::function<bool(const Tile&)> keep;
+
   uint32_t spp() const { return passes.empty() ? 0 : passes.back().end; }
   uint64_t total_samples() const {
     return static_cast<uint64_t>(width) * static_cast<uint64_t>(height) * spp();
@@ -48,6 +63,17 @@ struct FramePlan {
   // The samples its tiles stand for: total_samples(), less what --resume dropped (the tiles a
   // checkpoint finished), the work a progress bar counts to.
   uint64_t samples_to_render() const;
+  // Sweep `i`'s tiles, in the order they should be handed out.
+  std::vector<Tile> Tiles(size_t i) const;
+  // Calls visit(tile) for each of sweep `i`'s tiles in that order, without making the list.
+  void ForEachTile(size_t i, const std::function<void(const Tile&)>& visit) const;
+  // Adds a sweep of `tiles` as they are (a frame of given tiles, tests), counted.
+  void AddSweep(std::vector<Tile> tiles, uint32_t pass, bool pass_end);
+  // Sets every sweep's tile_count and samples (once the sweeps or `keep` are set).
+  void Count();
+
+ private:
+  void CountSweep(size_t i);
 };
 
 // The most samples one tile of a plan holds (pixels x samples per pixel).

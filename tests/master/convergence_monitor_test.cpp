@@ -44,7 +44,7 @@ render::FramePlan Passes(std::vector<render::SampleRange> passes) {
     tile.x1 = tile.y1 = kSide;
     tile.sample_begin = plan.passes[p].begin;
     tile.sample_end = plan.passes[p].end;
-    plan.sweeps.push_back({{tile}, p, true});
+    plan.AddSweep({tile}, p, true);
   }
   return plan;
 }

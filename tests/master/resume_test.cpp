@@ -510,8 +510,8 @@ TEST(ResumeProgress, OnlyTilesNoLongerRenderedCountAsDone) {
     master::DropFinishedTiles(resume, &plan);
     // Every (pixel, sample) a remaining tile renders, and the kept pixels no tile touches.
     std::vector<uint32_t> rendered(static_cast<size_t>(kWidth) * kHeight, 0);
-    for (const render::Sweep& sweep : plan.sweeps)
-      for (const render::Tile& t : sweep.tiles)
+    for (size_t i = 0; i < plan.sweeps.size(); ++i)
+      for (const render::Tile& t : plan.Tiles(i))
         for (int y = t.y0; y < t.y1; ++y)
           for (int x = t.x0; x < t.x1; ++x)
             if (t.HasRank(x, y))

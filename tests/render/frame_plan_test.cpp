@@ -35,10 +35,15 @@ TEST(FramePlan, SweepsCoverEveryPixelSampleOnceInPassOrder) {
       EXPECT_EQ(plan.spp(), spp);
       std::vector<int> seen(static_cast<size_t>(w) * h * spp, 0);
       uint32_t pass = 0;
-      for (const Sweep& sweep : plan.sweeps) {
+      uint64_t samples = 0;
+      for (size_t i = 0; i < plan.sweeps.size(); ++i) {
+        const Sweep& sweep = plan.sweeps[i];
         EXPECT_GE(sweep.pass, pass);  // passes never go back
         pass = sweep.pass;
-        for (const Tile& t : sweep.tiles) {
+        const std::vector<Tile> tiles = plan.Tiles(i);
+        EXPECT_EQ(tiles.size(), sweep.tile_count);
+        for (const Tile& t : tiles) {
+          samples += TileSamples(t, spp);
           EXPECT_GE(t.sample_begin, plan.passes[sweep.pass].begin);
           EXPECT_LE(t.sample_end, plan.passes[sweep.pass].end);
           EXPECT_LE(TileSamples(t, spp), kMaxTileSamples);
@@ -57,6 +62,7 @@ TEST(FramePlan, SweepsCoverEveryPixelSampleOnceInPassOrder) {
       }
       for (int n : seen) ASSERT_EQ(n, 1);
       EXPECT_EQ(plan.total_samples(), static_cast<uint64_t>(w) * h * spp);
+      EXPECT_EQ(plan.samples_to_render(), samples);
     }
 }
 
@@ -64,8 +70,8 @@ TEST(FramePlan, ALargePassIsCutIntoSweepsOfBoundedTiles) {
   const FramePlan plan = MakeFramePlan(40, 40, 32, 4096, 0, PixelOrder::kScanline);
   ASSERT_EQ(plan.passes.back().begin, 2048u);
   uint64_t total = 0;
-  for (const Sweep& sweep : plan.sweeps)
-    for (const Tile& t : sweep.tiles) {
+  for (size_t i = 0; i < plan.sweeps.size(); ++i)
+    for (const Tile& t : plan.Tiles(i)) {
       EXPECT_LE(TileSamples(t, 4096), kMaxTileSamples);
       total += TileSamples(t, 4096);
     }
@@ -79,14 +85,31 @@ TEST(FramePlan, PriorityFirstPassStartsSparseAndEven) {
   ASSERT_EQ(plan.sweeps.size(), 5u + 2u);  // 5 rounds of pass 1, then passes 2 and 3
   // The first round: one pixel per 16x16 square, all over the frame.
   uint64_t first = 0;
-  for (const Tile& t : plan.sweeps[0].tiles) first += TileSamples(t, 4);
+  for (const Tile& t : plan.Tiles(0)) first += TileSamples(t, 4);
   EXPECT_EQ(first, 64u * 64u / 256u);
   EXPECT_FALSE(plan.sweeps[0].pass_end);
   EXPECT_TRUE(plan.sweeps[4].pass_end);
   const FramePlan scan = MakeFramePlan(64, 64, 32, 4, 0, PixelOrder::kScanline);
   EXPECT_EQ(scan.sweeps.size(), 3u);
-  EXPECT_EQ(scan.sweeps[0].tiles[1].x0, 32);  // left to right first
-  EXPECT_EQ(scan.sweeps[0].tiles[1].y0, 0);
+  EXPECT_EQ(scan.Tiles(0)[1].x0, 32);  // left to right first
+  EXPECT_EQ(scan.Tiles(0)[1].y0, 0);
+}
+
+// Found by the scale review: the plan held every sweep's tiles, made at once: 64 M tiles (1.9
+// GB, and 30 GB at 65,535 samples) for 16k x 16k pixels at 4,096 samples. The sweeps share
+// their grid; a sweep's tiles are made as it is handed out.
+TEST(FramePlan, ItsSweepsShareOneGridOfRectangles) {
+  const FramePlan plan = MakeFramePlan(16384, 16384, 16, 4096, 0, PixelOrder::kScanline);
+  ASSERT_GT(plan.sweeps.size(), 60u);
+  for (const Sweep& sweep : plan.sweeps) {
+    EXPECT_EQ(sweep.grid.get(), plan.sweeps[0].grid.get());
+    EXPECT_EQ(sweep.tile_count, 1024u * 1024u);
+  }
+  EXPECT_EQ(plan.samples_to_render(), plan.total_samples());
+  // A round's larger tiles are a grid of their own, shared the same way.
+  const FramePlan rounds = MakeFramePlan(64, 64, 8, 4, 0, PixelOrder::kPriority);
+  EXPECT_NE(rounds.sweeps[0].grid.get(), rounds.sweeps[5].grid.get());
+  EXPECT_EQ(rounds.sweeps[4].grid.get(), rounds.sweeps[5].grid.get());  // the last round: full tiles
 }
 
 TEST(PixelOrder, ParsesItsNamesAndRefusesOthers) {
