@@ -76,20 +76,26 @@ FramePlan MakeFramePlan(int width, int height, int tile_size, uint32_t spp, uint
   return plan;
 }
 
+Tile FramePlan::Placed(const Sweep& sweep, Tile t) {
+  if (sweep.sample_end > 0) {
+    t.sample_begin = sweep.sample_begin;
+    t.sample_end = sweep.sample_end;
+  }
+  if (sweep.rank_begin != 0 || sweep.rank_end != kPriorityPeriod * kPriorityPeriod) {
+    t.rank_begin = sweep.rank_begin;
+    t.rank_end = sweep.rank_end;
+  }
+  return t;
+}
+
 void FramePlan::ForEachTile(size_t i, const std::function<void(const Tile&)>& visit) const {
   const Sweep& sweep = sweeps[i];
   const uint32_t frame_spp = spp();
-  for (Tile t : *sweep.grid) {
-    if (sweep.sample_end > 0) {
-      t.sample_begin = sweep.sample_begin;
-      t.sample_end = sweep.sample_end;
-    }
-    if (sweep.rank_begin != 0 || sweep.rank_end != kPriorityPeriod * kPriorityPeriod) {
-      t.rank_begin = sweep.rank_begin;
-      t.rank_end = sweep.rank_end;
-    }
-    if (TileSamples(t, frame_spp) == 0 || (keep && !keep(t))) continue;
-    visit(t);
+  const std::vector<Tile>& grid = *sweep.grid;
+  for (size_t k = 0; k < grid.size(); ++k) {
+    if (sweep.kept && !(*sweep.kept)[k]) continue;
+    const Tile t = Placed(sweep, grid[k]);
+    if (TileSamples(t, frame_spp) > 0) visit(t);
   }
 }
 
@@ -118,6 +124,39 @@ void FramePlan::CountSweep(size_t i) {
   });
   sweeps[i].tile_count = tiles;
   sweeps[i].samples = samples;
+}
+
+void FramePlan::Keep(const std::function<bool(const Tile&)>& keep) {
+  // Sweeps of one grid and one rank range (the passes' sweeps after the first) share their bits:
+  // `keep` runs once per tile of each, not once per sweep.
+  struct Noted {
+    const std::vector<Tile>* grid;
+    uint16_t rank_begin, rank_end;
+    std::shared_ptr<const std::vector<bool>> bits;
+  };
+  std::vector<Noted> noted;
+  for (size_t i = 0; i < sweeps.size(); ++i) {
+    Sweep& sweep = sweeps[i];
+    auto same = [&](const Noted& n) {
+      return n.grid == sweep.grid.get() && n.rank_begin == sweep.rank_begin && n.rank_end == sweep.rank_end;
+    };
+    auto it = std::find_if(noted.begin(), noted.end(), same);
+    if (it == noted.end()) {
+      auto bits = std::make_shared<std::vector<bool>>(sweep.grid->size());
+      for (size_t k = 0; k < sweep.grid->size(); ++k) (*bits)[k] = keep(Placed(sweep, (*sweep.grid)[k]));
+      noted.push_back({sweep.grid.get(), sweep.rank_begin, sweep.rank_end, std::move(bits)});
+      it = noted.end() - 1;
+    }
+    // (A sweep kept partly already, by an earlier call, keeps what both keep.)
+    if (sweep.kept) {
+      auto both = std::make_shared<std::vector<bool>>(*it->bits);
+      for (size_t k = 0; k < both->size(); ++k) (*both)[k] = (*both)[k] && (*sweep.kept)[k];
+      sweep.kept = std::move(both);
+    } else {
+      sweep.kept = it->bits;
+    }
+    CountSweep(i);
+  }
 }
 
 void FramePlan::Count() {

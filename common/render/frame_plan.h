@@ -38,8 +38,9 @@ std::vector<SampleRange> PassRanges(uint32_t spp, uint32_t pass_spp);
 struct Sweep {
   // Its tiles: the grid's, in order, each given the sweep's samples [sample_begin, sample_end)
   // (the grid's own when sample_end is 0) and pixel ranks [rank_begin, rank_end), less those
-  // left with no sample and those the plan's `keep` leaves out.
+  // left with no sample and those `kept` leaves out.
   std::shared_ptr<const std::vector<Tile>> grid;
+  std::shared_ptr<const std::vector<bool>> kept;  // by grid tile; null: every one (FramePlan::Count)
   uint32_t sample_begin = 0, sample_end = 0;
   uint16_t rank_begin = 0, rank_end = kPriorityPeriod * kPriorityPeriod;
   uint32_t pass = 0;        // index into the passes (a pass may take several sweeps)
@@ -52,9 +53,6 @@ struct FramePlan {
   int width = 0, height = 0;
   std::vector<SampleRange> passes;
   std::vector<Sweep> sweeps;
-  // Tiles the plan leaves out (--resume: those a checkpoint finished); null: none. Count()
-  // after it is set.
-  std::function<bool(const Tile&)> keep;
 
   uint32_t spp() const { return passes.empty() ? 0 : passes.back().end; }
   uint64_t total_samples() const {
@@ -67,12 +65,19 @@ struct FramePlan {
   std::vector<Tile> Tiles(size_t i) const;
   // Calls visit(tile) for each of sweep `i`'s tiles in that order, without making the list.
   void ForEachTile(size_t i, const std::function<void(const Tile&)>& visit) const;
-  // Adds a sweep of `tiles` as they are (a frame of given tiles, tests), counted.
+  // Adds a sweep of `tiles` as they are (a frame of given tiles, tests), counted; tiles with no
+  // sample are left out, as from every sweep.
   void AddSweep(std::vector<Tile> tiles, uint32_t pass, bool pass_end);
-  // Sets every sweep's tile_count and samples (once the sweeps or `keep` are set).
+  // Leaves out the tiles `keep` refuses (--resume: those a checkpoint finished), noted once per
+  // grid and pixel ranks (a bit a tile: `keep` must look at a tile's rectangle and ranks, not its
+  // samples, and is not kept), and sets every sweep's tile_count and samples.
+  void Keep(const std::function<bool(const Tile&)>& keep);
+  // Sets every sweep's tile_count and samples (MakeFramePlan does; sweeps added by hand need it).
   void Count();
 
  private:
+  // A sweep's grid tile `t` given its samples and ranks.
+  static Tile Placed(const Sweep& sweep, Tile t);
   void CountSweep(size_t i);
 };
 

@@ -112,6 +112,45 @@ TEST(FramePlan, ItsSweepsShareOneGridOfRectangles) {
   EXPECT_EQ(rounds.sweeps[4].grid.get(), rounds.sweeps[5].grid.get());  // the last round: full tiles
 }
 
+// --resume's filter: the sweeps keep exactly the tiles it accepts, asked once per tile of each
+// grid and rank range (the review of the lazy plan: asked again for every sweep, under the
+// tile source's lock, and the checkpoint image kept alive for the frame by the filter).
+TEST(FramePlan, KeepAsksOncePerGridTileAndLeavesOutWhatItRefuses) {
+  for (PixelOrder order : {PixelOrder::kPriority, PixelOrder::kScanline}) {
+    FramePlan plan = MakeFramePlan(70, 50, 8, 600, 0, order);
+    const FramePlan whole = plan;
+    auto refused = [](const Tile& t) { return (t.x0 / 8 + t.y0 / 8) % 3 == 0; };
+    uint64_t asked = 0;
+    plan.Keep([&](const Tile& t) {
+      ++asked;
+      return !refused(t);
+    });
+    uint64_t grid_tiles = 0;  // one per tile of each distinct (grid, ranks)
+    for (size_t i = 0; i < whole.sweeps.size(); ++i) {
+      bool seen = false;
+      for (size_t j = 0; j < i; ++j)
+        seen = seen || (whole.sweeps[j].grid == whole.sweeps[i].grid &&
+                        whole.sweeps[j].rank_begin == whole.sweeps[i].rank_begin &&
+                        whole.sweeps[j].rank_end == whole.sweeps[i].rank_end);
+      if (!seen) grid_tiles += whole.sweeps[i].grid->size();
+      std::vector<Tile> expected = whole.Tiles(i);
+      std::erase_if(expected, refused);
+      const std::vector<Tile> got = plan.Tiles(i);
+      ASSERT_EQ(got.size(), expected.size()) << i;
+      EXPECT_EQ(plan.sweeps[i].tile_count, expected.size()) << i;
+      for (size_t k = 0; k < got.size(); ++k) {
+        EXPECT_EQ(got[k].x0, expected[k].x0);
+        EXPECT_EQ(got[k].y0, expected[k].y0);
+        EXPECT_EQ(got[k].sample_begin, expected[k].sample_begin);
+        EXPECT_EQ(got[k].rank_begin, expected[k].rank_begin);
+      }
+    }
+    EXPECT_EQ(asked, grid_tiles);
+    EXPECT_LT(asked, whole.sweeps.size() * whole.sweeps.back().grid->size() / 2);
+    EXPECT_LT(plan.samples_to_render(), whole.samples_to_render());
+  }
+}
+
 TEST(PixelOrder, ParsesItsNamesAndRefusesOthers) {
   Expected<PixelOrder> p = ParsePixelOrder("priority"), s = ParsePixelOrder("scanline");
   ASSERT_TRUE(p.ok() && s.ok());
