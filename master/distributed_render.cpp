@@ -118,8 +118,8 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     return ranks;
   };
   const InterruptsHeld held;  // to the last write (declared before `writer`: outlives it)
+  StatsFile stats_file(args.stats);  // (before the writer, whose thread appends to it)
   FrameWriter writer(!args.quiet, args.fail_writes, FrameWriter::kRetrySeconds, args.slow_writes_s);
-  StatsFile stats_file(args.stats);
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
   const SequenceProgress sequence(range, args.quiet);
@@ -187,10 +187,15 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
       preview->EndFrame(figures.seconds > 0 ? static_cast<double>(rays) / figures.seconds
                                             : std::numeric_limits<double>::quiet_NaN());
     }
+    // The frame's record goes into --stats once its image is written.
+    std::string record = FiguresJson(
+        FrameRecordJson(f, FrameExrPath(args, scene, f), camera.width(), camera.height(), plan.spp(),
+                        monitor.stopped() ? monitor.stop_reason() : ""),
+        figures);
     Expected<std::string> exr =
         status.ok() ? WriteFrame(args, scene, f, film, std::move(resolved),
                                    monitor.stopped() ? monitor.stop_reason() : std::string(), total,
-                                   &writer)
+                                   &writer, [&stats_file, record = std::move(record)] { stats_file.Append(record); })
                     : Expected<std::string>(status);
     if (!exr.ok()) {  // every rank ends, none is left waiting
       master.Shutdown(1);
@@ -244,9 +249,6 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                     static_cast<double>(s.bytes_received) / 1e6, cache.c_str());
       }
     }
-    stats_file.Append(FiguresJson(FrameRecordJson(f, *exr, camera.width(), camera.height(),
-                                                  plan.spp(), monitor.stopped() ? monitor.stop_reason() : ""),
-                                  figures));
     sequence.FrameDone(f);
   }
   if (const Status written = writer.Finish(); !written.ok()) {  // the last frame's write
@@ -390,10 +392,16 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
     if (s.ok()) WarnIfCheckpointsKeepLittle(args, *scene);
     if (s.ok()) WarnIfFrameSizesDiffer(*scene, FramesOf(args, *scene));
     Expected<OutputLock> output_lock =  // held to the end of the job
-        s.ok() ? OutputLock::Take(FramePath(OutputOf(args, *scene), 0, 1, ".exr"),
-                                  FramesOf(args, *scene).begin, FramesOf(args, *scene).end)
+        s.ok() ? OutputLock::Take(FrameExrPath(args, *scene, 0), FramesOf(args, *scene).begin,
+                                  FramesOf(args, *scene).end)
                : Expected<OutputLock>(s);
     if (!output_lock.ok()) s = output_lock.status();
+    std::optional<OutputLock> stats_lock;  // two jobs' records in one file made it unreadable
+    if (s.ok() && !args.stats.empty()) {
+      Expected<OutputLock> taken = OutputLock::Take(args.stats, 0, 1, "--stats");
+      if (taken.ok()) stats_lock.emplace(std::move(*taken));
+      else s = taken.status();
+    }
     if (s.ok()) s = CheckNoUnfinishedFrame(args, *scene);
     if (s.ok()) s = CheckReferences(*scene, args.reference, FramesOf(args, *scene));
     if (!s.ok()) {  // before the slaves start a frame

@@ -135,14 +135,19 @@ void WarnIfFrameShowsNothing(const image::ImageLayers& layers, size_t f) {
 
 }  // namespace
 
+std::string FrameExrPath(const RenderArgs& args, const render::Scene& scene, size_t f) {
+  return FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
+}
+
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,
                                  const std::string& stopped, uint64_t rendered,
-                                 FrameWriter* writer) {
+                                 FrameWriter* writer, std::function<void()> written) {
   const size_t frames = scene.cameras.size();
   const std::string output = OutputOf(args, scene);
   FrameWriter::Image image;
-  image.exr = FramePath(output, f, frames, ".exr");
+  image.exr = FrameExrPath(args, scene, f);
+  image.written = std::move(written);
   if (args.png) image.png = FramePath(output, f, frames, ".png");
   // (A checkpoint with every pixel finished is written as the frame; a missing PNG is made
   // from the complete EXR's pixels, the EXR left as it is.)
@@ -150,6 +155,7 @@ Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& sc
   if (args.resume && rendered == 0 && !image::IsPartialFrame(image.exr)) {
     if (image.png.empty() || std::filesystem::exists(image.png, ec)) {
       if (!args.quiet) std::printf("  kept %s (complete)\n", image.exr.c_str());
+      if (image.written) image.written();
       return image.exr;
     }
     image.png_only = true;

@@ -101,10 +101,14 @@ std::string FrameRecordJson(size_t f, const std::string& exr, int width, int hei
 // `rendered`: the samples this run rendered of it. With none under --resume, a complete frame's
 // EXR there (and its PNG) is left as it is (rewritten, every file of a sequence got a new time,
 // and a compositor reloaded them all); a checkpoint with every pixel finished is written.
+// `written`: called once the frame's image is on disk (on the writer's thread; at once for a
+// complete frame kept as it is).
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,
                                  const std::string& stopped, uint64_t rendered,
-                                 FrameWriter* writer);
+                                 FrameWriter* writer, std::function<void()> written = nullptr);
+// Frame f's EXR (as WriteFrame names it).
+std::string FrameExrPath(const RenderArgs& args, const render::Scene& scene, size_t f);
 
 // While it lives, SIGINT and SIGTERM are noted, not fatal: from the first frame to the last
 // image written (the frame rendering is written by EndInterrupted, one rendered and queued by

@@ -162,6 +162,7 @@ void FrameWriter::Loop() {
     }
     if (!image.done && s.ok() && announce_)
       std::printf("  wrote %s\n", image.png_only ? image.png.c_str() : image.exr.c_str());
+    if (!image.done && s.ok() && image.written) image.written();
     lock.lock();
     spare_ = std::move(image.layers);  // a frame's or a checkpoint's: the next resolve's memory
     writing_ = false;

@@ -49,6 +49,9 @@ class FrameWriter {
     // is not the writer's error (a failed checkpoint is retried, never the end of the job),
     // and nothing is announced.
     std::function<void(const Status&)> done;
+    // A frame's image (not a checkpoint): called by the writer's thread once it is written
+    // (--stats' record of the frame goes then: a record says its image is on disk).
+    std::function<void()> written;
   };
   static constexpr double kRetrySeconds = 600;
 

@@ -77,10 +77,15 @@ Status RenderLocally(const RenderArgs& args) {
   WarnIfCheckpointsKeepLittle(args, *scene);
   WarnIfFrameSizesDiffer(*scene, range);
   if (!args.threads_given) WarnOfIdleCores(1);
-  // Held to the end of the job; named from the output as written ("out" and "out.exr" are one).
-  Expected<OutputLock> output_lock =
-      OutputLock::Take(FramePath(output, 0, 1, ".exr"), range.begin, range.end);
+  // Held to the end of the job; named from frame 0's file ("out" and "out.exr" are one).
+  Expected<OutputLock> output_lock = OutputLock::Take(FrameExrPath(args, *scene, 0), range.begin, range.end);
   if (!output_lock.ok()) return output_lock.status();
+  std::optional<OutputLock> stats_lock;  // two jobs' records in one file made it unreadable
+  if (!args.stats.empty()) {
+    Expected<OutputLock> taken = OutputLock::Take(args.stats, 0, 1, "--stats");
+    if (!taken.ok()) return taken.status();
+    stats_lock.emplace(std::move(*taken));
+  }
   RAYSTACK_RETURN_IF_ERROR(CheckNoUnfinishedFrame(args, *scene));
   RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference, range));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
@@ -227,14 +232,17 @@ Status RenderLocally(const RenderArgs& args) {
     if (monitor.stopped()) preview->SetNote("stopped: " + monitor.stop_reason());
     preview->EndFrame(stats.rays_per_second);
     ReportStop(args, monitor);
+    // The frame's record goes into --stats once its image is written.
+    std::string record = stats.ToJson(FrameRecordJson(f, FrameExrPath(args, *scene, f), camera.width(),
+                                                      camera.height(), plan.spp(),
+                                                      monitor.stopped() ? monitor.stop_reason() : ""));
     Expected<std::string> exr = WriteFrame(args, *scene, f, film, std::move(resolved),
-                                                monitor.stopped() ? monitor.stop_reason() : std::string(),
-                                                total, &writer);
+                                           monitor.stopped() ? monitor.stop_reason() : std::string(),
+                                           total, &writer,
+                                           [&stats_file, record = std::move(record)] { stats_file.Append(record); });
     if (!exr.ok()) return failed(exr.status());
     if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
     sequence.FrameDone(f);
-    stats_file.Append(stats.ToJson(FrameRecordJson(f, *exr, camera.width(), camera.height(),
-                                                   plan.spp(), monitor.stopped() ? monitor.stop_reason() : "")));
   }
   if (Status s = writer.Finish(); !s.ok()) return failed(std::move(s));  // the last frame's write
   if (Status s = stats_file.Finish(); !s.ok()) return failed(std::move(s));

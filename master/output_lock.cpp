@@ -9,7 +9,8 @@
 
 namespace raystack::master {
 
-Expected<OutputLock> OutputLock::Take(const std::string& output, size_t first, size_t end) {
+Expected<OutputLock> OutputLock::Take(const std::string& output, size_t first, size_t end,
+                                      const std::string& option) {
   const std::filesystem::path out(output);
   std::string name = ".";  // (not "." + ...: GCC 12 warns falsely of an overlapping copy)
   name += out.filename().string();
@@ -26,7 +27,7 @@ Expected<OutputLock> OutputLock::Take(const std::string& output, size_t first, s
                            (end - first > 1 ? StrFormat(" for some of frames %zu to %zu", first, end - 1)
                             : first > 0     ? StrFormat(" for frame %zu", first)
                                             : std::string()) +
-                           "); wait for it, or give another --output" +
+                           "); wait for it, or give another " + option +
                            (end - first > 1 || first > 0 ? " or other --frames" : ""));
     case LockResult::kNoLocks:
       LOG_WARNING("render", "%s: its filesystem takes no file locks: nothing keeps another "

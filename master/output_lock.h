@@ -18,10 +18,13 @@ namespace raystack::master {
 
 class OutputLock {
  public:
-  // Takes the lock of frames [first, end) of `output` (the path --output or the scene gives,
-  // with its extension: frames' files share it).
+  // Takes the lock of frames [first, end) of `output`: the file frame 0 is written to, however
+  // the output was spelled (found by an operator: "t.####.exr" and "t.%04d.exr", "t.exr" and
+  // "t-#.exr" with several cameras, each took a lock of its own and wrote the same files).
+  // `option`: what gave it, named in the refusal ("--output", "--stats").
   // A filesystem without locks is warned about and the job goes on unlocked.
-  static Expected<OutputLock> Take(const std::string& output, size_t first = 0, size_t end = 1);
+  static Expected<OutputLock> Take(const std::string& output, size_t first = 0, size_t end = 1,
+                                   const std::string& option = "--output");
   OutputLock(OutputLock&& other) noexcept;
   OutputLock& operator=(OutputLock&&) = delete;
   ~OutputLock();  // removes the file while still holding the lock, then releases it

@@ -1,55 +1,117 @@
 #include "master/stats_file.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
+#include <filesystem>
 
 #include "common/base/log.h"
 
 namespace raystack::master {
+namespace {
+
+Status CannotWrite(const std::string& path, const std::string& why) {
+  return Status::Error(path + ": cannot write the statistics: " + why);
+}
+
+}  // namespace
 
 StatsFile::~StatsFile() {
+  (void)Finish();
   if (fd_ >= 0) ::close(fd_);
 }
 
 Status StatsFile::Write(const std::string& bytes, uint64_t at) {
   for (size_t done = 0; done < bytes.size();) {
-    const ssize_t n = ::pwrite(fd_, bytes.data() + done, bytes.size() - done,
-                               static_cast<off_t>(at + done));
+    const ssize_t n = stream_ ? ::write(fd_, bytes.data() + done, bytes.size() - done)
+                              : ::pwrite(fd_, bytes.data() + done, bytes.size() - done,
+                                         static_cast<off_t>(at + done));
     if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) return Status::Error(path_ + ": cannot write the statistics: " +
-                                     (n < 0 ? std::strerror(errno) : "no progress"));
+    if (n <= 0) return CannotWrite(path_, n < 0 ? std::strerror(errno) : "no progress");
     done += static_cast<size_t>(n);
   }
   return OkStatus();
 }
 
+Status StatsFile::Open() {
+  // A link is followed: the file it names is the one replaced.
+  std::error_code ec;
+  target_ = path_;
+  if (std::filesystem::exists(path_, ec)) {
+    const std::filesystem::path real = std::filesystem::canonical(path_, ec);
+    if (!ec) target_ = real.string();
+  }
+  struct stat st;
+  if (::stat(target_.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+    stream_ = true;
+    fd_ = ::open(target_.c_str(), O_WRONLY | O_CLOEXEC);
+    if (fd_ < 0) return CannotWrite(path_, std::strerror(errno));
+    return Write("[\n", 0);
+  }
+  const std::string aside = target_ + ".tmp";
+  fd_ = ::open(aside.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) return CannotWrite(path_, std::strerror(errno));
+  return OkStatus();
+}
+
+void StatsFile::Fail(Status why) {
+  error_ = std::move(why);
+  LOG_WARNING("master", "%s; the render goes on, the figures of its later frames are not written",
+              error_.message().c_str());
+}
+
 void StatsFile::Append(const std::string& record) {
-  if (path_.empty() || !error_.ok()) return;
-  if (fd_ < 0) {
-    fd_ = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd_ < 0) error_ = Status::Error(path_ + ": cannot write the statistics: " + std::strerror(errno));
-    else error_ = Write("[\n]\n", 0);
-    end_ = 4;
+  std::lock_guard lock(mu_);
+  if (path_.empty() || !error_.ok() || closed_) return;
+  const bool first = fd_ < 0;
+  if (first) {
+    if (Status s = Open(); !s.ok()) return Fail(std::move(s));
   }
-  if (error_.ok()) {
-    // Over the closing "]\n": the record, then the array closed again.
-    std::string bytes = (empty_ ? "" : ",\n") + record;
-    while (!bytes.empty() && bytes.back() == '\n') bytes.pop_back();
-    bytes += "\n]\n";
-    error_ = Write(bytes, end_ - 2);
-    if (error_.ok()) {
-      end_ += bytes.size() - 2;
-      empty_ = false;
-    } else if (::ftruncate(fd_, static_cast<off_t>(end_ - 2)) == 0) {
-      (void)Write("]\n", end_ - 2);  // the records so far, whole again (a full disk had room)
+  std::string bytes = (empty_ ? "" : ",\n") + record;
+  while (!bytes.empty() && bytes.back() == '\n') bytes.pop_back();
+  if (stream_) {
+    if (Status s = Write(bytes + "\n", 0); !s.ok()) return Fail(std::move(s));
+    empty_ = false;
+    return;
+  }
+  if (first) {
+    // The whole array aside, then renamed over the earlier file: never half of either.
+    const std::string aside = target_ + ".tmp";
+    bytes = "[\n" + bytes + "\n]\n";
+    Status s = Write(bytes, 0);
+    if (s.ok() && std::rename(aside.c_str(), target_.c_str()) != 0)
+      s = CannotWrite(path_, "rename from " + aside + " failed: " + std::strerror(errno));
+    if (!s.ok()) {
+      std::remove(aside.c_str());
+      return Fail(std::move(s));
     }
+    end_ = bytes.size();
+    empty_ = false;
+    return;
   }
-  if (!error_.ok())
-    LOG_WARNING("master", "%s; the render goes on, the figures of its later frames are not written",
-                error_.message().c_str());
+  // Over the closing "]\n": the record, then the array closed again.
+  bytes += "\n]\n";
+  if (Status s = Write(bytes, end_ - 2); !s.ok()) {
+    // The records so far, whole again (a full disk had room for them).
+    if (::ftruncate(fd_, static_cast<off_t>(end_ - 2)) != 0 || !Write("]\n", end_ - 2).ok())
+      LOG_ERROR("master", "%s: its last record is cut short", path_.c_str());
+    return Fail(std::move(s));
+  }
+  end_ += bytes.size() - 2;
+}
+
+Status StatsFile::Finish() {
+  std::lock_guard lock(mu_);
+  if (stream_ && !closed_ && fd_ >= 0) {
+    closed_ = true;
+    const Status s = Write("]\n", 0);
+    if (error_.ok() && !s.ok()) error_ = s;
+  }
+  return error_;
 }
 
 }  // namespace raystack::master

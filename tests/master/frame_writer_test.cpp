@@ -5,6 +5,8 @@
 #include "master/frame_writer.h"
 
 #include <gtest/gtest.h>
+
+#include <atomic>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -176,6 +178,29 @@ TEST(FrameWriter, AFailedWriteIsReportedNamingTheFile) {
   // Later writes are refused with the same error.
   const Status next = writer.Write(ImageAt(dir->File("y.exr"), 1));
   EXPECT_FALSE(next.ok());
+}
+
+// --stats' record of a frame goes once its image is written (found by an operator: after a
+// kill -9, the statistics listed frames whose EXR was missing or unfinished): `written` is called
+// after the write, from the writer's thread, and never for an image that could not be written.
+TEST(FrameWriter, WrittenIsCalledOnceTheImageIsOnDiskAndNeverForAFailedOne) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  std::atomic<int> calls{0};
+  std::atomic<bool> on_disk_then{false};
+  master::FrameWriter writer(false, 0, /*retry_seconds=*/0.5);
+  master::FrameWriter::Image good = ImageAt(dir->File("good.exr"), 1);
+  good.written = [&] {
+    on_disk_then = image::ReadExr(dir->File("good.exr")).ok();
+    ++calls;
+  };
+  ASSERT_TRUE(writer.Write(std::move(good)).ok());
+  master::FrameWriter::Image bad = ImageAt(dir->File("no-such-folder/x.exr"), 1);
+  bad.written = [&] { calls += 100; };
+  ASSERT_TRUE(writer.Write(std::move(bad)).ok());
+  EXPECT_FALSE(writer.Finish().ok());
+  EXPECT_EQ(calls, 1);
+  EXPECT_TRUE(on_disk_then);
 }
 
 }  // namespace

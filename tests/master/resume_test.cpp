@@ -306,7 +306,7 @@ TEST_F(Resume, AnInterruptDuringAWritesRetriesSaysWhatIsNotWritten) {
 // while the first holds the output's lock; the lock's file goes with the first.
 TEST_F(Resume, TwoRendersOfOneOutputAreRefused) {
   const std::string out = dir_->File("shared.exr");
-  const std::string lock = dir_->File(".shared.exr.lock");
+  const std::string lock = dir_->File(".shared.exr.lock");  // (one camera: frame 0's file is the output)
   for (int np : {0, 3}) {
     SCOPED_TRACE(np);
     std::vector<std::string> argv;

@@ -176,13 +176,15 @@ TEST_F(Sequence, ResumeFinishesACheckpointWithEveryPixelAndMakesAMissingPng) {
 }
 
 // The day's review: the output's lock covered the whole sequence, so two jobs rendering other
-// frames of one sequence (split between machines) were refused. Each job locks its frames.
+// frames of one sequence (split between machines) were refused. Each job locks its frames; the
+// lock is frame 0's file's, however the output is spelled; --stats has a lock of its own.
 TEST_F(Sequence, JobsOnOtherFramesOfOneSequenceRunSideBySide) {
   const std::string out = dir_->File("split.exr");
   const std::string log = dir_->File("split.csv");
   master::preview::testing::BackgroundProcess first(
       {kRaystackBinary, "render", dir_->File("turn.json"), "--threads", "1", "--output", out,
-       "--frames", "0-1", "--fault-slow-writes", "3", "--convergence-log", log},
+       "--frames", "0-1", "--fault-slow-writes", "3", "--convergence-log", log, "--stats",
+       dir_->File("split.json")},
       dir_->path());
   // Frame 0 ended (its row "0,end,") and its image is being written, slowly: the job holds its
   // frames for a while.
@@ -195,10 +197,24 @@ TEST_F(Sequence, JobsOnOtherFramesOfOneSequenceRunSideBySide) {
   EXPECT_EQ(overlapping.exit_code, 1);
   EXPECT_NE(overlapping.err.find("another raystack render is writing this output now"),
             std::string::npos) << overlapping.err;
+  // The same files spelled otherwise (found by an operator: each spelling took a lock of its
+  // own, and both jobs wrote the files): "split-#.exr" names split-0.exr ... as "split.exr" does.
+  const ProcessResult spelled = Render(dir_->File("split-#.exr"), 0, {"--frames", "1"});
+  EXPECT_EQ(spelled.exit_code, 1) << spelled.err;
+  EXPECT_NE(spelled.err.find("another raystack render is writing this output now"),
+            std::string::npos) << spelled.err;
+  // Other frames, another output, but the first job's --stats (found by the same operator: the
+  // two jobs' records in one file made it unreadable).
+  const ProcessResult stats = Render(dir_->File("other.exr"), 0, {"--stats", dir_->File("split.json")});
+  EXPECT_EQ(stats.exit_code, 1) << stats.err;
+  EXPECT_NE(stats.err.find("split.json: another raystack render is writing this output now"),
+            std::string::npos) << stats.err;
+  EXPECT_NE(stats.err.find("give another --stats"), std::string::npos) << stats.err;
   EXPECT_EQ(first.Wait(), 0) << first.err();
   for (int f = 0; f < 4; ++f)
     EXPECT_TRUE(std::filesystem::exists(dir_->File(StrFormat("split-%d.exr", f)))) << f;
-  EXPECT_FALSE(std::filesystem::exists(dir_->File(".split.exr.lock"))) << "the last one removes it";
+  EXPECT_FALSE(std::filesystem::exists(dir_->File(".split-0.exr.lock"))) << "the last one removes it";
+  EXPECT_TRUE(std::filesystem::exists(dir_->File("split.json")));
 }
 
 // Found by an animator: the noise depends on (seed, pixel, sample) only, so it stayed on the

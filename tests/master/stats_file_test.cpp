@@ -7,9 +7,12 @@
 
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 
 #include "common/base/log.h"
 #include "master/stats_file.h"
@@ -74,6 +77,48 @@ TEST(StatsFile, NoPathWritesNothingAndAFailedWriteNamesTheFile) {
   ASSERT_NO_THROW(array = nlohmann::json::parse(Slurp(path))) << Slurp(path).substr(0, 200);
   ASSERT_EQ(array.size(), 1u);
   EXPECT_EQ(array[0]["frame"], 0);
+}
+
+// Found by a review: pwrite on a pipe fails (`--stats /dev/stdout | cat` ended the job with
+// "Illegal seek" after every frame had rendered). A pipe gets the records in order and the
+// closing bracket at the end.
+TEST(StatsFile, APipeGetsTheArrayInOrder) {
+  int fds[2];
+  ASSERT_EQ(pipe(fds), 0);
+  std::string got;
+  std::thread reader([&] {
+    char buffer[256];
+    for (ssize_t n; (n = read(fds[0], buffer, sizeof buffer)) > 0;) got.append(buffer, static_cast<size_t>(n));
+  });
+  {
+    master::StatsFile stats(StrFormat("/proc/self/fd/%d", fds[1]));
+    stats.Append("{ \"frame\": 0 }\n");
+    stats.Append("{ \"frame\": 1 }");
+    EXPECT_TRUE(stats.Finish().ok()) << stats.Finish().message();
+  }
+  close(fds[1]);
+  reader.join();
+  close(fds[0]);
+  nlohmann::json array;
+  ASSERT_NO_THROW(array = nlohmann::json::parse(got)) << got;
+  ASSERT_EQ(array.size(), 2u);
+  EXPECT_EQ(array[1]["frame"], 1);
+}
+
+// A first record that cannot be written (a full disk) leaves the earlier run's file as it was:
+// the array is written aside, then renamed over it.
+TEST(StatsFile, AFirstRecordThatCannotBeWrittenLeavesTheEarlierFile) {
+  const std::unique_ptr<TempDir> dir = MakeTestDir();
+  ASSERT_TRUE(dir);
+  SmallTmpfs small(dir->File("small"), "size=64k");
+  if (small.path.empty()) GTEST_SKIP() << small.why;
+  const std::string path = small.path + "/stats.json";
+  std::ofstream(path) << "[ \"an earlier run\" ]\n";
+  master::StatsFile stats(path);
+  stats.Append("{ \"big\": \"" + std::string(256 << 10, 'x') + "\" }");
+  EXPECT_FALSE(stats.Finish().ok());
+  EXPECT_EQ(Slurp(path), "[ \"an earlier run\" ]\n");
+  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
 }
 
 }  // namespace
