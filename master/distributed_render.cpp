@@ -99,7 +99,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
   MasterOptions options;
   options.lost_after = std::chrono::milliseconds(static_cast<int64_t>(args.lost_after_s * 1000));
   options.beat = true;
-  options.identity = JobIdentity{BuildId(), StoreChecksum(scene.store), SceneChecksum(scene),
+  options.identity = JobIdentity{BuildId(), StoreChecksumAtStart(scene.store), SceneChecksum(scene),
                                  remote_blocks};
   MasterNode master(net, options);
   Expected<preview::LivePreview> preview = preview::LivePreview::Start(args.preview);
@@ -124,6 +124,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
   const SequenceProgress sequence(range, args.quiet);
   for (size_t f = range.begin; f < range.end; ++f) {
+    WarnIfStoreReplaced(scene.store);
     const render::Camera camera(scene.cameras[f]);
     render::Film& film = FilmFor(camera, &reused_film);
     render::FramePlan plan = PlanOf(args, scene, camera, coarse_rounds);
@@ -296,6 +297,7 @@ int SlavesHere(const transport::Transport& net) {
 
 Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::Transport* net) {
   Expected<std::unique_ptr<store::StoreReader>> store = OpenSceneStore(scene);
+  if (store.ok()) (void)StoreChecksumAtStart(scene.store);  // the store this slave renders
   if (store.ok()) {  // before any block is read (PeerBlocks reads this slave's share)
     // Each slave decides for its own machine; the master prints each one's reads per frame.
     std::string reads;
@@ -334,7 +336,7 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
   wire::Hello hello{};
   hello.ray_threads = static_cast<uint32_t>(options.threads);
   hello.flags = peers ? wire::kHelloRemoteBlocks : 0u;
-  hello.store_checksum = StoreChecksum(scene.store).value_or(0);
+  hello.store_checksum = StoreChecksumAtStart(scene.store).value_or(0);
   hello.scene_checksum = SceneChecksum(scene);
   wire::SetHelloText(hello.build, BuildId());
   wire::SetHelloText(hello.host, HostName());

@@ -93,6 +93,7 @@ Status RenderLocally(const RenderArgs& args) {
 
   Expected<std::unique_ptr<store::StoreReader>> store = OpenSceneStore(*scene);
   if (!store.ok()) return store.status();
+  (void)StoreChecksumAtStart(scene->store);  // the store this run renders, whatever replaces it
   // With what its engine will hold: its blocks, and --mode bvh's tree.
   const EngineMemory engine_memory = EngineMemoryOf(args.engine, **store);
   RAYSTACK_RETURN_IF_ERROR(
@@ -137,6 +138,7 @@ Status RenderLocally(const RenderArgs& args) {
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
   const SequenceProgress sequence(range, args.quiet);
   for (size_t f = range.begin; f < range.end; ++f) {
+    WarnIfStoreReplaced(scene->store);
     const render::Camera camera(scene->cameras[f]);
     render::Film& film = FilmFor(camera, &reused_film);
     render::FilmSink sink(&film);

@@ -1,7 +1,10 @@
 #include "master/provenance.h"
 
+#include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <mutex>
 
 #include "common/base/build_id.h"
 #include "common/base/log.h"
@@ -19,7 +22,7 @@ std::string StoreIdentity(const std::string& store) {
   std::error_code ec;
   const std::filesystem::path canonical = std::filesystem::weakly_canonical(store, ec);
   std::string text = ec ? store : canonical.string();
-  if (const std::optional<uint64_t> sum = StoreChecksum(store))
+  if (const std::optional<uint64_t> sum = StoreChecksumAtStart(store))
     text += StrFormat(" index %016llx", static_cast<unsigned long long>(*sum));
   else
     text += " (index unreadable)";
@@ -66,6 +69,24 @@ std::optional<uint64_t> StoreChecksum(const std::string& store) {
   if (lights.read(reinterpret_cast<char*>(&header), sizeof header))
     sum ^= (header.body_checksum + 1) * 0x9e3779b97f4a7c15ull;
   return sum;
+}
+
+std::optional<uint64_t> StoreChecksumAtStart(const std::string& store) {
+  static std::mutex mu;
+  static std::map<std::string, std::optional<uint64_t>> first;
+  std::lock_guard lock(mu);
+  auto [it, inserted] = first.try_emplace(store);
+  if (inserted) it->second = StoreChecksum(store);
+  return it->second;
+}
+
+void WarnIfStoreReplaced(const std::string& store) {
+  static std::atomic<bool> said{false};
+  if (said || StoreChecksum(store) == StoreChecksumAtStart(store)) return;
+  if (said.exchange(true)) return;
+  LOG_WARNING("render", "%s: the store was replaced (converted again?) after this job opened it; "
+              "the job goes on rendering the store it opened (its files stay open), and its "
+              "images say so", store.c_str());
 }
 
 uint64_t SceneChecksum(const render::Scene& scene) {

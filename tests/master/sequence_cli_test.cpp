@@ -217,6 +217,50 @@ TEST_F(Sequence, JobsOnOtherFramesOfOneSequenceRunSideBySide) {
   EXPECT_TRUE(std::filesystem::exists(dir_->File("split.json")));
 }
 
+// Found by an operator: a store converted again while a sequence rendered. The job rendered the
+// store it had opened (its files stay open), but the images of the later frames recorded the new
+// store, and --resume then finished a frame of the old model with the new one. The images record
+// the store as the job found it, and the job says the store was replaced.
+TEST_F(Sequence, AStoreReplacedMidJobIsSaidAndTheImagesRecordTheOneRendered) {
+  for (int np : {0, 3}) {
+    SCOPED_TRACE(np);
+    const std::string tag = std::to_string(np);
+    ASSERT_EQ(prep::testing::RunProcess({prep::testing::kPrepBinary, "--generate", "spheres:20000",
+                                         "-o", dir_->File("store"), "--target-block-kb", "8", "-q"},
+                                        dir_->path()).exit_code, 0);
+    const std::string log = dir_->File("replaced" + tag + ".csv");
+    std::vector<std::string> argv;
+    if (np > 0)
+      argv = {RAYSTACK_MPIRUN, "--allow-run-as-root", "--oversubscribe", "-np", std::to_string(np)};
+    for (const std::string& a : {kRaystackBinary, std::string("render"), dir_->File("turn.json"),
+                                 std::string("--threads"), std::string("1"), std::string("--output"),
+                                 dir_->File("replaced" + tag + ".exr"), std::string("--no-png"),
+                                 std::string("--fault-slow-writes"), std::string("1"),
+                                 std::string("--convergence-log"), log})
+      argv.push_back(a);
+    master::preview::testing::BackgroundProcess job(argv, dir_->path());
+    // Frame 0 ended: its image is written slowly, and frame 3 starts once frames 1 and 2 have
+    // been taken by the writer (seconds from now): the store is converted again meanwhile.
+    for (int i = 0; i < 3000 && Slurp(log).find("0,end,") == std::string::npos && !job.Exited(); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    ASSERT_NE(Slurp(log).find("0,end,"), std::string::npos) << job.err();
+    ASSERT_EQ(prep::testing::RunProcess({prep::testing::kPrepBinary, "--generate", "sphere:3000",
+                                         "-o", dir_->File("store"), "-q"}, dir_->path()).exit_code, 0);
+    ASSERT_EQ(job.Wait(), 0) << job.err();
+    EXPECT_NE(job.err().find("the store was replaced (converted again?) after this job opened it"),
+              std::string::npos) << job.err();
+    auto store_line = [&](int f) {
+      Expected<image::ImageLayers> frame = image::ReadExr(dir_->File(StrFormat("replaced%s-%d.exr", tag.c_str(), f)));
+      EXPECT_TRUE(frame.ok());
+      if (!frame.ok()) return std::string();
+      const size_t at = frame->provenance.find("\nstore ");
+      return frame->provenance.substr(at, frame->provenance.find('\n', at + 1) - at);
+    };
+    EXPECT_FALSE(store_line(0).empty());
+    EXPECT_EQ(store_line(3), store_line(0));
+  }
+}
+
 // Found by an animator: the noise depends on (seed, pixel, sample) only, so it stayed on the
 // screen as the camera moved, with no way to change that. "animated_seed" gives each frame its
 // own: two frames of one camera differ, and stay the same from one process to mpirun.
