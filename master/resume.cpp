@@ -12,7 +12,15 @@ namespace {
 
 // The first line where two provenance records differ ("build ...", "store ...", "camera ...",
 // ...), as "checkpoint: LINE; this run: LINE", each cut to a readable length.
-std::string FirstDifference(const std::string& theirs, const std::string& ours) {
+// The record without its "build ..." line.
+std::string WithoutBuild(const std::string& record) {
+  const size_t at = record.find("\nbuild ");
+  if (at == std::string::npos) return record;
+  const size_t end = record.find('\n', at + 1);
+  return record.substr(0, at) + (end == std::string::npos ? std::string() : record.substr(end));
+}
+
+std::string FirstDifference(const std::string& theirs, const std::string& ours, const char* what) {
   size_t a = 0, b = 0;
   auto line = [](const std::string& text, size_t at) {
     if (at >= text.size()) return std::string();
@@ -26,7 +34,7 @@ std::string FirstDifference(const std::string& theirs, const std::string& ours) 
     const size_t ea = std::min(theirs.find('\n', a), theirs.size());
     const size_t eb = std::min(ours.find('\n', b), ours.size());
     if (theirs.compare(a, ea - a, ours, b, eb - b) != 0)
-      return "checkpoint: '" + line(theirs, a) + "'; this run: '" + line(ours, b) + "'";
+      return std::string(what) + ": '" + line(theirs, a) + "'; this run: '" + line(ours, b) + "'";
     a = std::min(ea + 1, theirs.size());
     b = std::min(eb + 1, ours.size());
   }
@@ -70,13 +78,23 @@ Expected<ResumePlan> PlanResume(const std::string& exr, int width, int height, u
                                    "checkpoint of this frame; give another --output, or remove it "
                                    "to render from the start", exr.c_str(), read->width,
                                    read->height, width, height));
-  if (read->provenance != provenance)
+  // A complete frame rendered by another build of the same scene is kept as it is, as every
+  // complete frame is (found by an operator: a job requeued after a rebuild was refused on its
+  // finished frames); a checkpoint is continued by its own build only, whose pixels match.
+  const bool complete =
+      !read->partial && !read->samples.empty() &&
+      std::all_of(read->samples.begin(), read->samples.end(), [&](auto n) { return n >= spp; });
+  const bool kept_from_another_build = complete && !read->provenance.empty() &&
+                                       read->provenance != provenance &&
+                                       WithoutBuild(read->provenance) == WithoutBuild(provenance);
+  if (read->provenance != provenance && !kept_from_another_build)
     return Status::Error(
         exr + (read->provenance.empty()
                    ? ": it does not say what rendered it (not a raystack checkpoint of this "
                      "version): cannot resume from it"
                    : ": rendered from another scene, camera, setting or build (" +
-                         FirstDifference(read->provenance, provenance) +
+                         FirstDifference(read->provenance, provenance,
+                                         read->partial ? "checkpoint" : "the frame") +
                          "): give another --output, or remove it to render from the start (its "
                          "pixels are lost)"));
   if (read->samples.empty())

@@ -393,7 +393,9 @@ TEST_F(Resume, ACheckpointOfAnEditedSceneOrAnotherProgramIsRefused) {
   EXPECT_NE(r.err.find("edited.exr: rendered from another scene"), std::string::npos) << r.err;
   // It says what differs (found by a helper reading the docs: a build's checkpoint was
   // refused as "another scene" without a word of the build).
-  EXPECT_NE(r.err.find("checkpoint: 'light: position 3 8 4"), std::string::npos) << r.err;
+  // (A complete frame is "the frame", a checkpoint "checkpoint": an operator read a finished
+  // frame called a checkpoint.)
+  EXPECT_NE(r.err.find("the frame: 'light: position 3 8 4"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("this run: 'light: position 3 9 4"), std::string::npos) << r.err;
   // The same store written another way is the same store.
   std::string spelled = scene;
@@ -421,9 +423,11 @@ TEST_F(Resume, ACheckpointOfAnEditedSceneOrAnotherProgramIsRefused) {
   r = Render(out, 0, {"--resume"});
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("edited.exr: rendered from another scene"), std::string::npos) << r.err;
-  EXPECT_NE(r.err.find("checkpoint: 'store "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the frame: 'store "), std::string::npos) << r.err;
 
-  // Another build's checkpoint says so.
+  // Another build's checkpoint says so; another build's complete frame of the same scene is
+  // kept as it is, as every complete frame is (found by an operator: a job requeued after a
+  // rebuild was refused on its finished frames).
   ASSERT_EQ(Render(out, 0).exit_code, 0);
   image = image::ReadExr(out);
   ASSERT_TRUE(image.ok()) << image.status().message();
@@ -431,12 +435,20 @@ TEST_F(Resume, ACheckpointOfAnEditedSceneOrAnotherProgramIsRefused) {
   ASSERT_NE(build, std::string::npos);
   image->provenance.insert(build + 6, "older-");
   ASSERT_TRUE(image::WriteExr(out, *image).ok());
+  const std::string older = Slurp(out);
+  r = Render(out, 0, {"--resume"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("kept " + out + " (complete)"), std::string::npos) << r.out;
+  EXPECT_TRUE(Slurp(out) == older) << "the complete frame is left as it is";
+  image->partial = true;  // the same pixels as a checkpoint: continued by its own build only
+  ASSERT_TRUE(image::WriteExr(out, *image).ok());
   r = Render(out, 0, {"--resume"});
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("checkpoint: 'build older-"), std::string::npos) << r.err;
 
   // A record that is a prefix of the run's, without its last newline (found by the day's
   // review: the comparison read past its end and the render aborted).
+  std::filesystem::remove(out);  // (the checkpoint above: a run without --resume keeps off it)
   ASSERT_EQ(Render(out, 0).exit_code, 0);
   image = image::ReadExr(out);
   ASSERT_TRUE(image.ok()) << image.status().message();
@@ -446,7 +458,7 @@ TEST_F(Resume, ACheckpointOfAnEditedSceneOrAnotherProgramIsRefused) {
   ASSERT_TRUE(image::WriteExr(out, *image).ok());
   r = Render(out, 0, {"--resume"});
   EXPECT_EQ(r.exit_code, 1) << r.err;
-  EXPECT_NE(r.err.find("checkpoint: ''; this run: 'store "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the frame: ''; this run: 'store "), std::string::npos) << r.err;
 }
 
 TEST_F(Resume, WithoutACheckpointEverythingIsRendered) {
