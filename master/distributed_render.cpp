@@ -122,7 +122,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
   FrameWriter writer(!args.quiet, args.fail_writes, FrameWriter::kRetrySeconds, args.slow_writes_s);
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
-  const SequenceProgress sequence(range, args.quiet);
+  SequenceProgress sequence(range, args.quiet);
   for (size_t f = range.begin; f < range.end; ++f) {
     WarnIfStoreReplaced(scene.store);
     const render::Camera camera(scene.cameras[f]);
@@ -191,7 +191,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     // The frame's record goes into --stats once its image is written.
     std::string record = FiguresJson(
         FrameRecordJson(f, FrameExrPath(args, scene, f), camera.width(), camera.height(), plan.spp(),
-                        monitor.stopped() ? monitor.stop_reason() : ""),
+                        monitor.stopped() ? monitor.stop_reason() : "", plan.total_samples() - total),
         figures);
     Expected<std::string> exr =
         status.ok() ? WriteFrame(args, scene, f, film, std::move(resolved),
@@ -250,7 +250,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                     static_cast<double>(s.bytes_received) / 1e6, cache.c_str());
       }
     }
-    sequence.FrameDone(f);
+    sequence.FrameDone(f, total > 0);
   }
   if (const Status written = writer.Finish(); !written.ok()) {  // the last frame's write
     master.Shutdown(1);

@@ -49,12 +49,14 @@ std::string JsonQuoted(const std::string& text) {
 }  // namespace
 
 std::string FrameRecordJson(size_t f, const std::string& exr, int width, int height, uint32_t spp,
-                            const std::string& stopped) {
+                            const std::string& stopped, uint64_t kept_samples) {
   return StrFormat("  \"frame\": %zu,\n  \"output\": %s,\n  \"width\": %d,\n  \"height\": %d,\n"
-                   "  \"spp\": %u,\n  \"stopped\": %s,\n  \"build\": %s,\n  \"host\": %s,\n",
+                   "  \"spp\": %u,\n  \"stopped\": %s,\n  \"kept_samples\": %llu,\n  \"build\": %s,\n"
+                   "  \"host\": %s,\n",
                    f, JsonQuoted(exr).c_str(), width, height, spp,
                    stopped.empty() ? "null" : JsonQuoted(stopped).c_str(),
-                   JsonQuoted(BuildId()).c_str(), JsonQuoted(HostName()).c_str());
+                   static_cast<unsigned long long>(kept_samples), JsonQuoted(BuildId()).c_str(),
+                   JsonQuoted(HostName()).c_str());
 }
 
 std::string FrameTitle(size_t f, size_t frames) {
@@ -351,8 +353,9 @@ std::string WholeTilesAdvice(uint32_t spp) {
 
 }  // namespace
 
-void SequenceProgress::FrameDone(size_t f) const {
+void SequenceProgress::FrameDone(size_t f, bool rendered) {
   const size_t frames = range_.end - range_.begin, done = f + 1 - range_.begin;
+  rendered_ += rendered ? 1 : 0;
   if (quiet_ || frames < 2) return;
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
@@ -360,11 +363,14 @@ void SequenceProgress::FrameDone(size_t f) const {
     return s < 120 ? StrFormat("%.0f s", s)
                    : s < 7200 ? StrFormat("%.0f min", s / 60) : StrFormat("%.1f h", s / 3600);
   };
+  // At the pace of the frames rendered: frames --resume kept took no time (an operator was told
+  // "about 0 s left" with most of the job to come).
+  std::string left;
+  if (done < frames && rendered_ > 0)
+    left = ", about " + duration(seconds / static_cast<double>(rendered_) *
+                                 static_cast<double>(frames - done)) + " left";
   std::printf("sequence: %zu of %zu frames in %s%s\n", done, frames, duration(seconds).c_str(),
-              done < frames ? (", about " + duration(seconds / static_cast<double>(done) *
-                                                     static_cast<double>(frames - done)) +
-                               " left").c_str()
-                            : "");
+              left.c_str());
 }
 
 void WarnIfFrameSizesDiffer(const render::Scene& scene, FrameRange range) {

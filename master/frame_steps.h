@@ -89,11 +89,13 @@ Expected<std::unique_ptr<ConvergenceLog>> OpenLog(const RenderArgs& args);
 // Says why the frame stopped early, if a stop rule (--time-limit, --target-error) ended it.
 void ReportStop(const RenderArgs& args, const ConvergenceMonitor& monitor);
 // Frame f's record in --stats, as "  \"key\": value,\n" lines: its index, image, size, samples
-// per pixel, why it stopped early (null: it did not), and the build and host that rendered it
-// (found by a researcher: a stats file could not be traced to its run, nor its entries to their
-// frames but by position).
+// per pixel, why it stopped early (null: it did not), the samples --resume kept from its earlier
+// image (rendered by an earlier run; all of them for a complete frame kept: an operator could not
+// tell such a frame's near-zero figures from a rendered one's), and the build and host that
+// rendered it (found by a researcher: a stats file could not be traced to its run, nor its
+// entries to their frames but by position).
 std::string FrameRecordJson(size_t f, const std::string& exr, int width, int height, uint32_t spp,
-                            const std::string& stopped);
+                            const std::string& stopped, uint64_t kept_samples);
 
 // Queues frame `f`'s EXR (and the PNG quick look) of the resolved film `layers` to `writer`;
 // returns the EXR's path, or the error of an earlier frame's write.
@@ -133,11 +135,13 @@ void WarnIfCheckpointsKeepLittle(const RenderArgs& args, const render::Scene& sc
 class SequenceProgress {
  public:
   SequenceProgress(FrameRange range, bool quiet) : range_(range), quiet_(quiet) {}
-  void FrameDone(size_t f) const;
+  // `rendered`: the frame had samples to render (not a complete frame --resume kept).
+  void FrameDone(size_t f, bool rendered);
 
  private:
   const FrameRange range_;
   const bool quiet_;
+  size_t rendered_ = 0;
   const std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
 };
 

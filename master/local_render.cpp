@@ -136,7 +136,7 @@ Status RenderLocally(const RenderArgs& args) {
   FrameWriter writer(!args.quiet, args.fail_writes, FrameWriter::kRetrySeconds, args.slow_writes_s);
   std::unique_ptr<render::Film> reused_film;  // FilmFor
   std::unique_ptr<image::ImageLayers> reference;  // LoadReference
-  const SequenceProgress sequence(range, args.quiet);
+  SequenceProgress sequence(range, args.quiet);
   for (size_t f = range.begin; f < range.end; ++f) {
     WarnIfStoreReplaced(scene->store);
     const render::Camera camera(scene->cameras[f]);
@@ -237,14 +237,15 @@ Status RenderLocally(const RenderArgs& args) {
     // The frame's record goes into --stats once its image is written.
     std::string record = stats.ToJson(FrameRecordJson(f, FrameExrPath(args, *scene, f), camera.width(),
                                                       camera.height(), plan.spp(),
-                                                      monitor.stopped() ? monitor.stop_reason() : ""));
+                                                      monitor.stopped() ? monitor.stop_reason() : "",
+                                                      plan.total_samples() - total));
     Expected<std::string> exr = WriteFrame(args, *scene, f, film, std::move(resolved),
                                            monitor.stopped() ? monitor.stop_reason() : std::string(),
                                            total, &writer,
                                            [&stats_file, record = std::move(record)] { stats_file.Append(record); });
     if (!exr.ok()) return failed(exr.status());
     if (!args.quiet) std::printf("frame %zu: %s\n", f, stats.ToText().c_str());
-    sequence.FrameDone(f);
+    sequence.FrameDone(f, total > 0);
   }
   if (Status s = writer.Finish(); !s.ok()) return failed(std::move(s));  // the last frame's write
   if (Status s = stats_file.Finish(); !s.ok()) return failed(std::move(s));

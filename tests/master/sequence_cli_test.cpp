@@ -114,6 +114,22 @@ TEST_F(Sequence, ResumeLeavesCompleteFramesUntouched) {
       << again.out;
   EXPECT_EQ(std::filesystem::last_write_time(first), older);
   EXPECT_TRUE(Slurp(first) == bytes);
+  // The time left goes by the frames rendered: the kept ones took none (found by an operator:
+  // "2 of 6 frames in 0 s, about 0 s left" with most of the job to come).
+  std::filesystem::remove(dir_->File("seq-2.exr"));
+  std::filesystem::remove(dir_->File("seq-3.exr"));
+  const ProcessResult half = Render(out, 0, {"--resume", "--stats", dir_->File("half.json")});
+  ASSERT_EQ(half.exit_code, 0) << half.err;
+  // Its statistics tell the frames kept from those rendered (found by the same operator).
+  const nlohmann::json stats = nlohmann::json::parse(Slurp(dir_->File("half.json")));
+  ASSERT_EQ(stats.size(), 4u);
+  for (int f = 0; f < 4; ++f)
+    EXPECT_EQ(stats[f]["kept_samples"], f < 2 ? 40 * 30 * 4 : 0) << f;
+  EXPECT_NE(half.out.find("sequence: 2 of 4 frames in 0 s\n"), std::string::npos) << half.out;
+  const size_t third = half.out.find("sequence: 3 of 4 frames in ");
+  ASSERT_NE(third, std::string::npos) << half.out;
+  EXPECT_NE(half.out.substr(third, half.out.find('\n', third) - third).find(" left"),
+            std::string::npos) << half.out;
 }
 
 // Found by the scale review: --stats was written once, at the end, from figures kept in memory
