@@ -130,7 +130,9 @@ bool ConvergenceMonitor::Poll() {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   if (rules_.time_limit_s > 0 && now >= rules_.time_limit_s) {
     last_ = Measure();
-    // (The tiles in flight are finished after it: the frame's count ends a little higher.)
+    // The tiles in flight are finished after it: Finish says the frame's final count (an
+    // operator read this count in the stop line and a higher one in the frame's).
+    time_stop_samples_ = last_.samples;
     stop_reason_ = StrFormat("--time-limit %g s reached with %llu of %llu samples merged",
                              rules_.time_limit_s, static_cast<unsigned long long>(last_.samples),
                              static_cast<unsigned long long>(plan_.total_samples()));
@@ -147,6 +149,12 @@ bool ConvergenceMonitor::Poll() {
 void ConvergenceMonitor::Finish(const image::ImageLayers& resolved) {
   CheckPassEnds(&resolved);
   last_ = Measure(&resolved);
+  if (time_stop_samples_ && last_.samples != *time_stop_samples_)
+    stop_reason_ = StrFormat("--time-limit %g s reached with %llu of %llu samples merged, %llu "
+                             "once the tiles then in flight were finished", rules_.time_limit_s,
+                             static_cast<unsigned long long>(*time_stop_samples_),
+                             static_cast<unsigned long long>(plan_.total_samples()),
+                             static_cast<unsigned long long>(last_.samples));
   if (log_) log_->Write(frame_, "end", passes_ended_, last_);
 }
 

@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -85,6 +86,7 @@ class ConvergenceMonitor {
   // after --resume, whose checkpoint's finished pixels are restored, not rendered.
   std::vector<uint64_t> pass_samples_;
   std::string stop_reason_;
+  std::optional<uint64_t> time_stop_samples_;  // merged when --time-limit stopped the frame
   render::ConvergencePoint last_;
   // The figures of the last resolve (error_'s counts are not used), reused while no sample
   // has merged since.

@@ -130,6 +130,13 @@ TEST_F(ProgressiveCli, TimeLimitStopsEarlyAndLeavesAValidImage) {
   ASSERT_GE(rows.size(), 2u);
   EXPECT_EQ(rows[rows.size() - 2].event, "stop");
   EXPECT_EQ(rows.back().samples, total);  // the image holds every sample merged
+  // The reason says the frame's final count, which the tiles in flight when the limit came
+  // raised (found by an operator: the stop line's count and the frame's disagreed).
+  const std::string final_count = std::to_string(total);
+  EXPECT_TRUE(im.stopped.find(", " + final_count + " once the tiles then in flight were finished") !=
+                  std::string::npos ||
+              im.stopped.find("with " + final_count + " of ") != std::string::npos)
+      << im.stopped << " (final count " << final_count << ")";
 }
 
 TEST_F(ProgressiveCli, TargetErrorStopsBeforeTheLastPass) {
