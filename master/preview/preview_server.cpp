@@ -304,6 +304,17 @@ class PreviewServer::Impl {
   // Takes a new copy of the film if someone watches and it changed, and sends it and the
   // status to every viewer (each keeps only the newest).
   void Refresh();
+  // The status as the viewers get it (the server's thread).
+  std::string CurrentStatusJson() {
+    PreviewStatus status;
+    {
+      std::lock_guard lock(status_mu_);
+      status = status_;
+    }
+    const bool same_frame = latest_ && latest_->frame == status.frame;
+    return StatusJson(status, same_frame ? latest_->width : 0,
+                      same_frame ? latest_->counts : std::vector<uint32_t>()) + "\n";
+  }
   void CloseViewers();
 
   ServerOptions options_;
@@ -507,6 +518,10 @@ class PreviewServer::Impl::Request : public std::enable_shared_from_this<Request
     if (std::string why = server_->Refusal(req, query); !why.empty())
       return Respond(http::status::forbidden, std::move(why));
     if (path == "/") return Respond(http::status::ok, std::string(PageHtml()), "text/html; charset=utf-8");
+    // The status the page shows, for scripts and curl (an operator had to write a WebSocket
+    // client to read a job's progress).
+    if (path == "/status.json")
+      return Respond(http::status::ok, server_->CurrentStatusJson(), "application/json");
     if (path == "/ws" && websocket::is_upgrade(req)) {
       Slot viewer = server_->TakeViewerSlot();
       if (!viewer) return Respond(http::status::service_unavailable, "too many viewers\n");

@@ -88,6 +88,36 @@ TEST(PreviewServer, ServesThePageAndNothingElse) {
   EXPECT_EQ(Get(port, "/"), 200);  // and it still serves
 }
 
+// The status the page shows, as JSON for scripts and curl (found by an operator, who had to
+// write a WebSocket client to read a job's progress); guarded by the token as the page is.
+TEST(PreviewServer, ServesTheStatusAsJson) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  PreviewStatus status;
+  status.frame = 2;
+  status.frames = 5;
+  status.samples_done = 1234;
+  status.samples_total = 9999;
+  server->Publish(status);
+  std::string body;
+  nlohmann::json json;
+  ASSERT_TRUE(WaitUntil([&] {
+    body.clear();
+    if (Get(server->port(), "/status.json", "127.0.0.1", "", &body) != 200) return false;
+    json = nlohmann::json::parse(body, nullptr, false);
+    return !json.is_discarded() && json.value("samples_done", 0) == 1234;
+  })) << body;
+  EXPECT_EQ(json["frame"], 2);
+  EXPECT_EQ(json["samples_total"], 9999);
+
+  ServerOptions exposed;
+  exposed.bind = "0.0.0.0";
+  Expected<std::unique_ptr<PreviewServer>> open = PreviewServer::Start(exposed);
+  ASSERT_TRUE(open.ok()) << open.status().message();
+  EXPECT_EQ(Get((*open)->port(), "/status.json"), 403);
+  EXPECT_EQ(Get((*open)->port(), "/status.json?token=" + (*open)->token()), 200);
+}
+
 TEST(PreviewServer, OnLoopbackRefusesForeignHostsAndOrigins) {
   auto server = StartOn("127.0.0.1");
   ASSERT_TRUE(server);
