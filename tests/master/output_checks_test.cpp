@@ -284,6 +284,14 @@ TEST_F(EngineMemory, CountsEveryBlocksIndexBesideTheCache) {
       EXPECT_NE(m.what.find(StrFormat(" and the index of its %llu blocks",
                                       static_cast<unsigned long long>(blocks))),
                 std::string::npos) << m.what;
+      // A cache smaller than the index: no smaller --cache-mb would help, and it says what would.
+      if (mode == slave::TraceMode::kStack && threads == 64) {
+        engine.cache_bytes = 1000;
+        const master::EngineMemory small = master::EngineMemoryOf(engine, **store);
+        EXPECT_NE(small.advice.find("the index alone takes"), std::string::npos) << small.advice;
+        EXPECT_NE(small.advice.find("--target-block-kb"), std::string::npos) << small.advice;
+        engine.cache_bytes = 1 << 20;
+      }
     }
   }
 }
