@@ -458,6 +458,18 @@ TEST_F(PrepCliTest, ADiskTooSmallForTheBuildIsSaidBeforeItIsWritten) {
   EXPECT_NE(r.err.find("GB in " + small.path + "/store, whose file system has 0.0"),
             std::string::npos) << r.err;
 
+  // A PLY is checked at its header, before its body is read (hours for a large scan): 4 M faces
+  // declared (the body is broken: the read never gets far).
+  const std::string ply = dir_->File("scan.ply");
+  std::ofstream(ply) << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                        "property float y\nproperty float z\nelement face 4000000\n"
+                        "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0 zero\n";
+  r = Prep({ply, "-o", dir_->File("c"), "--temp-dir", small.path, "--mem-limit", "64"});
+  EXPECT_NE(r.exit_code, 0);
+  const size_t early = r.err.find("GB of temporary files in " + small.path);
+  EXPECT_NE(early, std::string::npos) << r.err;
+  EXPECT_LT(early, r.err.find("scan.ply:6")) << "before the body's error: " << r.err;
+
   // Room enough (the test's folder): no word.
   args = model;
   args.insert(args.end(), {"-o", dir_->File("b"), "--temp-dir", dir_->path()});

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <span>
 #include <string>
 #include <vector>
@@ -94,6 +95,9 @@ struct ReadOptions {
   // importer, a library of its own, does not include).
   uint64_t max_triangles = 0xfffffffeull;
   PositionShift* shift = nullptr;               // --shift (shared by a run's files), if any
+  // Called with the faces a file's header declares (PLY), before its body is read: the converter
+  // checks its disk against them (hours of reading a large scan ended on a full disk).
+  std::function<void(uint64_t faces)> declared_faces;
 };
 
 struct ModelInfo {

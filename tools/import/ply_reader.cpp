@@ -69,6 +69,9 @@ Status PlyReader::Read() {
   if (!header.ok()) return header.status();
   values_ = std::make_unique<PlyValueReader>(input_, header->format);
   WarnOfTooManyFaces(*header);
+  for (const PlyElement& element : header->elements)
+    if (element.name == "face" && element.count > 0 && options_.declared_faces)
+      options_.declared_faces(element.count);
   for (const PlyElement& element : header->elements) {
     if (element.name == "vertex") {
       RAYSTACK_RETURN_IF_ERROR(ReadVertices(element));

@@ -218,6 +218,22 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     report.zero_area_dropped += info.zero_area_dropped;
   }
   import::PositionShift shift = args.shift_by;  // one for every file: `automatic` sets it once
+  // The disk the conversion will write, checked as soon as a PLY header says how many faces
+  // follow (before hours of reading), and again once the model is read: said once.
+  const std::string temp_folder = std::filesystem::path(temp->path()).parent_path().string();
+  const uint64_t copies = static_cast<uint64_t>(args.replicate[0]) * args.replicate[1] * args.replicate[2];
+  bool disk_warned = false;
+  auto check_declared = [&](uint64_t faces) {
+    if (disk_warned) return;
+    const uint64_t read = sink.triangles() + faces;
+    BuildOptions planned;
+    planned.memory_bytes = budget * 2 / 5;
+    BuildDiskNeeds needs = EstimateBuildDisk(read * copies, read * copies * sizeof(PackedTriangle),
+                                             false, planned);
+    // The spool, past what it keeps in memory (a fifth of the budget).
+    if (read * sizeof(PackedTriangle) > budget / 5) needs.temp_bytes += faces * sizeof(PackedTriangle);
+    disk_warned = WarnIfDiskMayRunOut(needs, temp_folder, args.output);
+  };
   for (const std::string& input : args.inputs) {
     std::error_code ec;
     const uint64_t size = std::filesystem::file_size(input, ec);
@@ -227,6 +243,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     options.temp_dir = temp->path();
     options.progress = &progress;
     options.shift = args.shift ? &shift : nullptr;
+    options.declared_faces = check_declared;
     // What the store can still take after the files before this one (each file's reader counts
     // from zero).
     options.max_triangles = store::kMaxTriangles - std::min(sink.triangles(), store::kMaxTriangles);
@@ -302,8 +319,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
         static_cast<float>(static_cast<double>(vertices) / static_cast<double>(sink.triangles())) * 1.15f,
         0.3f, 3.0f);
   // (The folder the user chose, or the default: the work folder in it has a random name.)
-  WarnIfDiskMayRunOut(EstimateBuildDisk(source, options),
-                      std::filesystem::path(temp->path()).parent_path().string(), args.output);
+  if (!disk_warned) WarnIfDiskMayRunOut(EstimateBuildDisk(source, options), temp_folder, args.output);
   Expected<BuildResult> built = BuildOctree(source, options, writer->get());
   if (!built.ok()) return built.status();
   progress.Done();

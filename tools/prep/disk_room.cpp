@@ -34,27 +34,33 @@ double Gb(uint64_t bytes) { return static_cast<double>(bytes) / 1e9; }
 
 }  // namespace
 
-void WarnIfDiskMayRunOut(const BuildDiskNeeds& needs, const std::string& temp_dir,
+bool WarnIfDiskMayRunOut(const BuildDiskNeeds& needs, const std::string& temp_dir,
                          const std::string& store_dir) {
   const std::optional<Room> temp = RoomOf(temp_dir), store = RoomOf(store_dir);
-  if (!temp || !store) return;
+  if (!temp || !store) return false;
   if (temp->device == store->device) {
-    if (needs.temp_bytes + needs.store_bytes <= temp->free_bytes) return;
+    if (needs.temp_bytes + needs.store_bytes <= temp->free_bytes) return false;
     LOG_WARNING("prep", "the build will likely write about %.2f GB of temporary files in %s and "
                 "%.2f GB of store in %s, on one file system with %.2f GB free: it would fail when the disk fills; free space there, or give --temp-dir "
                 "or -o on another disk", Gb(needs.temp_bytes), temp_dir.c_str(),
                 Gb(needs.store_bytes), store_dir.c_str(), Gb(temp->free_bytes));
-    return;
+    return true;
   }
-  if (needs.temp_bytes > temp->free_bytes)
+  bool warned = false;
+  if (needs.temp_bytes > temp->free_bytes) {
+    warned = true;
     LOG_WARNING("prep", "the build will likely write about %.2f GB of temporary files in %s, "
                 "whose file system has %.2f GB free: it would fail when the disk fills; free space there, "
                 "or give --temp-dir on a larger disk", Gb(needs.temp_bytes), temp_dir.c_str(),
                 Gb(temp->free_bytes));
-  if (needs.store_bytes > store->free_bytes)
+  }
+  if (needs.store_bytes > store->free_bytes) {
+    warned = true;
     LOG_WARNING("prep", "the store will likely take about %.2f GB in %s, whose file system has "
                 "%.2f GB free: it would fail when the disk fills; free space there, or give -o on a larger "
                 "disk", Gb(needs.store_bytes), store_dir.c_str(), Gb(store->free_bytes));
+  }
+  return warned;
 }
 
 }  // namespace raystack::prep

@@ -11,7 +11,8 @@ namespace raystack::prep {
 
 // Warns when `needs` is more than the free space of the temporary folder's file system and the
 // store's (their sum when they are one file system). `store_dir` need not exist yet.
-void WarnIfDiskMayRunOut(const BuildDiskNeeds& needs, const std::string& temp_dir,
+// Returns whether it warned.
+bool WarnIfDiskMayRunOut(const BuildDiskNeeds& needs, const std::string& temp_dir,
                          const std::string& store_dir);
 
 }  // namespace raystack::prep

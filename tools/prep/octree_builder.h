@@ -86,6 +86,9 @@ struct BuildDiskNeeds {
   uint64_t temp_bytes = 0, store_bytes = 0;
 };
 BuildDiskNeeds EstimateBuildDisk(const TriangleSource& source, const BuildOptions& options);
+// The same before the model is read: `triangles`, spooled in `spooled_bytes`.
+BuildDiskNeeds EstimateBuildDisk(uint64_t triangles, uint64_t spooled_bytes, bool attributes,
+                                 const BuildOptions& options);
 
 // Most triangles a block may hold and still be under `max_block_bytes` in the worst case.
 uint32_t MaxTrianglesPerBlock(uint32_t max_block_bytes, bool attributes);
