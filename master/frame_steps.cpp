@@ -135,6 +135,23 @@ void WarnIfFrameShowsNothing(const image::ImageLayers& layers, size_t f) {
                 static_cast<double>(brightest), dim_advice);
 }
 
+// A frame's image to write: its layers, how they are recorded and shown.
+void FillImage(const RenderArgs& args, const render::Scene& scene, size_t f,
+               const render::Film& film, image::ImageLayers layers, const std::string& stopped,
+               FrameWriter::Image* out) {
+  FrameWriter::Image& image = *out;
+  image.exposure = args.exposure;
+  image.background = f + 1 < FramesOf(args, scene).end;  // the next renders while it is written
+  image.layers = std::move(layers);
+  image.layers.provenance = Provenance(scene, f);
+  image.layers.partial = false;  // (the layers may be a checkpoint's, reused)
+  image.layers.stopped = stopped;
+  WarnIfFrameShowsNothing(image.layers, f);
+  if (film.nonfinite_dropped() > 0)
+    LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
+                static_cast<unsigned long long>(film.nonfinite_dropped()));
+}
+
 }  // namespace
 
 std::string FrameExrPath(const RenderArgs& args, const render::Scene& scene, size_t f) {
@@ -157,21 +174,12 @@ Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& sc
   if (args.resume && rendered == 0 && !image::IsPartialFrame(image.exr)) {
     if (image.png.empty() || std::filesystem::exists(image.png, ec)) {
       if (!args.quiet) std::printf("  kept %s (complete)\n", image.exr.c_str());
-      if (image.written) image.written();
-      return image.exr;
+      image.nothing = true;  // `written` in its turn, after the frames before it
+    } else {
+      image.png_only = true;
     }
-    image.png_only = true;
   }
-  image.exposure = args.exposure;
-  image.background = f + 1 < FramesOf(args, scene).end;  // the next renders while it is written
-  image.layers = std::move(layers);
-  image.layers.provenance = Provenance(scene, f);
-  image.layers.partial = false;  // (the layers may be a checkpoint's, reused)
-  image.layers.stopped = stopped;
-  WarnIfFrameShowsNothing(image.layers, f);
-  if (film.nonfinite_dropped() > 0)
-    LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
-                static_cast<unsigned long long>(film.nonfinite_dropped()));
+  if (!image.nothing) FillImage(args, scene, f, film, std::move(layers), stopped, &image);
   const std::string exr = image.exr;
   if (Status refused = writer->Write(std::move(image)); !refused.ok()) {
     // An earlier frame's image failed. The one the writer still holds may fail too (an interrupt

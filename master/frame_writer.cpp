@@ -134,6 +134,13 @@ void FrameWriter::Loop() {
     cv_.notify_all();  // a Write waiting for room may queue the next one
     lock.unlock();
     Status s;
+    if (image.nothing) {
+      if (image.written) image.written();
+      lock.lock();
+      writing_ = false;
+      cv_.notify_all();
+      continue;
+    }
     auto write = [&](image::ExrThreads threads) {
       try {
         s = WriteImage(image, threads);

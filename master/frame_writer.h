@@ -52,6 +52,9 @@ class FrameWriter {
     // A frame's image (not a checkpoint): called by the writer's thread once it is written
     // (--stats' record of the frame goes then: a record says its image is on disk).
     std::function<void()> written;
+    // Nothing to write (a complete frame --resume keeps as it is): only `written` is called, in
+    // its turn after the frames queued before it (their records stay in frame order).
+    bool nothing = false;
   };
   static constexpr double kRetrySeconds = 600;
 
