@@ -142,6 +142,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     // The page first: once the slaves are told, mpirun may end this process at any moment.
     const AfterInterrupt interrupted = [&](const std::string& said) {
       preview->Interrupted(said);
+      (void)stats_file.Finish();  // a stream's array closed: the process ends with _Exit
       master.Abandon();
     };
     EndIfInterruptedBetweenFrames(f, range, &writer, interrupted);
@@ -398,12 +399,9 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
                                   FramesOf(args, *scene).end)
                : Expected<OutputLock>(s);
     if (!output_lock.ok()) s = output_lock.status();
-    std::optional<OutputLock> stats_lock;  // two jobs' records in one file made it unreadable
-    if (s.ok() && !args.stats.empty()) {
-      Expected<OutputLock> taken = OutputLock::Take(args.stats, 0, 1, "--stats");
-      if (taken.ok()) stats_lock.emplace(std::move(*taken));
-      else s = taken.status();
-    }
+    Expected<std::optional<OutputLock>> stats_lock =  // held to the end of the job too
+        s.ok() ? LockStats(args) : Expected<std::optional<OutputLock>>(s);
+    if (!stats_lock.ok()) s = stats_lock.status();
     if (s.ok()) s = CheckNoUnfinishedFrame(args, *scene);
     if (s.ok()) s = CheckReferences(*scene, args.reference, FramesOf(args, *scene));
     if (!s.ok()) {  // before the slaves start a frame

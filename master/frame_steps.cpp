@@ -20,6 +20,7 @@
 #include "master/preflight.h"
 #include "master/provenance.h"
 #include "master/resume.h"
+#include "master/stats_file.h"
 
 namespace raystack::master {
 
@@ -67,11 +68,43 @@ std::string OutputOf(const RenderArgs& args, const render::Scene& scene) {
   return args.output.empty() ? scene.output : args.output;
 }
 
+namespace {
+
+// --stats: writable (found out now, not after the render: a user lost a render's figures), and
+// none of the job's images (a review: `--stats t-0.exr --frames 2-3` replaced frame 0 with JSON,
+// and `--stats o.exr --output o.exr` was refused as "another render").
+Status CheckStatsTarget(const RenderArgs& args, const render::Scene& scene) {
+  if (args.stats.empty()) return OkStatus();
+  const StatsTarget target = ResolveStatsTarget(args.stats);
+  if (target.stream) return OkStatus();  // a pipe, a terminal, the standard output: nothing to replace
+  if (Status s = image::CheckWritable(target.path); !s.ok()) return Status::Error("--stats: " + s.message());
+  std::error_code ec;
+  const std::filesystem::path mine = std::filesystem::weakly_canonical(target.path, ec);
+  const std::string output = OutputOf(args, scene);
+  const size_t frames = scene.cameras.size();
+  for (size_t f = 0; f < frames; ++f)
+    for (const char* ext : {".exr", ".png"}) {
+      const std::string image = FramePath(output, f, frames, ext);
+      if (std::filesystem::weakly_canonical(image, ec) == mine)
+        return Status::Error("--stats " + args.stats + " is " + image + ", an image of this job's "
+                             "output: give the statistics a file of their own (e.g. stats.json)");
+    }
+  return OkStatus();
+}
+
+}  // namespace
+
+Expected<std::optional<OutputLock>> LockStats(const RenderArgs& args) {
+  if (args.stats.empty()) return std::optional<OutputLock>();
+  const StatsTarget target = ResolveStatsTarget(args.stats);
+  if (target.stream) return std::optional<OutputLock>();  // two jobs' pipes are their own
+  Expected<OutputLock> lock = OutputLock::Take(target.path, 0, 1, "--stats");
+  if (!lock.ok()) return lock.status();
+  return std::optional<OutputLock>(std::move(*lock));
+}
+
 Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene) {
-  // Written at the end: found out now, not after the render (a user lost a render's figures).
-  if (!args.stats.empty())
-    if (Status s = image::CheckWritable(args.stats); !s.ok())
-      return Status::Error("--stats: " + s.message());
+  RAYSTACK_RETURN_IF_ERROR(CheckStatsTarget(args, scene));
   const Status s = CheckOutputs(scene, OutputOf(args, scene), args.png, args.checkpoint_s > 0,
                                 FramesOf(args, scene));
   if (s.ok()) return s;

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "common/base/status.h"
@@ -21,6 +22,7 @@
 #include "master/checkpoints.h"
 #include "master/convergence_monitor.h"
 #include "master/frame_writer.h"
+#include "master/output_lock.h"
 #include "master/preflight.h"
 #include "master/render_args.h"
 
@@ -40,8 +42,11 @@ std::string OutputOf(const RenderArgs& args, const render::Scene& scene);
 // from 0 as in the file names (out-1.exr), the figures and the convergence log; the progress
 // said "frame 2/3" of that frame.
 std::string FrameTitle(size_t f, size_t frames);
+// --stats' lock, held for the job (two jobs' records in one file made it unreadable); none
+// without --stats or for a stream (a pipe, the standard output). On the file a link names.
+Expected<std::optional<OutputLock>> LockStats(const RenderArgs& args);
 // CheckOutputs (preflight.h) for OutputOf, its errors prefixed by where the output was given
-// ("--output", or the scene file's "output" key).
+// ("--output", or the scene file's "output" key); and --stats' file (none of the job's images).
 Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene);
 // The scene's store, its errors prefixed by the scene file and key, with what to do when the
 // path holds no store at all (not converted yet, a model file, an empty folder).
@@ -91,8 +96,8 @@ void ReportStop(const RenderArgs& args, const ConvergenceMonitor& monitor);
 // Frame f's record in --stats, as "  \"key\": value,\n" lines: its index, image, size, samples
 // per pixel, why it stopped early (null: it did not), the samples --resume kept from its earlier
 // image (rendered by an earlier run; all of them for a complete frame kept: an operator could not
-// tell such a frame's near-zero figures from a rendered one's), and the build and host that
-// rendered it (found by a researcher: a stats file could not be traced to its run, nor its
+// tell such a frame's near-zero figures from a rendered one's), and the build and host of the
+// run (found by a researcher: a stats file could not be traced to its run, nor its
 // entries to their frames but by position).
 std::string FrameRecordJson(size_t f, const std::string& exr, int width, int height, uint32_t spp,
                             const std::string& stopped, uint64_t kept_samples);

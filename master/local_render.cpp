@@ -80,12 +80,8 @@ Status RenderLocally(const RenderArgs& args) {
   // Held to the end of the job; named from frame 0's file ("out" and "out.exr" are one).
   Expected<OutputLock> output_lock = OutputLock::Take(FrameExrPath(args, *scene, 0), range.begin, range.end);
   if (!output_lock.ok()) return output_lock.status();
-  std::optional<OutputLock> stats_lock;  // two jobs' records in one file made it unreadable
-  if (!args.stats.empty()) {
-    Expected<OutputLock> taken = OutputLock::Take(args.stats, 0, 1, "--stats");
-    if (!taken.ok()) return taken.status();
-    stats_lock.emplace(std::move(*taken));
-  }
+  Expected<std::optional<OutputLock>> stats_lock = LockStats(args);  // held to the end too
+  if (!stats_lock.ok()) return stats_lock.status();
   RAYSTACK_RETURN_IF_ERROR(CheckNoUnfinishedFrame(args, *scene));
   RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference, range));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
@@ -152,7 +148,10 @@ Status RenderLocally(const RenderArgs& args) {
     const uint64_t total = plan.samples_to_render();  // less what --resume kept
     ConvergenceMonitor monitor(film, plan, args.stop, static_cast<uint32_t>(f), log->get(),
                                reference.get(), args.log_interval_s);
-    const AfterInterrupt interrupted = [&](const std::string& said) { preview->Interrupted(said); };
+    const AfterInterrupt interrupted = [&](const std::string& said) {
+      preview->Interrupted(said);
+      (void)stats_file.Finish();  // a stream's array closed: the process ends with _Exit
+    };
     EndIfInterruptedBetweenFrames(f, range, &writer, interrupted);
     {
       ProgressReporter progress(FrameTitle(f, frames), total, "samples",

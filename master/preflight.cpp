@@ -205,8 +205,9 @@ EngineMemory EngineMemoryOf(const slave::EngineOptions& engine, const store::Sto
   }
   // Where the index outweighs the blocks kept, no --cache-mb helps: said so (a review).
   if (per_block > m.bytes)
-    m.advice = StrFormat("the index alone takes %.0f MB: fewer --threads, or a store of larger "
-                         "blocks (raystack-prep --target-block-kb), would fit", static_cast<double>(per_block) / 1e6);
+    m.advice = StrFormat("the index alone takes %.0f MB: a store of larger blocks (raystack-prep "
+                         "--target-block-kb)%s would fit", static_cast<double>(per_block) / 1e6,
+                         engine.threads >= 32 ? ", or fewer --threads," : "");
   m.bytes += per_block;
   m.what += StrFormat(" and the index of its %zu blocks", store.blocks().size());
   return m;

@@ -1,5 +1,6 @@
 // raystack: the renderer. One executable for every role; `mpirun` will launch it too.
 
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <new>
@@ -25,6 +26,9 @@ int main(int argc, char** argv) {
   // Progress lines reach a log file (Slurm's, a redirect) as they are printed, not at exit.
   std::setvbuf(stdout, nullptr, _IOLBF, 0);
   if (argc >= 2 && std::strcmp(argv[1], "render") == 0) {
+    // A reader that went away (`--stats /dev/stdout | head`, a closed terminal) is a failed write,
+    // said and survived: its signal ended the render mid-sequence, the output's lock left.
+    std::signal(SIGPIPE, SIG_IGN);
     try {
       return raystack::master::RenderCommand(argc - 1, argv + 1);
     } catch (const std::bad_alloc&) {  // memory is checked up front; this is the last resort

@@ -96,7 +96,8 @@ options:
                             a %04d in the name takes the frame's number instead)
   --no-png                  do not write the PNG quick-look
   --exposure EV             exposure of the PNG quick-look (default 0)
-  --stats FILE              also write the run's statistics as JSON (a frame's as it ends)
+  --stats FILE              also write the run's statistics as JSON, a frame's once its image
+                            is written (/dev/stdout: with -q, the JSON alone)
   --preview PORT|any        serve a live preview of the render at http://ADDR:PORT/ (any: a
                             free port; the address is printed at start); default off
   --preview-bind ADDR       the preview's address (default 127.0.0.1, this machine only; any

@@ -20,6 +20,41 @@ Status CannotWrite(const std::string& path, const std::string& why) {
 
 }  // namespace
 
+StatsTarget ResolveStatsTarget(const std::string& given) {
+  StatsTarget t;
+  t.path = given;
+  struct stat st;
+  const bool there = ::stat(given.c_str(), &st) == 0;
+  if (there) {
+    // /dev/stdout with the output sent to a file: that file, written through the process's own
+    // descriptor (a review: replaced by the first array, the run's text went with the old one).
+    for (const int fd : {1, 2}) {
+      struct stat std_st;
+      if (::fstat(fd, &std_st) == 0 && std_st.st_dev == st.st_dev && std_st.st_ino == st.st_ino) {
+        t.stream = true;
+        t.std_fd = fd;
+        return t;
+      }
+    }
+    if (!S_ISREG(st.st_mode)) {  // a pipe, a terminal, /dev/null (opened by the name given)
+      t.stream = true;
+      return t;
+    }
+  }
+  // A regular file, or none yet: links followed, also to a file not there yet (a job's stats
+  // file appears at its first record), so that the lock is the file's whatever names it.
+  std::filesystem::path p = given;
+  std::error_code ec;
+  for (int hops = 0; hops < 40 && std::filesystem::is_symlink(std::filesystem::symlink_status(p, ec)); ++hops) {
+    const std::filesystem::path to = std::filesystem::read_symlink(p, ec);
+    if (ec) break;
+    p = to.is_absolute() ? to : p.parent_path() / to;
+  }
+  const std::filesystem::path real = std::filesystem::weakly_canonical(p, ec);
+  t.path = ec ? p.string() : real.string();
+  return t;
+}
+
 StatsFile::~StatsFile() {
   (void)Finish();
   if (fd_ >= 0) ::close(fd_);
@@ -27,7 +62,7 @@ StatsFile::~StatsFile() {
 
 Status StatsFile::Write(const std::string& bytes, uint64_t at) {
   for (size_t done = 0; done < bytes.size();) {
-    const ssize_t n = stream_ ? ::write(fd_, bytes.data() + done, bytes.size() - done)
+    const ssize_t n = target_.stream ? ::write(fd_, bytes.data() + done, bytes.size() - done)
                               : ::pwrite(fd_, bytes.data() + done, bytes.size() - done,
                                          static_cast<off_t>(at + done));
     if (n < 0 && errno == EINTR) continue;
@@ -38,21 +73,14 @@ Status StatsFile::Write(const std::string& bytes, uint64_t at) {
 }
 
 Status StatsFile::Open() {
-  // A link is followed: the file it names is the one replaced.
-  std::error_code ec;
-  target_ = path_;
-  if (std::filesystem::exists(path_, ec)) {
-    const std::filesystem::path real = std::filesystem::canonical(path_, ec);
-    if (!ec) target_ = real.string();
-  }
-  struct stat st;
-  if (::stat(target_.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
-    stream_ = true;
-    fd_ = ::open(target_.c_str(), O_WRONLY | O_CLOEXEC);
+  target_ = ResolveStatsTarget(path_);
+  if (target_.stream) {
+    fd_ = target_.std_fd >= 0 ? ::fcntl(target_.std_fd, F_DUPFD_CLOEXEC, 0)
+                             : ::open(target_.path.c_str(), O_WRONLY | O_CLOEXEC);
     if (fd_ < 0) return CannotWrite(path_, std::strerror(errno));
     return Write("[\n", 0);
   }
-  const std::string aside = target_ + ".tmp";
+  const std::string aside = target_.path + ".tmp";
   fd_ = ::open(aside.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd_ < 0) return CannotWrite(path_, std::strerror(errno));
   return OkStatus();
@@ -73,17 +101,17 @@ void StatsFile::Append(const std::string& record) {
   }
   std::string bytes = (empty_ ? "" : ",\n") + record;
   while (!bytes.empty() && bytes.back() == '\n') bytes.pop_back();
-  if (stream_) {
+  if (target_.stream) {
     if (Status s = Write(bytes + "\n", 0); !s.ok()) return Fail(std::move(s));
     empty_ = false;
     return;
   }
   if (first) {
     // The whole array aside, then renamed over the earlier file: never half of either.
-    const std::string aside = target_ + ".tmp";
+    const std::string aside = target_.path + ".tmp";
     bytes = "[\n" + bytes + "\n]\n";
     Status s = Write(bytes, 0);
-    if (s.ok() && std::rename(aside.c_str(), target_.c_str()) != 0)
+    if (s.ok() && std::rename(aside.c_str(), target_.path.c_str()) != 0)
       s = CannotWrite(path_, "rename from " + aside + " failed: " + std::strerror(errno));
     if (!s.ok()) {
       std::remove(aside.c_str());
@@ -106,7 +134,7 @@ void StatsFile::Append(const std::string& record) {
 
 Status StatsFile::Finish() {
   std::lock_guard lock(mu_);
-  if (stream_ && !closed_ && fd_ >= 0) {
+  if (target_.stream && !closed_ && fd_ >= 0) {
     closed_ = true;
     const Status s = Write("]\n", 0);
     if (error_.ok() && !s.ok()) error_ = s;

@@ -14,6 +14,16 @@
 
 namespace raystack::master {
 
+// Where --stats goes: the file it names (a link followed), and whether it is a stream (a pipe,
+// a terminal, /dev/null, or this process's own standard output or error, even when that is a
+// regular file: it is written in order, at its own offset, never replaced).
+struct StatsTarget {
+  std::string path;     // the file written (or locked), a link followed
+  bool stream = false;
+  int std_fd = -1;      // 1 or 2 when it is this process's standard output or error
+};
+StatsTarget ResolveStatsTarget(const std::string& given);
+
 class StatsFile {
  public:
   // Nothing is written with an empty `path`. A file is replaced at the first record (written
@@ -37,10 +47,9 @@ class StatsFile {
   void Fail(Status why);
 
   const std::string path_;
-  std::string target_;  // the file it names (a link followed)
+  StatsTarget target_;
   std::mutex mu_;
   int fd_ = -1;
-  bool stream_ = false;  // not a regular file: written in order, never rewritten
   bool closed_ = false;  // a stream's closing bracket is out
   uint64_t end_ = 0;     // a regular file's size: its closing "]\n" is its last two bytes
   bool empty_ = true;

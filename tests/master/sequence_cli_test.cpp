@@ -235,11 +235,51 @@ TEST_F(Sequence, JobsOnOtherFramesOfOneSequenceRunSideBySide) {
   EXPECT_NE(stats.err.find("split.json: another raystack render is writing this output now"),
             std::string::npos) << stats.err;
   EXPECT_NE(stats.err.find("give another --stats"), std::string::npos) << stats.err;
+  // Through a link to it (a review: the lock went by the link's name, the file written by its
+  // target's, and one job's records were lost).
+  std::filesystem::create_symlink(dir_->File("split.json"), dir_->File("link.json"));
+  const ProcessResult linked = Render(dir_->File("other2.exr"), 0, {"--stats", dir_->File("link.json")});
+  EXPECT_EQ(linked.exit_code, 1) << linked.err;
+  EXPECT_NE(linked.err.find("split.json: another raystack render is writing this output now"),
+            std::string::npos) << linked.err;
   EXPECT_EQ(first.Wait(), 0) << first.err();
   for (int f = 0; f < 4; ++f)
     EXPECT_TRUE(std::filesystem::exists(dir_->File(StrFormat("split-%d.exr", f)))) << f;
   EXPECT_FALSE(std::filesystem::exists(dir_->File(".split-0.exr.lock"))) << "the last one removes it";
   EXPECT_TRUE(std::filesystem::exists(dir_->File("split.json")));
+}
+
+// --stats on the standard output, as scripts use it (a review): with the output sent to a file
+// (the harness does), the records go into that file beside the run's text, not over it; a reader
+// that goes away (`| head`) is a failed write, said, and the render goes on to its last frame
+// (its signal ended the job mid-sequence, the output's lock left);
+// --stats naming one of the job's own images is refused before rendering.
+TEST_F(Sequence, StatsOnTheStandardOutputAndNotOverAnImage) {
+  ProcessResult r = Render(dir_->File("std.exr"), 0, {"--stats", "/dev/stdout", "-q", "--no-png"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  nlohmann::json records;
+  ASSERT_NO_THROW(records = nlohmann::json::parse(r.out)) << r.out;
+  ASSERT_EQ(records.size(), 4u);
+  EXPECT_EQ(records[3]["frame"], 3);
+  r = Render(dir_->File("std.exr"), 0, {"--stats", "/dev/stdout", "--no-png"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("sequence: 4 of 4 frames"), std::string::npos) << r.out;  // the text stays
+  EXPECT_NE(r.out.find("\"frame\": 3"), std::string::npos) << r.out;
+
+  const std::string command = std::string(kRaystackBinary) + " render " + dir_->File("turn.json") +
+                              " --threads 1 --output " + dir_->File("cut.exr") + " --no-png -q " +
+                              "--stats /dev/stdout | head -c 10 > /dev/null; echo \"render exit ${PIPESTATUS[0]}\"";
+  r = RunProcess({"/bin/bash", "-c", command}, dir_->path());
+  // (1: the statistics asked for were not all written; the message says why.)
+  EXPECT_NE(r.out.find("render exit 1"), std::string::npos) << r.out << r.err;
+  EXPECT_NE(r.err.find("/dev/stdout: cannot write the statistics: Broken pipe"), std::string::npos) << r.err;
+  for (int f = 0; f < 4; ++f)
+    EXPECT_TRUE(std::filesystem::exists(dir_->File(StrFormat("cut-%d.exr", f)))) << f << r.err;
+
+  r = Render(dir_->File("img.exr"), 0, {"--frames", "2-3", "--stats", dir_->File("img-0.exr")});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("img-0.exr, an image of this job's output"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("img-2.exr")));
 }
 
 // Found by an operator: a store converted again while a sequence rendered. The job rendered the
