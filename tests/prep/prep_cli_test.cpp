@@ -478,6 +478,19 @@ TEST_F(PrepCliTest, ADiskTooSmallForTheBuildIsSaidBeforeItIsWritten) {
   EXPECT_EQ(r.err.find("will likely"), std::string::npos) << r.err;
 }
 
+// Found by a converter persona: each encoding thread holds ~150 KB of scratch, so --threads 1024
+// under --mem-limit 64 peaked at 159-262 MB. The threads are bounded by the budget, and it says so.
+TEST_F(PrepCliTest, ThreadsBeyondTheMemoryLimitAreSaidAndBounded) {
+  const ProcessResult r = Prep({"--generate", "sphere:400000", "--replicate", "2,2,2", "--mem-limit",
+                                "64", "--threads", "1024", "-o", dir_->File("s")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("--threads 1024: --mem-limit 64 leaves room for 25 encoding threads"),
+            std::string::npos) << r.err;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.out, m, std::regex("peak RSS ([0-9]+) MB"))) << r.out;
+  EXPECT_LE(std::stoi(m[1]), 64) << r.out;
+}
+
 // Ctrl-C during a conversion that replaces a store: the old store stays whole, the new one's
 // temporaries and the work folder (bucket files) are removed, and the prep says so; it used to
 // end silently, leaving a blocks.bin.tmp and gigabytes of bucket files, the old store unusable.
