@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <limits>
 
@@ -12,7 +13,7 @@
 namespace raystack::import {
 namespace {
 
-constexpr uint64_t kNoPage = std::numeric_limits<uint64_t>::max();
+constexpr uint64_t kNoLine = std::numeric_limits<uint64_t>::max();
 
 // pwrite/pread loop until the whole page moved (they may transfer less than asked).
 Status WriteAll(int fd, const void* data, size_t bytes, uint64_t offset, const std::string& path) {
@@ -53,7 +54,7 @@ VertexTable::VertexTable(int floats_per_vertex, MemoryBudget* budget, std::strin
 }
 
 VertexTable::~VertexTable() {
-  budget_->Release(ram_pages_.size() * kPageBytes);
+  budget_->Release(ram_pages_.size() * kPageBytes + cache_reserved_);
   if (fd_ >= 0) ::close(fd_);
 }
 
@@ -98,8 +99,16 @@ Status VertexTable::Spill() {
   ram_pages_.clear();
   ram_pages_.shrink_to_fit();
   tail_.reset(new float[kPageBytes / sizeof(float)]());
-  cache_.reset(new float[kCachePages * kPageBytes / sizeof(float)]);
-  cache_tags_.assign(kCachePages, kNoPage);
+  // Half of what the budget has left (the other tables of the read may spill too), no more
+  // than the file will hold.
+  const uint64_t wanted = std::min<uint64_t>((budget_->limit() - budget_->used()) / 2,
+                                             (flushed_pages_ + 16) * kPageBytes);
+  cache_reserved_ = wanted > kMinCacheLines * kLineBytes && budget_->TryReserve(wanted - kMinCacheLines * kLineBytes)
+                        ? wanted - kMinCacheLines * kLineBytes
+                        : 0;
+  cache_lines_ = kMinCacheLines + static_cast<size_t>(cache_reserved_ / kLineBytes);
+  cache_.reset(new char[cache_lines_ * kLineBytes]);
+  cache_tags_.assign(cache_lines_, kNoLine);
   LOG_DEBUG("import", "vertex table spilled %llu vertices to %s",
             static_cast<unsigned long long>(size_), path.c_str());
   return OkStatus();
@@ -112,22 +121,36 @@ Status VertexTable::FlushTailPage() {
   return OkStatus();
 }
 
+Expected<const char*> VertexTable::Line(uint64_t line) {
+  const size_t slot = static_cast<size_t>(line % cache_lines_);
+  char* cached = cache_.get() + slot * kLineBytes;
+  if (cache_tags_[slot] != line) {
+    cache_tags_[slot] = kNoLine;  // stays invalid if the read fails
+    RAYSTACK_RETURN_IF_ERROR(ReadAll(fd_, cached, kLineBytes, line * kLineBytes,
+                                     temp_dir_->File("vertices.bin")));
+    cache_tags_[slot] = line;
+  }
+  return static_cast<const char*>(cached);
+}
+
 Status VertexTable::GetSpilled(uint64_t page, size_t slot, float* out) {
   const size_t record_bytes = sizeof(float) * static_cast<size_t>(floats_);
-  const size_t record_offset = slot * static_cast<size_t>(floats_);
   if (page == flushed_pages_) {  // not written yet
-    std::memcpy(out, tail_.get() + record_offset, record_bytes);
+    std::memcpy(out, tail_.get() + slot * static_cast<size_t>(floats_), record_bytes);
     return OkStatus();
   }
-  size_t cache_slot = static_cast<size_t>(page % kCachePages);
-  float* cached = cache_.get() + cache_slot * (kPageBytes / sizeof(float));
-  if (cache_tags_[cache_slot] != page) {
-    cache_tags_[cache_slot] = kNoPage;  // stays invalid if the read fails
-    RAYSTACK_RETURN_IF_ERROR(ReadAll(fd_, cached, kPageBytes, page * kPageBytes,
-                                     temp_dir_->File("vertices.bin")));
-    cache_tags_[cache_slot] = page;
+  // The record's bytes in the file, from one line or two (pages are whole lines).
+  const uint64_t begin = page * kPageBytes + slot * record_bytes;
+  char* to = reinterpret_cast<char*>(out);
+  for (uint64_t at = begin; at < begin + record_bytes;) {
+    Expected<const char*> line = Line(at / kLineBytes);
+    if (!line.ok()) return line.status();
+    const size_t in_line = static_cast<size_t>(at % kLineBytes);
+    const size_t n = std::min<size_t>(kLineBytes - in_line, static_cast<size_t>(begin + record_bytes - at));
+    std::memcpy(to, *line + in_line, n);
+    to += n;
+    at += n;
   }
-  std::memcpy(out, cached + record_offset, record_bytes);
   return OkStatus();
 }
 
