@@ -317,6 +317,8 @@ TEST_F(PrepCliTest, APlyDeclaringMoreFacesThanAStoreHoldsIsWarnedOfAtItsHeader) 
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("huge.ply: the header declares 5000000000 faces, more than the 4294967294 "
                        "triangles the store can still take"), std::string::npos) << r.err;
+  // Not also a disk warning for a model that cannot be converted anyway (a persona).
+  EXPECT_EQ(r.err.find("will likely"), std::string::npos) << r.err;
 }
 
 // Found by the day's review of ear clipping: a comb-shaped face, split exactly, leaves long thin
@@ -470,12 +472,30 @@ TEST_F(PrepCliTest, ADiskTooSmallForTheBuildIsSaidBeforeItIsWritten) {
   EXPECT_NE(early, std::string::npos) << r.err;
   EXPECT_LT(early, r.err.find("scan.ply:6")) << "before the body's error: " << r.err;
 
+  // Room for the bucket files or the store, on one file system, but not both at once: no word
+  // (the buckets are deleted as the store is written; a persona's false alarm counted both).
+  r = Prep({"--generate", "sphere:100000", "--replicate", "2,2,2", "--mem-limit", "64", "-o",
+            small.path + "/both", "--temp-dir", small.path});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err.find("will likely"), std::string::npos) << r.err;
+
   // Room enough (the test's folder): no word.
   args = model;
   args.insert(args.end(), {"-o", dir_->File("b"), "--temp-dir", dir_->path()});
   r = Prep(args);
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(r.err.find("will likely"), std::string::npos) << r.err;
+}
+
+// Found by a converter persona: --stats-json inside the store worked once, and the next
+// conversion into that store refused the folder ("holds other files ('stats.json')").
+TEST_F(PrepCliTest, StatsInsideTheStoreAreRefusedUpFront) {
+  const ProcessResult r = Prep({"--generate", "sphere:1000", "-o", dir_->File("s") + "/",
+                                "--stats-json", dir_->File("s/./stats.json")});
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_NE(r.err.find("is inside the store"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("(e.g. " + dir_->File("s.json") + ")"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("s")));
 }
 
 // Found by a converter persona: each encoding thread holds ~150 KB of scratch, so --threads 1024

@@ -238,14 +238,15 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   const uint64_t copies = static_cast<uint64_t>(args.replicate[0]) * args.replicate[1] * args.replicate[2];
   bool disk_warned = false;
   auto check_declared = [&](uint64_t faces) {
-    if (disk_warned) return;
     const uint64_t read = sink.triangles() + faces;
+    // (A model past the store's limit is refused for that, not warned of for its disk.)
+    if (disk_warned || read > store::kMaxTriangles / copies) return;
     BuildOptions planned;
     planned.memory_bytes = budget * 2 / 5;
     BuildDiskNeeds needs = EstimateBuildDisk(read * copies, read * copies * sizeof(PackedTriangle),
                                              false, planned);
     // The spool, past what it keeps in memory (a fifth of the budget).
-    if (read * sizeof(PackedTriangle) > budget / 5) needs.temp_bytes += faces * sizeof(PackedTriangle);
+    if (read * sizeof(PackedTriangle) > budget / 5) needs.spool_bytes = faces * sizeof(PackedTriangle);
     disk_warned = WarnIfDiskMayRunOut(needs, temp_folder, args.output);
   };
   for (const std::string& input : args.inputs) {

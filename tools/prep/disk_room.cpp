@@ -3,6 +3,7 @@
 #include <sys/stat.h>
 #include <sys/statvfs.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -38,20 +39,24 @@ bool WarnIfDiskMayRunOut(const BuildDiskNeeds& needs, const std::string& temp_di
                          const std::string& store_dir) {
   const std::optional<Room> temp = RoomOf(temp_dir), store = RoomOf(store_dir);
   if (!temp || !store) return false;
+  const uint64_t temp_peak = needs.spool_bytes + needs.temp_bytes;
   if (temp->device == store->device) {
-    if (needs.temp_bytes + needs.store_bytes <= temp->free_bytes) return false;
+    // The bucket files are deleted as the store is written (a persona's false alarm counted
+    // both at once): the peak is the larger, beside the spool.
+    const uint64_t peak = needs.spool_bytes + std::max(needs.temp_bytes, needs.store_bytes);
+    if (peak <= temp->free_bytes) return false;
     LOG_WARNING("prep", "the build will likely write about %.2f GB of temporary files in %s and "
                 "%.2f GB of store in %s, on one file system with %.2f GB free: it would fail when the disk fills; free space there, or give --temp-dir "
-                "or -o on another disk", Gb(needs.temp_bytes), temp_dir.c_str(),
+                "or -o on another disk", Gb(temp_peak), temp_dir.c_str(),
                 Gb(needs.store_bytes), store_dir.c_str(), Gb(temp->free_bytes));
     return true;
   }
   bool warned = false;
-  if (needs.temp_bytes > temp->free_bytes) {
+  if (temp_peak > temp->free_bytes) {
     warned = true;
     LOG_WARNING("prep", "the build will likely write about %.2f GB of temporary files in %s, "
                 "whose file system has %.2f GB free: it would fail when the disk fills; free space there, "
-                "or give --temp-dir on a larger disk", Gb(needs.temp_bytes), temp_dir.c_str(),
+                "or give --temp-dir on a larger disk", Gb(temp_peak), temp_dir.c_str(),
                 Gb(temp->free_bytes));
   }
   if (needs.store_bytes > store->free_bytes) {

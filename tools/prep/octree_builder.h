@@ -83,7 +83,9 @@ Expected<BuildResult> BuildOctree(const TriangleSource& source, const BuildOptio
 // built in memory) and the store's blocks. Estimates (the store's bytes depend on how well its
 // blocks compress), for a check of the free space before hours of work.
 struct BuildDiskNeeds {
-  uint64_t temp_bytes = 0, store_bytes = 0;
+  uint64_t spool_bytes = 0;  // the model as read, still to be written (kept to the end)
+  uint64_t temp_bytes = 0;   // bucket files at their peak (deleted as the store is written)
+  uint64_t store_bytes = 0;
 };
 BuildDiskNeeds EstimateBuildDisk(const TriangleSource& source, const BuildOptions& options);
 // The same before the model is read: `triangles`, spooled in `spooled_bytes`.

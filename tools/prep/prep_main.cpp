@@ -195,6 +195,18 @@ int Run(const Args& args) {
   if (!args.stats_json.empty()) {  // written at the end: found out now, not after the work
     const std::string parent = std::filesystem::path(args.stats_json).parent_path().string();
     const std::string folder = parent.empty() ? "." : parent;
+    // Inside the store it is a file the store does not know: the next conversion into it
+    // refused the folder ("holds other files"; a converter persona).
+    std::error_code ec;
+    if (std::filesystem::weakly_canonical(folder, ec) ==
+        std::filesystem::weakly_canonical(args.convert.output, ec)) {
+      std::filesystem::path store = std::filesystem::path(args.convert.output).lexically_normal();
+      if (!store.has_filename()) store = store.parent_path();  // "out/"
+      std::fprintf(stderr, "raystack-prep: error: --stats-json %s is inside the store %s, which "
+                   "holds the store's files only: give a path beside it (e.g. %s.json)\n",
+                   args.stats_json.c_str(), args.convert.output.c_str(), store.string().c_str());
+      return 2;
+    }
     const bool exists = std::filesystem::exists(args.stats_json);
     if (::access(exists ? args.stats_json.c_str() : folder.c_str(), W_OK) != 0) {
       std::fprintf(stderr, "raystack-prep: error: --stats-json %s: cannot write %s: %s\n",
