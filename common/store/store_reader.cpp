@@ -52,6 +52,15 @@ void DirectBuffer::Free::operator()(uint8_t* p) const { std::free(p); }
 
 namespace {
 
+// A file whose body is not the size its header says: cut short, or with bytes after it.
+Status SizeMismatch(const std::string& path, uint64_t body, uint64_t said) {
+  return Status::Error(body < said
+                           ? StrFormat("%s: %llu bytes shorter than its header says (truncated?)",
+                                       path.c_str(), static_cast<unsigned long long>(said - body))
+                           : StrFormat("%s: %llu bytes longer than its header says (appended to?)",
+                                       path.c_str(), static_cast<unsigned long long>(body - said)));
+}
+
 // Opens a store file for reading; only a regular file is one. O_NONBLOCK so that a FIFO in a
 // store's place does not block the open forever (it has no effect on a regular file's reads).
 // A file missing beside a prep's temporary is named as an interrupted prep's leftover.
@@ -96,8 +105,11 @@ Status ReadChecked(const std::string& path, const char (&magic)[8], std::vector<
     status = Status::Error(StrFormat("%s: format version %u, this build reads version %u "
                                      "(convert the model again with raystack-prep)",
                                      path.c_str(), h.version, kFormatVersion));
-  } else if (h.header_bytes != sizeof h || h.body_bytes != size - sizeof h) {
-    status = Status::Error(path + ": size does not match its header (truncated?)");
+  } else if (h.header_bytes != sizeof h) {
+    status = Status::Error(StrFormat("%s: damaged header (its header size says %u bytes, not %zu)",
+                                     path.c_str(), h.header_bytes, sizeof h));
+  } else if (h.body_bytes != size - sizeof h) {
+    status = SizeMismatch(path, size - sizeof h, h.body_bytes);
   } else {
     body->resize(h.body_bytes);
     // In pieces: one pread returns at most ~2 GiB.
@@ -361,8 +373,14 @@ Status StoreReader::OpenBlocks() {
     return Status::Error(StrFormat("%s: format version %u, this build reads version %u "
                                    "(convert the model again with raystack-prep)",
                                    path.c_str(), h.version, kFormatVersion));
+  // (Its body has no checksum, each block has its own: the field is 0; a persona flipped bytes in
+  // these fields and --verify said "all blocks OK".)
+  if (h.header_bytes != sizeof h || h.body_checksum != 0)
+    return Status::Error(StrFormat("%s: damaged header (header size %u, checksum field %llx: "
+                                   "expected %zu and 0)", path.c_str(), h.header_bytes,
+                                   static_cast<unsigned long long>(h.body_checksum), sizeof h));
   if (h.body_bytes != blocks_file_bytes_ - sizeof h)
-    return Status::Error(path + ": size does not match its header (truncated?)");
+    return SizeMismatch(path, blocks_file_bytes_ - sizeof h, h.body_bytes);
   // Blocks lie back to back in id order, as the writer puts them: the loader reads
   // neighbouring ids as one run of bytes and finds each block at its offset from the run's
   // first. An index out of order made it compute a negative run size (store_fuzz found the

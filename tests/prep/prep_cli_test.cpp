@@ -487,6 +487,28 @@ TEST_F(PrepCliTest, ADiskTooSmallForTheBuildIsSaidBeforeItIsWritten) {
   EXPECT_EQ(r.err.find("will likely"), std::string::npos) << r.err;
 }
 
+// Found by a converter persona: a gzipped PLY (as scans are often shared) was an "unknown model
+// format", without a word of the compression.
+TEST_F(PrepCliTest, AGzippedModelIsNamedAsSuch) {
+  const std::string gz = dir_->File("scan.ply.gz");
+  std::ofstream(gz, std::ios::binary) << std::string("\x1f\x8b\x08\x00rest", 8);
+  const ProcessResult r = Prep({gz, "-o", dir_->File("s")});
+  ExpectFailsNaming(r, {"scan.ply.gz: compressed with gzip: decompress it first (gunzip -k"});
+}
+
+// Found by a converter persona: after a conversion into a store was killed (kill -9: no clean
+// up), raystack-info reported the old store complete without a word of the 345 MB of .tmp files
+// beside it.
+TEST_F(PrepCliTest, InfoNotesWhatAKilledConversionLeftBesideTheStore) {
+  ASSERT_EQ(Prep({"--generate", "sphere:1000", "-o", dir_->File("s"), "-q"}).exit_code, 0);
+  EXPECT_EQ(Info({dir_->File("s")}).out.find(".tmp files"), std::string::npos);
+  std::ofstream(dir_->File("s/blocks.bin.tmp")) << std::string(2'500'000, 'x');
+  const ProcessResult r = Info({dir_->File("s")});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("2.5 MB of .tmp files beside it, left by an interrupted conversion"),
+            std::string::npos) << r.out;
+}
+
 // Found by a converter persona: --stats-json inside the store worked once, and the next
 // conversion into that store refused the folder ("holds other files ('stats.json')").
 TEST_F(PrepCliTest, StatsInsideTheStoreAreRefusedUpFront) {

@@ -346,6 +346,28 @@ TEST_F(StoreReaderTest, TruncatedBlockFileIsRefused) {
   EXPECT_NE(s.status().message().find("truncated"), std::string::npos) << s.status().message();
 }
 
+// Found by a converter persona: two bytes appended to blocks.bin were called "truncated?", and
+// flipped bytes in its header's size and (unused) checksum fields passed --verify.
+TEST_F(StoreReaderTest, ABlockFileLongerThanItsHeaderOrWithADamagedHeaderIsNamedSo) {
+  const std::string blocks = path_ + "/" + kBlocksFile;
+  std::filesystem::resize_file(blocks, std::filesystem::file_size(blocks) + 2);
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_FALSE(s.ok());
+  EXPECT_NE(s.status().message().find("2 bytes longer than its header says (appended to?)"),
+            std::string::npos) << s.status().message();
+  std::filesystem::resize_file(blocks, std::filesystem::file_size(blocks) - 2);
+  ASSERT_TRUE(StoreReader::Open(path_).ok());
+  for (const size_t field : {12u, 24u}) {  // FileHeader::header_bytes, body_checksum
+    SCOPED_TRACE(field);
+    FlipByte(kBlocksFile, field);
+    s = StoreReader::Open(path_);
+    ASSERT_FALSE(s.ok());
+    EXPECT_NE(s.status().message().find("blocks.bin: damaged header"), std::string::npos)
+        << s.status().message();
+    FlipByte(kBlocksFile, field);  // back
+  }
+}
+
 TEST_F(StoreReaderTest, MissingStoreIsNamed) {
   Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_ + "-nope");
   ASSERT_FALSE(s.ok());

@@ -29,6 +29,8 @@ Status ReadModel(const std::string& path, const ReadOptions& options, TriangleSi
   // Content first: PLY has a magic word, whatever the file is called.
   if (input->Peek(3) == "ply") return ReadPly(*input, options, sink, info);
   if (LowerExtension(path) == ".obj") return ReadObj(*input, options, sink, info);
+  if (input->Peek(2) == "\x1f\x8b")  // (scans are often shared gzipped)
+    return Status::Error(path + ": compressed with gzip: decompress it first (gunzip -k " + path + ")");
   return Status::Error(path + ": unknown model format (expected a .obj file or a PLY file)");
 }
 

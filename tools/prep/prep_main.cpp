@@ -246,7 +246,7 @@ int Run(const Args& args) {
   if (r.shifted)
     std::printf("  shift          (%.17g, %.17g, %.17g) subtracted from every position: cameras "
                 "and lights go in the shifted frame (their coordinates minus this)\n",
-                r.shift[0], r.shift[1], r.shift[2]);
+                r.shift[0] + 0.0, r.shift[1] + 0.0, r.shift[2] + 0.0);  // (+ 0.0: no "-0")
   if (!args.stats_json.empty()) {
     std::FILE* f = std::fopen(args.stats_json.c_str(), "w");
     if (!f) {
