@@ -97,6 +97,9 @@ TEST(MtlReader, BadNumberNamesFileAndLine) {
   ExpectErrorMentions(ReadMtlText(files, "newmtl a\nKd 1 nan 0\n", &table),
                       {"lib.mtl:2:", "nan"});
   ExpectErrorMentions(ReadMtlText(files, "newmtl a\n\nNi\n", &table), {"lib.mtl:3:"});
+  // Two numbers for a colour (a persona read "missing number ''").
+  ExpectErrorMentions(ReadMtlText(files, "newmtl a\nKd 0.5 0.5\n", &table),
+                      {"lib.mtl:2:", "a colour takes 1 or 3 numbers, not 2"});
 }
 
 }  // namespace

@@ -62,6 +62,8 @@ class MtlLine {
       return OkStatus();
     }
     RAYSTACK_RETURN_IF_ERROR(Float(&out->y));
+    // (Two numbers: a persona read "missing number ''".)
+    if (NextTokenIsEmpty()) return input_.LineError("a colour takes 1 or 3 numbers, not 2");
     return Float(&out->z);
   }
   Status Int(int* out) {
