@@ -246,6 +246,8 @@ TEST(PlyReader, AsciiErrorsNameFileAndLine) {
       {"ply\nformat ascii 1.0\nmystery line\nend_header\n", {"m.ply:3:", "mystery"}},
       {"ply\nformat ascii 1.0\nelement vertex 1\x01\x02\nend_header\n", {"m.ply:3:", "binary"}},
       {"ply\n", {"m.ply:1:", "without end_header"}},
+      // Cut inside a keyword (a persona read "unknown PLY header line 'elem'").
+      {"ply\nformat ascii 1.0\nelem", {"m.ply:3:", "the file ends inside the PLY header, at 'elem' (truncated?)"}},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.bytes);

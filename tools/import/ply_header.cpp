@@ -38,6 +38,13 @@ bool IsPrintable(std::string_view line) {
   return true;
 }
 
+// `word` is the start of a header keyword ("elem", "end_he"): what a file cut short ends with.
+bool IsKeywordStart(std::string_view word) {
+  for (std::string_view keyword : {"element", "property", "end_header", "format", "comment", "obj_info"})
+    if (keyword.starts_with(word)) return true;
+  return false;
+}
+
 class HeaderParser {
  public:
   explicit HeaderParser(BufferedInput& input) : input_(input) {}
@@ -71,6 +78,10 @@ Expected<PlyHeader> HeaderParser::Parse() {
     else if (keyword == "element") status = ParseElement(rest);
     else if (keyword == "property") status = ParseProperty(rest);
     else if (keyword == "comment" || keyword == "obj_info" || keyword.empty()) continue;
+    else if (input_.offset() >= input_.file_size() && IsKeywordStart(keyword))
+      // The file's last bytes, cut inside a keyword (a persona read "unknown ... 'elem'").
+      status = input_.LineError("the file ends inside the PLY header, at '" + std::string(line) +
+                                "' (truncated?)");
     else
       status = input_.LineError(
           "unknown PLY header line '" + std::string(keyword) + "'" +
