@@ -472,6 +472,15 @@ TEST_F(PrepCliTest, ADiskTooSmallForTheBuildIsSaidBeforeItIsWritten) {
   EXPECT_NE(early, std::string::npos) << r.err;
   EXPECT_LT(early, r.err.find("scan.ply:6")) << "before the body's error: " << r.err;
 
+  // A header's normals count: 300,000 faces with them spool at 104 bytes each, not 44 (a review:
+  // no warning at the header, then a full disk after the read).
+  std::ofstream(dir_->File("normals.ply"))
+      << "ply\nformat ascii 1.0\nelement vertex 150000\nproperty float x\nproperty float y\n"
+         "property float z\nproperty float nx\nproperty float ny\nproperty float nz\n"
+         "element face 300000\nproperty list uchar int vertex_indices\nend_header\n0 0 zero\n";
+  r = Prep({dir_->File("normals.ply"), "-o", dir_->File("n"), "--temp-dir", small.path, "--mem-limit", "64"});
+  EXPECT_NE(r.err.find("GB of temporary files in " + small.path), std::string::npos) << r.err;
+
   // Room for the bucket files or the store, on one file system, but not both at once: no word
   // (the buckets are deleted as the store is written; a persona's false alarm counted both).
   r = Prep({"--generate", "sphere:100000", "--replicate", "2,2,2", "--mem-limit", "64", "-o",
@@ -490,10 +499,12 @@ TEST_F(PrepCliTest, ADiskTooSmallForTheBuildIsSaidBeforeItIsWritten) {
 // Found by a converter persona: a gzipped PLY (as scans are often shared) was an "unknown model
 // format", without a word of the compression.
 TEST_F(PrepCliTest, AGzippedModelIsNamedAsSuch) {
-  const std::string gz = dir_->File("scan.ply.gz");
-  std::ofstream(gz, std::ios::binary) << std::string("\x1f\x8b\x08\x00rest", 8);
-  const ProcessResult r = Prep({gz, "-o", dir_->File("s")});
-  ExpectFailsNaming(r, {"scan.ply.gz: compressed with gzip: decompress it first (gunzip -k"});
+  for (const char* name : {"scan.ply.gz", "scan.obj"}) {  // (whatever it is called)
+    const std::string gz = dir_->File(name);
+    std::ofstream(gz, std::ios::binary) << std::string("\x1f\x8b\x08\x00rest", 8);
+    const ProcessResult r = Prep({gz, "-o", dir_->File("s")});
+    ExpectFailsNaming(r, {std::string(name) + ": compressed with gzip: decompress it first (gunzip -k"});
+  }
 }
 
 // Found by a converter persona: after a conversion into a store was killed (kill -9: no clean
@@ -503,10 +514,19 @@ TEST_F(PrepCliTest, InfoNotesWhatAKilledConversionLeftBesideTheStore) {
   ASSERT_EQ(Prep({"--generate", "sphere:1000", "-o", dir_->File("s"), "-q"}).exit_code, 0);
   EXPECT_EQ(Info({dir_->File("s")}).out.find(".tmp files"), std::string::npos);
   std::ofstream(dir_->File("s/blocks.bin.tmp")) << std::string(2'500'000, 'x');
-  const ProcessResult r = Info({dir_->File("s")});
+  ProcessResult r = Info({dir_->File("s")});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("2.5 MB of .tmp files beside it, left by an interrupted conversion"),
             std::string::npos) << r.out;
+  // While a conversion runs, its files are not leftovers (a review: "0.0 MB ... interrupted").
+  {
+    Expected<std::unique_ptr<store::StoreWriter>> writing = store::StoreWriter::Create(dir_->File("s"));
+    ASSERT_TRUE(writing.ok()) << writing.status().message();
+    r = Info({dir_->File("s")});
+    EXPECT_NE(r.out.find("a conversion is writing into this store now"), std::string::npos) << r.out;
+    EXPECT_EQ(r.out.find("left by an interrupted conversion"), std::string::npos) << r.out;
+    (*writing)->Abandon();
+  }
 }
 
 // Found by a converter persona: --stats-json inside the store worked once, and the next
@@ -515,18 +535,21 @@ TEST_F(PrepCliTest, StatsInsideTheStoreAreRefusedUpFront) {
   const ProcessResult r = Prep({"--generate", "sphere:1000", "-o", dir_->File("s") + "/",
                                 "--stats-json", dir_->File("s/./stats.json")});
   EXPECT_EQ(r.exit_code, 2) << r.err;
-  EXPECT_NE(r.err.find("is inside the store"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("is the store " + dir_->File("s") + "/ or inside it"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("(e.g. " + dir_->File("s.json") + ")"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("s")));
+  // The store folder itself (a review: converted the whole model, then "Is a directory").
+  EXPECT_EQ(Prep({"--generate", "sphere:1000", "-o", dir_->File("s"), "--stats-json", dir_->File("s")}).exit_code, 2);
   EXPECT_FALSE(std::filesystem::exists(dir_->File("s")));
 }
 
 // Found by a converter persona: each encoding thread holds ~150 KB of scratch, so --threads 1024
-// under --mem-limit 64 peaked at 159-262 MB. The threads are bounded by the budget, and it says so.
+// under --mem-limit 64 peaked at 159-262 MB. The encoders are bounded by the budget, and it says so.
 TEST_F(PrepCliTest, ThreadsBeyondTheMemoryLimitAreSaidAndBounded) {
   const ProcessResult r = Prep({"--generate", "sphere:400000", "--replicate", "2,2,2", "--mem-limit",
                                 "64", "--threads", "1024", "-o", dir_->File("s")});
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.err.find("--threads 1024: --mem-limit 64 leaves room for 25 encoding threads"),
+  EXPECT_NE(r.err.find("--threads 1024: --mem-limit 64 leaves room for 36 encoding threads"),
             std::string::npos) << r.err;
   std::smatch m;
   ASSERT_TRUE(std::regex_search(r.out, m, std::regex("peak RSS ([0-9]+) MB"))) << r.out;

@@ -28,9 +28,9 @@ Status ReadModel(const std::string& path, const ReadOptions& options, TriangleSi
   if (input->file_size() == 0) return Status::Error(path + ": file is empty");
   // Content first: PLY has a magic word, whatever the file is called.
   if (input->Peek(3) == "ply") return ReadPly(*input, options, sink, info);
-  if (LowerExtension(path) == ".obj") return ReadObj(*input, options, sink, info);
-  if (input->Peek(2) == "\x1f\x8b")  // (scans are often shared gzipped)
+  if (input->Peek(2) == "\x1f\x8b")  // (scans are often shared gzipped, whatever they are called)
     return Status::Error(path + ": compressed with gzip: decompress it first (gunzip -k " + path + ")");
+  if (LowerExtension(path) == ".obj") return ReadObj(*input, options, sink, info);
   return Status::Error(path + ": unknown model format (expected a .obj file or a PLY file)");
 }
 

@@ -87,6 +87,12 @@ struct PositionShift {
   }
 };
 
+// What a model file's header says of it, before its body is read.
+struct DeclaredModel {
+  uint64_t faces = 0, vertices = 0;
+  bool attributes = false;  // normals or texture coordinates per vertex
+};
+
 struct ReadOptions {
   uint64_t vertex_memory_bytes = 256ull << 20;  // vertex table budget before spilling to disk
   std::string temp_dir;                         // where the spill file goes ("" = $TMPDIR or /tmp)
@@ -95,9 +101,9 @@ struct ReadOptions {
   // importer, a library of its own, does not include).
   uint64_t max_triangles = 0xfffffffeull;
   PositionShift* shift = nullptr;               // --shift (shared by a run's files), if any
-  // Called with the faces a file's header declares (PLY), before its body is read: the converter
-  // checks its disk against them (hours of reading a large scan ended on a full disk).
-  std::function<void(uint64_t faces)> declared_faces;
+  // Called with what a file's header declares (PLY), before its body is read: the converter
+  // checks its disk against it (hours of reading a large scan ended on a full disk).
+  std::function<void(const DeclaredModel&)> declared;
 };
 
 struct ModelInfo {

@@ -69,9 +69,17 @@ Status PlyReader::Read() {
   if (!header.ok()) return header.status();
   values_ = std::make_unique<PlyValueReader>(input_, header->format);
   WarnOfTooManyFaces(*header);
-  for (const PlyElement& element : header->elements)
-    if (element.name == "face" && element.count > 0 && options_.declared_faces)
-      options_.declared_faces(element.count);
+  if (options_.declared) {
+    DeclaredModel declared;
+    for (const PlyElement& element : header->elements) {
+      if (element.name == "face") declared.faces = element.count;
+      if (element.name != "vertex") continue;
+      declared.vertices = element.count;
+      for (const char* attribute : {"nx", "u", "s", "texture_u", "texture_s"})
+        declared.attributes = declared.attributes || element.Find(attribute) >= 0;
+    }
+    if (declared.faces > 0) options_.declared(declared);
+  }
   for (const PlyElement& element : header->elements) {
     if (element.name == "vertex") {
       RAYSTACK_RETURN_IF_ERROR(ReadVertices(element));

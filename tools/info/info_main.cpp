@@ -11,6 +11,7 @@
 #include "common/base/log.h"
 #include "common/base/progress.h"
 #include "common/render/material_table.h"
+#include "common/store/store_writer.h"
 #include "common/store/store_reader.h"
 #include "tools/info/image_info.h"
 
@@ -114,16 +115,24 @@ int Run(const std::string& dir, bool verify, bool list) {
     std::printf("lights           not listed (converted before %s: path tracing does not aim at "
                 "its emitters; convert again)\n", store::kLightsFile);
   if (m.block_count) PrintHistogram(s.blocks());
-  // A conversion into this store that was killed leaves its files aside (a persona found 345 MB
-  // of blocks.bin.tmp beside a store reported complete, without a word).
-  uint64_t leftover = 0;
-  std::error_code ec;
-  for (const auto& entry : std::filesystem::directory_iterator(dir, ec))
-    if (entry.path().extension() == ".tmp" && entry.is_regular_file(ec)) leftover += entry.file_size(ec);
-  if (leftover > 0)
-    std::printf("note             %.1f MB of .tmp files beside it, left by an interrupted conversion "
-                "into this store (the next conversion into it removes them; this store is whole)\n",
-                static_cast<double>(leftover) / 1e6);
+  // A conversion into this store leaves its files aside while it runs, and for good when it is
+  // killed (a persona found 345 MB of blocks.bin.tmp beside a store reported complete).
+  if (!store::StoreWriter::CheckNotBeingWritten(dir).ok()) {
+    std::printf("note             a conversion is writing into this store now: it replaces it "
+                "when done\n");
+  } else {
+    uint64_t leftover = 0;
+    std::error_code ec;
+    for (const char* file : {store::kIndexFile, store::kOctreeFile, store::kBlocksFile, store::kLightsFile}) {
+      const uint64_t bytes = std::filesystem::file_size(dir + "/" + file + ".tmp", ec);
+      if (!ec) leftover += bytes;
+    }
+    if (leftover > 0)
+      std::printf("note             %s of .tmp files beside it, left by an interrupted conversion "
+                  "into this store (the next conversion into it removes them; this store is whole)\n",
+                  leftover >= 100'000 ? StrFormat("%.1f MB", static_cast<double>(leftover) / 1e6).c_str()
+                                      : StrFormat("%llu bytes", static_cast<unsigned long long>(leftover)).c_str());
+  }
   if (list) {
     for (uint32_t i = 0; i < s.blocks().size(); ++i) {
       const store::BlockEntry& b = s.blocks()[i];

@@ -182,17 +182,19 @@ Status CheckScale(const Bounds3f& bounds, bool replicated) {
   return OkStatus();
 }
 
-// Encoding threads the memory budget has room for: each holds ~150 KB of scratch (a block's
-// buffers and its BVH's, measured: 512 threads, 78 MB of them), so 1,024 threads under
-// --mem-limit 64 peaked at 262 MB (a converter persona). An eighth of the budget is theirs, at
-// two blocks' cap each; fewer threads than asked is said.
-int ThreadsWithinBudget(int threads, uint64_t budget, uint32_t max_block_bytes) {
-  const uint64_t each = 2 * uint64_t{max_block_bytes} + (64 << 10);
+// Encoding threads the memory budget has room for: each holds ~150 KB of scratch and its leaf's
+// blocks (measured: 512 threads, 78 MB of scratch; 1,024 threads under --mem-limit 64 peaked at
+// 262 MB; a converter persona). An eighth of the budget is theirs, at 160 KB and two target
+// blocks each; fewer threads than asked (or than the cores, by default) is said.
+int ThreadsWithinBudget(int threads, bool given, uint64_t budget, uint32_t target_block_bytes) {
+  const uint64_t each = (160 << 10) + 2 * uint64_t{target_block_bytes};
   const int room = static_cast<int>(std::clamp<uint64_t>(budget / 8 / each, 1, 1024));
   if (threads <= room) return threads;
-  LOG_WARNING("prep", "--threads %d: --mem-limit %llu leaves room for %d encoding threads (each "
-              "holds ~%llu KB); using %d", threads, static_cast<unsigned long long>(budget >> 20),
-              room, static_cast<unsigned long long>(each >> 10), room);
+  LOG_WARNING("prep", "%s: --mem-limit %llu leaves room for %d encoding thread%s (each holds "
+              "~%llu KB); using %d", given ? StrFormat("--threads %d", threads).c_str()
+                                           : StrFormat("%d cores", threads).c_str(),
+              static_cast<unsigned long long>(budget >> 20), room, room == 1 ? "" : "s",
+              static_cast<unsigned long long>(each >> 10), room);
   return room;
 }
 
@@ -228,6 +230,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   if (!args.generate.empty()) {
     import::ModelInfo info;
     RAYSTACK_RETURN_IF_ERROR(GenerateModel(args.generate, sink, &info));
+    vertices += info.vertices;
     report.source_triangles += info.triangles;
     report.zero_area_dropped += info.zero_area_dropped;
   }
@@ -237,16 +240,20 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   const std::string temp_folder = std::filesystem::path(temp->path()).parent_path().string();
   const uint64_t copies = static_cast<uint64_t>(args.replicate[0]) * args.replicate[1] * args.replicate[2];
   bool disk_warned = false;
-  auto check_declared = [&](uint64_t faces) {
-    const uint64_t read = sink.triangles() + faces;
+  auto check_declared = [&](const import::DeclaredModel& declared) {
+    const uint64_t read = sink.triangles() + declared.faces;
     // (A model past the store's limit is refused for that, not warned of for its disk.)
     if (disk_warned || read > store::kMaxTriangles / copies) return;
     BuildOptions planned;
     planned.memory_bytes = budget * 2 / 5;
-    BuildDiskNeeds needs = EstimateBuildDisk(read * copies, read * copies * sizeof(PackedTriangle),
-                                             false, planned);
-    // The spool, past what it keeps in memory (a fifth of the budget).
-    if (read * sizeof(PackedTriangle) > budget / 5) needs.spool_bytes = faces * sizeof(PackedTriangle);
+    if (declared.faces > 0)
+      planned.vertices_per_triangle = std::clamp(
+          static_cast<float>(static_cast<double>(declared.vertices) / static_cast<double>(declared.faces)) * 1.15f,
+          0.3f, 3.0f);
+    const uint64_t per = SpooledBytesPerTriangle(declared.attributes);
+    BuildDiskNeeds needs = EstimateBuildDisk(read * copies, read * copies * per, declared.attributes, planned);
+    // The spool, past what it keeps in memory (a fifth of the budget): all of it once spilled.
+    if (read * per > budget / 5) needs.spool_bytes = read * per;
     disk_warned = WarnIfDiskMayRunOut(needs, temp_folder, args.output);
   };
   for (const std::string& input : args.inputs) {
@@ -258,7 +265,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     options.temp_dir = temp->path();
     options.progress = &progress;
     options.shift = args.shift ? &shift : nullptr;
-    options.declared_faces = check_declared;
+    options.declared = check_declared;
     // What the store can still take after the files before this one (each file's reader counts
     // from zero).
     options.max_triangles = store::kMaxTriangles - std::min(sink.triangles(), store::kMaxTriangles);
@@ -323,7 +330,9 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   options.max_block_bytes = args.max_block_bytes;
   options.target_block_bytes = args.target_block_bytes;
   options.memory_bytes = budget * 2 / 5;
-  options.threads = ThreadsWithinBudget(args.threads, budget, args.max_block_bytes);
+  options.threads = args.threads;
+  options.encode_threads = ThreadsWithinBudget(args.threads, args.threads_given, budget,
+                                               args.target_block_bytes);
   options.temp_dir = temp->path();
   options.shuffle = args.shuffle;
   options.bvh = args.bvh;

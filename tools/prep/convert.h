@@ -34,6 +34,7 @@ struct ConvertOptions {
   uint32_t max_block_bytes = 128 * 1024;
   uint64_t memory_limit_bytes = 1024ull << 20;
   int threads = UsableCores();
+  bool threads_given = false;  // --threads (else: the cores), for the messages
   bool shuffle = true;
   BvhBuildOptions bvh = DefaultBlockBvh();  // each block's own BVH
   bool quiet = false;  // no progress output

@@ -10,7 +10,8 @@
 namespace raystack::prep {
 
 // Warns when `needs` is more than the free space of the temporary folder's file system and the
-// store's (their sum when they are one file system). `store_dir` need not exist yet.
+// store's (on one file system, the spool and the larger of the bucket files and the store: the
+// buckets are deleted as the store is written). `store_dir` need not exist yet.
 // Returns whether it warned.
 bool WarnIfDiskMayRunOut(const BuildDiskNeeds& needs, const std::string& temp_dir,
                          const std::string& store_dir);

@@ -135,7 +135,10 @@ Status GenerateModel(const std::string& spec, import::TriangleSink& sink, import
       const Vec3f c = a + Vec3f{0, size * u(rng), size * u(rng)};
       RAYSTACK_RETURN_IF_ERROR(out.Add(a, b, c));
     }
+    info->vertices = 3 * n;  // every triangle its own corners (for the converter's estimates)
+    return out.Flush();
   }
+  info->vertices = info->triangles / 2;  // closed meshes
   return out.Flush();
 }
 

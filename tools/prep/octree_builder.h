@@ -41,7 +41,8 @@ struct BuildOptions {
   uint32_t max_block_bytes = 128 * 1024;
   uint32_t target_block_bytes = 32 * 1024;
   uint64_t memory_bytes = 1024ull << 20;  // working set for buckets (a share of --mem-limit)
-  int threads = 2;
+  int threads = 2;         // the partition pass's readers
+  int encode_threads = 0;  // the blocks' encoders (each holds scratch): 0 for `threads`
   std::string temp_dir;
   bool shuffle = true;
   BvhBuildOptions bvh;
@@ -91,6 +92,9 @@ BuildDiskNeeds EstimateBuildDisk(const TriangleSource& source, const BuildOption
 // The same before the model is read: `triangles`, spooled in `spooled_bytes`.
 BuildDiskNeeds EstimateBuildDisk(uint64_t triangles, uint64_t spooled_bytes, bool attributes,
                                  const BuildOptions& options);
+
+// Bytes a triangle takes in the spool and in bucket files (its attributes when the model has any).
+uint64_t SpooledBytesPerTriangle(bool attributes);
 
 // Most triangles a block may hold and still be under `max_block_bytes` in the worst case.
 uint32_t MaxTrianglesPerBlock(uint32_t max_block_bytes, bool attributes);

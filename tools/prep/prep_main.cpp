@@ -116,6 +116,7 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       a->convert.memory_limit_bytes = mb << 20;
     } else if (arg == "--threads") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->convert.threads, 1, 1024));
+      a->convert.threads_given = true;
     } else if (arg == "--replicate") {
       std::string v;
       RAYSTACK_RETURN_IF_ERROR(value(&v));
@@ -197,14 +198,20 @@ int Run(const Args& args) {
     const std::string folder = parent.empty() ? "." : parent;
     // Inside the store it is a file the store does not know: the next conversion into it
     // refused the folder ("holds other files"; a converter persona).
-    std::error_code ec;
-    if (std::filesystem::weakly_canonical(folder, ec) ==
-        std::filesystem::weakly_canonical(args.convert.output, ec)) {
-      std::filesystem::path store = std::filesystem::path(args.convert.output).lexically_normal();
-      if (!store.has_filename()) store = store.parent_path();  // "out/"
-      std::fprintf(stderr, "raystack-prep: error: --stats-json %s is inside the store %s, which "
+    // Compared as canonical paths without a trailing separator ("out/" is "out").
+    const auto canonical = [](const std::string& path, std::error_code* ec) {
+      std::filesystem::path p = std::filesystem::weakly_canonical(path, *ec);
+      return p.has_filename() ? p : p.parent_path();
+    };
+    std::error_code folder_ec, stats_ec, store_ec;
+    const std::filesystem::path in = canonical(folder, &folder_ec);
+    const std::filesystem::path stats = canonical(args.stats_json, &stats_ec);
+    const std::filesystem::path store = canonical(args.convert.output, &store_ec);
+    if (!store_ec && ((!folder_ec && in == store) || (!stats_ec && stats == store))) {
+      std::fprintf(stderr, "raystack-prep: error: --stats-json %s is the store %s or inside it, which "
                    "holds the store's files only: give a path beside it (e.g. %s.json)\n",
-                   args.stats_json.c_str(), args.convert.output.c_str(), store.string().c_str());
+                   args.stats_json.c_str(), args.convert.output.c_str(),
+                   store.string().c_str());
       return 2;
     }
     const bool exists = std::filesystem::exists(args.stats_json);
