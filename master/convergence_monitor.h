@@ -69,7 +69,9 @@ class ConvergenceMonitor {
  private:
   // `resolved`: the film already resolved (else Measure resolves it when samples merged since
   // the last measure).
-  render::ConvergencePoint Measure(const image::ImageLayers* resolved = nullptr) const;
+  // `written`: the image as its file has it (pixels without a sample black), for the frame's
+  // end; else as the preview shows it.
+  render::ConvergencePoint Measure(const image::ImageLayers* resolved = nullptr, bool written = false) const;
   void CheckPassEnds(const image::ImageLayers* resolved = nullptr);
 
   const render::Film& film_;
@@ -90,7 +92,7 @@ class ConvergenceMonitor {
   render::ConvergencePoint last_;
   // The figures of the last resolve (error_'s counts are not used), reused while no sample
   // has merged since.
-  mutable bool measured_ = false;
+  mutable bool measured_ = false, measured_written_ = false;
   mutable uint64_t measured_samples_ = 0;
   mutable render::ConvergencePoint error_;
   // The film resolved for a measure, kept: resolved into new layers each time, a 960x540 film

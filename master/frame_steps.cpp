@@ -180,6 +180,13 @@ void FillImage(const RenderArgs& args, const render::Scene& scene, size_t f,
   image.layers.partial = false;  // (the layers may be a checkpoint's, reused)
   image.layers.stopped = stopped;
   WarnIfFrameShowsNothing(image.layers, f);
+  // A frame stopped before its first pass covered it (a short --time-limit): its file is
+  // "complete" with black holes, which a researcher took for misses.
+  const size_t unsampled = static_cast<size_t>(
+      std::count(image.layers.samples.begin(), image.layers.samples.end(), 0u));
+  if (unsampled > 0 && !stopped.empty())
+    LOG_WARNING("render", "frame %zu: %zu pixels have no sample (stopped before the first pass "
+                "reached them): black in the image (A = 0, Z = +inf, as a miss)", f, unsampled);
   if (film.nonfinite_dropped() > 0)
     LOG_WARNING("render", "%llu samples with NaN or Inf radiance were dropped",
                 static_cast<unsigned long long>(film.nonfinite_dropped()));
@@ -476,7 +483,8 @@ void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& fi
       : *finished == 0
           ? StrFormat("interrupted (%s): no pixel has all its %u samples yet (each pass covers "
                       "every pixel a little), so nothing is kept for --resume and %s is left as "
-                      "it was (next time, %s)", name, spp, path.c_str(),
+                      "it was (next time, %s; or --time-limit, which ends the frame with the "
+                      "samples it has)", name, spp, path.c_str(),
                       WholeTilesAdvice(spp).c_str())
           : StrFormat("interrupted (%s): the frame so far is in %s, %llu of %llu pixels with all "
                       "their samples; the same command with --resume keeps those and renders "

@@ -196,8 +196,11 @@ Status RenderLocally(const RenderArgs& args) {
                               Provenance(*scene, f), &writer, args.kill_after_checkpoints,
                               args.fail_checkpoints);
       uint64_t shown = 0;
-      // Polled at least as often as the convergence log asks for rows and checkpoints are due.
+      // Polled at least as often as the convergence log asks for rows and checkpoints are due,
+      // and often enough for --time-limit to stop within 2% of it (a researcher's 0.15 s limit
+      // stopped at 0.24 s, on the 0.1 s poll).
       double poll_s = std::min(0.1, args.log_interval_s);
+      if (args.stop.time_limit_s > 0) poll_s = std::min(poll_s, std::max(0.001, args.stop.time_limit_s / 50));
       if (args.checkpoint_s > 0) poll_s = std::max(0.001, std::min(poll_s, args.checkpoint_s));
       const auto poll = std::chrono::microseconds(static_cast<int64_t>(poll_s * 1e6));
       for (;;) {

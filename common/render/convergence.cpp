@@ -39,7 +39,7 @@ void FilledLuminance(const image::ImageLayers& image, std::vector<double>* lumin
 }
 
 void EstimateError(const image::ImageLayers& image, const image::ImageLayers* reference,
-                   ConvergencePoint* point, std::vector<double>* scratch) {
+                   ConvergencePoint* point, std::vector<double>* scratch, bool filled) {
   const size_t n = static_cast<size_t>(image.width) * static_cast<size_t>(image.height);
   uint64_t covered = 0, with_variance = 0;
   uint32_t min_samples = n > 0 ? image.samples[0] : 0;
@@ -64,7 +64,13 @@ void EstimateError(const image::ImageLayers& image, const image::ImageLayers* re
   if (!reference || n == 0) return;
   std::vector<double> own;
   std::vector<double>& y = scratch ? *scratch : own;
-  FilledLuminance(image, &y);
+  if (filled) {
+    FilledLuminance(image, &y);
+  } else {
+    y.assign(n, 0.0);
+    for (size_t i = 0; i < n; ++i)
+      if (image.samples[i] > 0) y[i] = PixelLuminance(image, i);
+  }
   double se = 0, rel = 0;
   for (size_t i = 0; i < n; ++i) {
     const double r = PixelLuminance(*reference, i);
@@ -81,6 +87,23 @@ Status CheckReference(const image::ImageLayers& reference, int width, int height
   if (reference.width != width || reference.height != height)
     return Status::Error(StrFormat("%s: the reference is %dx%d, the image %dx%d", path.c_str(),
                                    reference.width, reference.height, width, height));
+  if (reference.partial)
+    return Status::Error(path + ": a checkpoint (its state is partial): a reference is a finished "
+                         "render (render it to the end, or give another)");
+  const size_t n = static_cast<size_t>(width) * static_cast<size_t>(height);
+  for (size_t i = 0; i < n && 4 * i + 2 < reference.rgba.size(); ++i)
+    for (int c = 0; c < 3; ++c)
+      if (!std::isfinite(reference.rgba[4 * i + c]))
+        return Status::Error(StrFormat("%s: pixel (%zu, %zu) is %g: a reference must be finite",
+                                       path.c_str(), i % static_cast<size_t>(width),
+                                       i / static_cast<size_t>(width),
+                                       double{reference.rgba[4 * i + c]}));
+  if (!reference.samples.empty()) {
+    const size_t unsampled = static_cast<size_t>(std::count(reference.samples.begin(), reference.samples.end(), 0u));
+    if (unsampled > 0)
+      LOG_WARNING("render", "%s: %zu pixels of the reference have no sample (black): the error "
+                  "against them measures the reference's gaps", path.c_str(), unsampled);
+  }
   return OkStatus();
 }
 

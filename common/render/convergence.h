@@ -42,14 +42,20 @@ struct ConvergencePoint {
 // variance layers); rmse and relmse only when `reference` is given (same size: checked by
 // CheckReference first).
 // `scratch` (optional): memory for the image's luminance, kept by a caller that measures often.
+// `filled`: pixels without a sample count as the preview shows them (their nearest computed
+// ancestor's value), else as the image file has them (black).
 void EstimateError(const image::ImageLayers& image, const image::ImageLayers* reference,
-                   ConvergencePoint* point, std::vector<double>* scratch = nullptr);
+                   ConvergencePoint* point, std::vector<double>* scratch = nullptr,
+                   bool filled = true);
 
 // Luminance per pixel into *y (resized), pixels without samples filled from their nearest
 // computed ancestor.
 void FilledLuminance(const image::ImageLayers& image, std::vector<double>* y);
 
-// An error naming `path` unless `reference` is width x height.
+// An error naming `path` unless `reference` is width x height, finished (not a checkpoint) and
+// finite (a NaN pixel emptied every error column without a word; a checkpoint was measured
+// against as if its unrendered pixels were black; a researcher). Pixels it has without a sample
+// are a warning.
 Status CheckReference(const image::ImageLayers& reference, int width, int height,
                       const std::string& path);
 

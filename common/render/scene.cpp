@@ -458,10 +458,14 @@ class SceneParser {
       RAYSTACK_RETURN_IF_ERROR(ReadInt(v["spp"], Child(path, "spp"), 1, kMaxSpp, &integrator->spp));
     if (v.contains("seed")) {
       const Json& seed = v["seed"];
-      if (!seed.is_number_unsigned())
+      // 7.0 and 1e3 as the other integer keys take them (a researcher's 7.0 was refused), up
+      // to 2^53, where a float still names one integer.
+      const bool whole_float = seed.is_number_float() && std::trunc(seed.get<double>()) == seed.get<double>() &&
+                               seed.get<double>() >= 0 && seed.get<double>() <= 9007199254740992.0;
+      if (!seed.is_number_unsigned() && !whole_float)
         return Error(Child(path, "seed"), "must be an integer in [0, 2^64), got " +
                                               std::string(seed.type_name()) + " " + Show(seed));
-      integrator->seed = seed.get<uint64_t>();
+      integrator->seed = whole_float ? static_cast<uint64_t>(seed.get<double>()) : seed.get<uint64_t>();
     }
     if (v.contains("animated_seed")) {
       const Json& animated = v["animated_seed"];

@@ -197,6 +197,13 @@ TEST(Scene, WrongTypes) {
   }
   ExpectError(Minimal(R"(, "integrator": {"seed": -1})"), {"integrator.seed: must be an integer"});
   ExpectError(Minimal(R"(, "integrator": {"seed": 1.5})"), {"integrator.seed: must be an integer"});
+  ExpectError(Minimal(R"(, "integrator": {"seed": 1e17})"), {"integrator.seed: must be an integer"});
+  // A whole float, as the other integer keys take it (a researcher's 7.0 was refused).
+  for (const char* seven : {"7.0", "7e0"}) {
+    Expected<Scene> scene = Parse(Minimal(std::string(R"(, "integrator": {"seed": )") + seven + "}"));
+    ASSERT_TRUE(scene.ok()) << scene.status().message();
+    EXPECT_EQ(scene->integrator.seed, 7u);
+  }
   ExpectError(Minimal(R"(, "integrator": {"type": 1})"), {"integrator.type: must be a string"});
   ExpectError(Minimal("", R"({"position": [0, "1", 0]})"),
               {"scene.json: camera.position[1]: must be a number"});

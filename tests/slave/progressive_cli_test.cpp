@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "common/image/exr_io.h"
+#include "common/render/film.h"
 #include "tests/prep/run_process.h"
 #include "tests/support/convergence_csv.h"
 #include "tests/support/store_dir_fixture.h"
@@ -137,6 +138,64 @@ TEST_F(ProgressiveCli, TimeLimitStopsEarlyAndLeavesAValidImage) {
                   std::string::npos ||
               im.stopped.find("with " + final_count + " of ") != std::string::npos)
       << im.stopped << " (final count " << final_count << ")";
+}
+
+// Found by a researcher: a frame stopped before its first pass covered it logged an "end" RMSE
+// of 0.64 where its file scored 0.95: the rows measure the image as the preview shows it (pixels
+// without a sample as their nearest computed ancestor), the file has them black. The end row is
+// the file's; the run says the pixels are missing. And --reference refuses a checkpoint and a
+// non-finite pixel (which emptied every RMSE column without a word).
+TEST_F(ProgressiveCli, TheLogsEndRowIsTheImageAsWrittenAndTheReferenceIsChecked) {
+  std::ofstream(dir_->File("big.json")) << R"({ "store": "store",
+      "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 320, "height": 240 },
+      "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
+      "background": [0.3, 0.3, 0.4],
+      "integrator": { "type": "path", "max_depth": 3, "spp": 2, "seed": 3 } })";
+  const std::vector<std::string> common = {kRaystack, "render", dir_->File("big.json"), "--threads",
+                                           "1", "--cache-mb", "1", "--no-png"};
+  auto run = [&](std::vector<std::string> extra) {
+    std::vector<std::string> argv = common;
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    return RunProcess(argv, dir_->path());
+  };
+  ASSERT_EQ(run({"--output", dir_->File("ref.exr")}).exit_code, 0);
+  const ProcessResult r = run({"--output", dir_->File("cut.exr"), "--spp", "4096", "--time-limit",
+                               "0.003", "--convergence-log", dir_->File("cut.csv"), "--reference",
+                               dir_->File("ref.exr")});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const image::ImageLayers cut = Image("cut.exr"), ref = Image("ref.exr");
+  double se = 0;
+  size_t unsampled = 0;
+  for (size_t i = 0; i < cut.samples.size(); ++i) {
+    unsampled += cut.samples[i] == 0;
+    const double d = render::Luminance(cut.rgba[4 * i], cut.rgba[4 * i + 1], cut.rgba[4 * i + 2]) -
+                     render::Luminance(ref.rgba[4 * i], ref.rgba[4 * i + 1], ref.rgba[4 * i + 2]);
+    se += d * d;
+  }
+  const std::vector<LogRow> rows = ReadConvergenceLog(dir_->File("cut.csv"));
+  ASSERT_FALSE(rows.empty());
+  ASSERT_EQ(rows.back().event, "end");
+  EXPECT_NEAR(rows.back().rmse, std::sqrt(se / static_cast<double>(cut.samples.size())), 1e-6);
+  if (unsampled > 0) {
+    EXPECT_NE(r.err.find(std::to_string(unsampled) + " pixels have no sample"), std::string::npos) << r.err;
+  }
+
+  // The reference: a checkpoint, then a NaN pixel.
+  image::ImageLayers bad = ref;
+  bad.partial = true;
+  ASSERT_TRUE(image::WriteExr(dir_->File("bad.exr"), bad).ok());
+  const std::vector<std::string> against = {"--output", dir_->File("x.exr"), "--convergence-log",
+                                            dir_->File("x.csv"), "--reference", dir_->File("bad.exr")};
+  ProcessResult refused = run(against);
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_NE(refused.err.find("bad.exr: a checkpoint"), std::string::npos) << refused.err;
+  bad.partial = false;
+  bad.rgba[4 * (5 * 320 + 7) + 1] = std::nanf("");
+  ASSERT_TRUE(image::WriteExr(dir_->File("bad.exr"), bad).ok());
+  refused = run(against);
+  EXPECT_EQ(refused.exit_code, 1);
+  EXPECT_NE(refused.err.find("bad.exr: pixel (7, 5) is nan: a reference must be finite"),
+            std::string::npos) << refused.err;
 }
 
 TEST_F(ProgressiveCli, TargetErrorStopsBeforeTheLastPass) {
