@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
@@ -481,6 +483,13 @@ TEST_F(Resume, RaystackInfoTellsACompleteFrameFromAPartialOne) {
   EXPECT_NE(info.out.find("samples/pixel    3 to 3"), std::string::npos) << info.out;
   Expected<image::ImageLayers> image = image::ReadExr(dir_->File("done.exr"));
   ASSERT_TRUE(image.ok());
+  // Each layer's range and mean, and what is not finite (a researcher wrote a reader for it).
+  size_t misses = 0;
+  for (const float z : image->z) misses += std::isinf(z);
+  EXPECT_NE(info.out.find("layer Z          "), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("; " + std::to_string(misses) + " infinite\n"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("layer A          0 to 1, mean "), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("layer variance   "), std::string::npos) << info.out;
   image->partial = true;  // as a checkpoint is written
   ASSERT_TRUE(image::WriteExr(dir_->File("checkpoint.exr"), *image).ok());
   info = RunProcess({prep::testing::kInfoBinary, dir_->File("checkpoint.exr")}, dir_->path());

@@ -1,11 +1,47 @@
 #include "tools/info/image_info.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <limits>
 
 #include "common/image/exr_io.h"
 
 namespace raystack::info {
+
+namespace {
+
+// Each layer's range and mean, and its values that are not finite: what a researcher checked
+// with a reader of his own (nothing here read the pixels).
+void PrintLayers(const image::ImageLayers& im) {
+  const size_t n = im.pixel_count();
+  auto channel = [&](const char* name, const std::vector<float>& values, size_t stride, size_t c) {
+    if (values.size() < n * stride) return;
+    double sum = 0, lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    size_t finite = 0, infinite = 0, nan = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const double v = values[i * stride + c];
+      if (std::isnan(v)) ++nan;
+      else if (std::isinf(v)) ++infinite;
+      else ++finite, sum += v, lo = std::min(lo, v), hi = std::max(hi, v);
+    }
+    std::printf("layer %-10s ", name);
+    if (finite > 0) std::printf("%.6g to %.6g, mean %.6g", lo, hi, sum / static_cast<double>(finite));
+    if (infinite > 0) std::printf("%s%zu infinite", finite > 0 ? "; " : "", infinite);
+    if (nan > 0) std::printf("; %zu NaN", nan);
+    std::printf("\n");
+  };
+  const char* rgba[] = {"R", "G", "B", "A"};
+  for (size_t c = 0; c < 4; ++c) channel(rgba[c], im.rgba, 4, c);
+  channel("Z", im.z, 1, 0);  // (infinite: the misses)
+  const char* normal[] = {"N.x", "N.y", "N.z"};
+  for (size_t c = 0; c < 3; ++c) channel(normal[c], im.normal, 3, c);
+  const char* albedo[] = {"albedo.r", "albedo.g", "albedo.b"};
+  for (size_t c = 0; c < 3; ++c) channel(albedo[c], im.albedo, 3, c);
+  channel("variance", im.variance, 1, 0);
+}
+
+}  // namespace
 
 int ShowImage(const std::string& path) {
   Expected<image::ImageLayers> read = image::ReadExr(path);
@@ -29,6 +65,7 @@ int ShowImage(const std::string& path) {
     std::printf("samples/pixel    %u to %u, mean %.2f (%zu pixels without a sample)\n", *fewest,
                 *most, sum / static_cast<double>(im.samples.size()), none);
   }
+  PrintLayers(im);
   // The provenance's lines under one another (scene, camera, lights, settings, build).
   const char* label = "provenance       ";
   size_t begin = 0;
