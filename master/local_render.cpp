@@ -201,6 +201,10 @@ Status RenderLocally(const RenderArgs& args) {
       // stopped at 0.24 s, on the 0.1 s poll).
       double poll_s = std::min(0.1, args.log_interval_s);
       if (args.stop.time_limit_s > 0) poll_s = std::min(poll_s, std::max(0.001, args.stop.time_limit_s / 50));
+      // A pass's end is measured at the poll after it: with a convergence log, often (the check
+      // is a counter; a measure only when a pass ended), so a small frame's pass 1 row is not
+      // pass 2's image (a researcher's 128 x 128 logs had the two rows alike).
+      if (*log) poll_s = std::min(poll_s, 0.005);
       if (args.checkpoint_s > 0) poll_s = std::max(0.001, std::min(poll_s, args.checkpoint_s));
       const auto poll = std::chrono::microseconds(static_cast<int64_t>(poll_s * 1e6));
       for (;;) {
