@@ -152,7 +152,10 @@ void ConvergenceMonitor::Finish(const image::ImageLayers& resolved) {
   // The end row is the image as written: a frame stopped before its first pass covered it has
   // black pixels where the rows before showed their ancestors' values (a researcher's 0.64
   // logged against 0.95 for the file).
-  last_ = Measure(&resolved, /*written=*/true);
+  // (Only then: with every pixel sampled, or no reference, the two are one; a review.)
+  const bool gaps = reference_ && film_.pixels_covered() <
+                                      static_cast<uint64_t>(film_.width()) * static_cast<uint64_t>(film_.height());
+  last_ = Measure(&resolved, /*written=*/gaps);
   if (time_stop_samples_ && last_.samples != *time_stop_samples_)
     stop_reason_ = StrFormat("--time-limit %g s reached with %llu of %llu samples merged, %llu "
                              "once the tiles then in flight were finished", rules_.time_limit_s,

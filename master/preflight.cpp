@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <optional>
 
+#include "common/image/exr_io.h"
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
 #include "common/image/output_file.h"
@@ -245,6 +246,10 @@ Status CheckReferences(const render::Scene& scene, const std::string& reference,
     if (::access(path.c_str(), R_OK) != 0)
       return Status::Error(StrFormat("%s: cannot read: %s (--reference of camera %zu)",
                                      path.c_str(), std::strerror(errno), f));
+    // Before any frame (a review: frame 0 rendered, then frame 1's checkpoint was refused).
+    if (image::IsPartialFrame(path))
+      return Status::Error(StrFormat("%s: a checkpoint (its state is partial): a reference is a "
+                                     "finished render (--reference of camera %zu)", path.c_str(), f));
   }
   return OkStatus();
 }

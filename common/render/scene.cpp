@@ -460,11 +460,15 @@ class SceneParser {
       const Json& seed = v["seed"];
       // 7.0 and 1e3 as the other integer keys take them (a researcher's 7.0 was refused), up
       // to 2^53, where a float still names one integer.
+      // (Below 2^53: 9007199254740993.0 reads as 2^53, another seed.)
       const bool whole_float = seed.is_number_float() && std::trunc(seed.get<double>()) == seed.get<double>() &&
-                               seed.get<double>() >= 0 && seed.get<double>() <= 9007199254740992.0;
+                               seed.get<double>() >= 0 && seed.get<double>() < 9007199254740992.0;
       if (!seed.is_number_unsigned() && !whole_float)
         return Error(Child(path, "seed"), "must be an integer in [0, 2^64), got " +
-                                              std::string(seed.type_name()) + " " + Show(seed));
+                                              std::string(seed.type_name()) + " " + Show(seed) +
+                                              (seed.is_number_float() && seed.get<double>() >= 0
+                                                   ? " (from 2^53 on, write it as an integer: digits, no exponent or point)"
+                                                   : ""));
       integrator->seed = whole_float ? static_cast<uint64_t>(seed.get<double>()) : seed.get<uint64_t>();
     }
     if (v.contains("animated_seed")) {

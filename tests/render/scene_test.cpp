@@ -197,7 +197,9 @@ TEST(Scene, WrongTypes) {
   }
   ExpectError(Minimal(R"(, "integrator": {"seed": -1})"), {"integrator.seed: must be an integer"});
   ExpectError(Minimal(R"(, "integrator": {"seed": 1.5})"), {"integrator.seed: must be an integer"});
-  ExpectError(Minimal(R"(, "integrator": {"seed": 1e17})"), {"integrator.seed: must be an integer"});
+  ExpectError(Minimal(R"(, "integrator": {"seed": 1e17})"), {"integrator.seed: must be an integer",
+                                                              "write it as an integer: digits"});
+  ExpectError(Minimal(R"(, "integrator": {"seed": 9007199254740993.0})"), {"integrator.seed: must be an integer"});
   // A whole float, as the other integer keys take it (a researcher's 7.0 was refused).
   for (const char* seven : {"7.0", "7e0"}) {
     Expected<Scene> scene = Parse(Minimal(std::string(R"(, "integrator": {"seed": )") + seven + "}"));

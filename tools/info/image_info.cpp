@@ -28,7 +28,7 @@ void PrintLayers(const image::ImageLayers& im) {
     std::printf("layer %-10s ", name);
     if (finite > 0) std::printf("%.6g to %.6g, mean %.6g", lo, hi, sum / static_cast<double>(finite));
     if (infinite > 0) std::printf("%s%zu infinite", finite > 0 ? "; " : "", infinite);
-    if (nan > 0) std::printf("; %zu NaN", nan);
+    if (nan > 0) std::printf("%s%zu NaN", finite + infinite > 0 ? "; " : "", nan);
     std::printf("\n");
   };
   const char* rgba[] = {"R", "G", "B", "A"};
