@@ -15,6 +15,10 @@ namespace {
 
 std::string Tmp(const std::string& path) { return path + ".tmp"; }
 
+// A store's data files (beside them: the lock file), in the order Finish renames them into
+// place: the index last, since a store is whole once it is there.
+constexpr const char* kDataFiles[] = {kBlocksFile, kOctreeFile, kLightsFile, kIndexFile};
+
 // Writes the file's .tmp beside it (renamed into place by Finish, once every file is written).
 Status WriteTmp(const std::string& path, const char (&magic)[8], const std::vector<uint8_t>& body) {
   FileHeader h{};
@@ -98,13 +102,23 @@ Status StoreWriter::CheckFolderIsForAStore(const std::string& dir) {
   for (const std::filesystem::directory_entry& e : std::filesystem::directory_iterator(dir, ec)) {
     const std::string name = e.path().filename().string();
     bool ours = false;
-    for (const char* file : {kIndexFile, kOctreeFile, kBlocksFile, kLightsFile, kLockFile})
-      ours |= name == file || name == Tmp(file);
+    for (const char* file : kDataFiles) ours |= name == file || name == Tmp(file);
+    ours |= name == kLockFile;
     if (!ours)
       return Status::Error(dir + ": holds other files ('" + name + "'): a store needs a folder of "
                            "its own; give a new or empty folder, or a store to replace");
   }
   return OkStatus();
+}
+
+uint64_t StoreWriter::LeftoverBytes(const std::string& dir) {
+  uint64_t bytes = 0;
+  std::error_code ec;
+  for (const char* file : kDataFiles) {
+    const uint64_t size = std::filesystem::file_size(Tmp(dir + "/" + file), ec);
+    if (!ec) bytes += size;
+  }
+  return bytes;
 }
 
 Status StoreWriter::CheckCanWrite(const std::string& dir) {
@@ -150,7 +164,7 @@ void StoreWriter::Abandon() {
 void StoreWriter::RemovePartialStore() {
   if (lock_fd_ < 0) return;  // not locked: the files may be another writer's
   std::error_code ec;
-  for (const char* file : {kBlocksFile, kOctreeFile, kLightsFile, kIndexFile}) {
+  for (const char* file : kDataFiles) {
     std::filesystem::remove(Tmp(dir_ + "/" + file), ec);
     if (created_dir_) std::filesystem::remove(dir_ + "/" + file, ec);
   }
@@ -233,7 +247,7 @@ Status StoreWriter::Finish(StoreSummary s, std::span<const OctreeNode> octree,
   std::error_code ec;
   std::filesystem::remove(dir_ + "/" + kIndexFile, ec);
   if (ec) return Status::Error(dir_ + "/" + kIndexFile + ": cannot remove the old one: " + ec.message());
-  for (const char* file : {kBlocksFile, kOctreeFile, kLightsFile, kIndexFile}) {
+  for (const char* file : kDataFiles) {
     const std::string to = dir_ + "/" + file;
     if (std::rename(Tmp(to).c_str(), to.c_str()) != 0)
       return Status::Error(to + ": cannot rename into place: " + std::strerror(errno));

@@ -48,6 +48,9 @@ class StoreWriter {
   // process may write in), without creating anything: for a converter to find out before it
   // reads its model (a read-only destination was found only after reading it).
   static Status CheckCanWrite(const std::string& dir);
+  // Bytes of the .tmp files a conversion into `dir` left there (killed: no clean up), or is
+  // writing now (CheckNotBeingWritten tells which).
+  static uint64_t LeftoverBytes(const std::string& dir);
   ~StoreWriter();
 
   // Appends a block; ids must come in order 0, 1, 2, ...

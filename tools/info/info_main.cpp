@@ -121,12 +121,7 @@ int Run(const std::string& dir, bool verify, bool list) {
     std::printf("note             a conversion is writing into this store now: it replaces it "
                 "when done\n");
   } else {
-    uint64_t leftover = 0;
-    std::error_code ec;
-    for (const char* file : {store::kIndexFile, store::kOctreeFile, store::kBlocksFile, store::kLightsFile}) {
-      const uint64_t bytes = std::filesystem::file_size(dir + "/" + file + ".tmp", ec);
-      if (!ec) leftover += bytes;
-    }
+    const uint64_t leftover = store::StoreWriter::LeftoverBytes(dir);
     if (leftover > 0)
       std::printf("note             %s of .tmp files beside it, left by an interrupted conversion "
                   "into this store (the next conversion into it removes them; this store is whole)\n",
