@@ -126,6 +126,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
   for (size_t f = range.begin; f < range.end; ++f) {
     WarnIfStoreReplaced(scene.store);
     const render::Camera camera(scene.cameras[f]);
+    const std::string exr_path = FrameExrPath(args, scene, f);  // its image, checkpoints too
     render::Film& film = FilmFor(camera, &reused_film);
     render::FramePlan plan = PlanOf(args, scene, camera, coarse_rounds);
     Status status = ResumeInto(args, scene, f, &plan, &film);
@@ -150,7 +151,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
       ProgressReporter progress(FrameTitle(f, frames), total, "samples",
                                 args.quiet);
       uint64_t shown = 0;
-      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
+      Checkpoints checkpoints(args.checkpoint_s, exr_path,
                               Provenance(scene, f), &writer, args.kill_after_checkpoints,
                               args.fail_checkpoints);
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
@@ -159,7 +160,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
       status = master.RunFrame(static_cast<uint32_t>(f), plan, &film, [&] {
                                  if (const int signal = InterruptSignal())
                                    EndInterrupted(signal, &checkpoints, film,
-                                                  FramePath(output, f, frames, ".exr"), plan.spp(),
+                                                  exr_path, plan.spp(),
                                                   interrupted, kMpirunSigterm);
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);
@@ -173,7 +174,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                                &figures);
       if (!status.ok()) {
         progress.Abandon();
-        status = KeepFrameSoFar(status, &checkpoints, film, FramePath(output, f, frames, ".exr"),
+        status = KeepFrameSoFar(status, &checkpoints, film, exr_path,
                                 plan.spp());
       }
     }
@@ -191,7 +192,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
     }
     // The frame's record goes into --stats once its image is written.
     std::string record = FiguresJson(
-        FrameRecordJson(f, FrameExrPath(args, scene, f), camera.width(), camera.height(), plan.spp(),
+        FrameRecordJson(f, exr_path, camera.width(), camera.height(), plan.spp(),
                         monitor.stopped() ? monitor.stop_reason() : "", plan.total_samples() - total),
         figures);
     Expected<std::string> exr =

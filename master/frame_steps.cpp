@@ -116,7 +116,7 @@ Status CheckNoUnfinishedFrame(const RenderArgs& args, const render::Scene& scene
   if (args.resume) return OkStatus();
   const FrameRange range = FramesOf(args, scene);
   for (size_t f = range.begin; f < range.end; ++f) {
-    const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
+    const std::string exr = FrameExrPath(args, scene, f);
     if (image::IsPartialFrame(exr))
       return Status::Error(exr + " holds a frame a stopped run left unfinished: --resume "
                            "continues it; to render it from the start, remove it or give "
@@ -544,7 +544,7 @@ void ReportStop(const RenderArgs& args, const ConvergenceMonitor& monitor) {
 Status ResumeInto(const RenderArgs& args, const render::Scene& scene, size_t f,
                   render::FramePlan* plan, render::Film* film) {
   if (!args.resume) return OkStatus();
-  const std::string exr = FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
+  const std::string exr = FrameExrPath(args, scene, f);
   Expected<ResumePlan> resume =
       PlanResume(exr, plan->width, plan->height, plan->spp(), Provenance(scene, f));
   if (!resume.ok()) return resume.status();

@@ -136,6 +136,7 @@ Status RenderLocally(const RenderArgs& args) {
   for (size_t f = range.begin; f < range.end; ++f) {
     WarnIfStoreReplaced(scene->store);
     const render::Camera camera(scene->cameras[f]);
+    const std::string exr_path = FrameExrPath(args, *scene, f);  // its image, checkpoints too
     render::Film& film = FilmFor(camera, &reused_film);
     render::FilmSink sink(&film);
     render::FramePlan plan = PlanOf(args, *scene, camera, coarse_rounds);
@@ -192,7 +193,7 @@ Status RenderLocally(const RenderArgs& args) {
           thread.join();
         }
       } stop_and_join{render, tiles};
-      Checkpoints checkpoints(args.checkpoint_s, FramePath(output, f, frames, ".exr"),
+      Checkpoints checkpoints(args.checkpoint_s, exr_path,
                               Provenance(*scene, f), &writer, args.kill_after_checkpoints,
                               args.fail_checkpoints);
       uint64_t shown = 0;
@@ -213,7 +214,7 @@ Status RenderLocally(const RenderArgs& args) {
           if (finish_cv.wait_for(lock, poll, [&] { return finished; })) break;
         }
         if (const int signal = InterruptSignal())
-          EndInterrupted(signal, &checkpoints, film, FramePath(output, f, frames, ".exr"), plan.spp(),
+          EndInterrupted(signal, &checkpoints, film, exr_path, plan.spp(),
                          interrupted);
         const uint64_t done = film.samples_merged();
         progress.Update(done - shown);
@@ -228,7 +229,7 @@ Status RenderLocally(const RenderArgs& args) {
       progress.Update(film.samples_merged() - shown);
       if (!status.ok()) {
         progress.Abandon();
-        status = KeepFrameSoFar(status, &checkpoints, film, FramePath(output, f, frames, ".exr"),
+        status = KeepFrameSoFar(status, &checkpoints, film, exr_path,
                                 plan.spp());
       }
     }
@@ -241,7 +242,7 @@ Status RenderLocally(const RenderArgs& args) {
     preview->EndFrame(stats.rays_per_second);
     ReportStop(args, monitor);
     // The frame's record goes into --stats once its image is written.
-    std::string record = stats.ToJson(FrameRecordJson(f, FrameExrPath(args, *scene, f), camera.width(),
+    std::string record = stats.ToJson(FrameRecordJson(f, exr_path, camera.width(),
                                                       camera.height(), plan.spp(),
                                                       monitor.stopped() ? monitor.stop_reason() : "",
                                                       plan.total_samples() - total));

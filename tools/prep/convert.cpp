@@ -182,6 +182,13 @@ Status CheckScale(const Bounds3f& bounds, bool replicated) {
   return OkStatus();
 }
 
+// The builder's size estimates' vertices per triangle, from a model's counts (with the 15%
+// margin the conversion has always given it), for the build and for the disk check at a header.
+float VerticesPerTriangle(uint64_t vertices, uint64_t triangles) {
+  return std::clamp(static_cast<float>(static_cast<double>(vertices) / static_cast<double>(triangles)) * 1.15f,
+                    0.3f, 3.0f);
+}
+
 // Encoding threads the memory budget has room for: each holds ~150 KB of scratch and its leaf's
 // blocks (measured: 512 threads, 78 MB of scratch; 1,024 threads under --mem-limit 64 peaked at
 // 262 MB; a converter persona). An eighth of the budget is theirs, at 160 KB and two target
@@ -246,10 +253,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     if (disk_warned || read > store::kMaxTriangles / copies) return;
     BuildOptions planned;
     planned.memory_bytes = budget * 2 / 5;
-    if (declared.faces > 0)
-      planned.vertices_per_triangle = std::clamp(
-          static_cast<float>(static_cast<double>(declared.vertices) / static_cast<double>(declared.faces)) * 1.15f,
-          0.3f, 3.0f);
+    if (declared.faces > 0) planned.vertices_per_triangle = VerticesPerTriangle(declared.vertices, declared.faces);
     const uint64_t per = SpooledBytesPerTriangle(declared.attributes);
     BuildDiskNeeds needs = EstimateBuildDisk(read * copies, read * copies * per, declared.attributes, planned);
     // The spool, past what it keeps in memory (a fifth of the budget): all of it once spilled.
@@ -339,9 +343,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   options.progress = &progress;
   options.quiet = args.quiet;
   if (vertices > 0 && sink.triangles() > 0)
-    options.vertices_per_triangle = std::clamp(
-        static_cast<float>(static_cast<double>(vertices) / static_cast<double>(sink.triangles())) * 1.15f,
-        0.3f, 3.0f);
+    options.vertices_per_triangle = VerticesPerTriangle(vertices, sink.triangles());
   // (The folder the user chose, or the default: the work folder in it has a random name.)
   if (!disk_warned) WarnIfDiskMayRunOut(EstimateBuildDisk(source, options), temp_folder, args.output);
   Expected<BuildResult> built = BuildOctree(source, options, writer->get());
