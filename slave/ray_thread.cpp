@@ -295,6 +295,14 @@ Ray ToRay(const RayRecord& r) {
   return ray;
 }
 
+// ToRay into *out, field by field (see TraceChunk).
+void SetRay(const RayRecord& r, Ray* out) {
+  out->origin = r.origin;
+  out->direction = r.direction;
+  out->tmin = 0;
+  out->tmax = r.tmax;
+}
+
 Hit ToHit(const RayRecord& r) {
   Hit h;
   h.t = r.tmax;
@@ -342,31 +350,34 @@ void RayThread::Enqueue(const RayRecord& ray, uint32_t block) {
 
 void RayThread::TraceChunk(const store::BlockView& view, uint32_t block, RayRecord* rays,
                            uint32_t count) {
-  batch_rays_.clear();
-  batch_hits_.clear();
-  batch_index_.clear();
+  DCHECK(count <= kChunkRays);
+  // The batches are filled in place, field by field: a Ray or Hit built on the stack and then
+  // copied in was read back through a failed store forward, every ray (two thirds of this
+  // function's samples).
+  uint32_t n = 0;
   for (uint32_t i = 0; i < count; ++i) {
     if (IsShadow(rays[i])) continue;
-    batch_rays_.push_back(ToRay(rays[i]));
-    batch_hits_.push_back(ToHit(rays[i]));
-    batch_index_.push_back(i);
+    SetRay(rays[i], &batch_rays_[n]);
+    Hit& h = batch_hits_[n];
+    h = Hit{};
+    h.t = rays[i].tmax;
+    h.triangle_id = rays[i].hit_id;
+    batch_index_[n++] = i;
   }
-  view.IntersectBatch(batch_rays_, batch_hits_);
-  for (size_t k = 0; k < batch_index_.size(); ++k) {
+  view.IntersectBatch({batch_rays_, n}, {batch_hits_, n});
+  for (uint32_t k = 0; k < n; ++k) {
     RayRecord& r = rays[batch_index_[k]];
     const Hit& h = batch_hits_[k];
     if (h.triangle_id != r.hit_id || h.t != r.tmax) RecordHit(view, h, &r);
   }
-  batch_rays_.clear();
-  batch_index_.clear();
+  n = 0;
   for (uint32_t i = 0; i < count; ++i) {
     if (!IsShadow(rays[i])) continue;
-    batch_rays_.push_back(ToRay(rays[i]));
-    batch_index_.push_back(i);
+    SetRay(rays[i], &batch_rays_[n]);
+    batch_index_[n++] = i;
   }
-  shadow_flags_.resize(batch_rays_.size());
-  view.OccludedBatch(batch_rays_, shadow_flags_);
-  for (size_t k = 0; k < batch_index_.size(); ++k)
+  view.OccludedBatch({batch_rays_, n}, {shadow_flags_, n});
+  for (uint32_t k = 0; k < n; ++k)
     if (shadow_flags_[k]) rays[batch_index_[k]].flags |= kOccluded;
   // By reference, not copied: a copy's 16-byte stores cannot forward to NextBlockOf's 8-byte
   // load of direction.x and .y, which straddles two of them (a fifth of NextBlockOf's samples

@@ -171,10 +171,11 @@ class RayThread {
   ShadeOutput shade_;
   std::vector<RayRecord> pending_;  // rays to route (children, primaries): no recursion
   std::vector<uint32_t> taken_chunks_;
-  std::vector<uint8_t> shadow_flags_;
-  std::vector<Ray> batch_rays_;
-  std::vector<Hit> batch_hits_;
-  std::vector<uint32_t> batch_index_;
+  // One chunk's rays of one kind for the block's batch calls (TraceChunk), and where each came from.
+  Ray batch_rays_[kChunkRays];
+  Hit batch_hits_[kChunkRays];
+  uint8_t shadow_flags_[kChunkRays];
+  uint32_t batch_index_[kChunkRays];
   std::vector<uint8_t> stored_;  // sync reads
   store::AlignedBuffer scratch_;
 
