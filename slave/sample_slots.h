@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "common/base/check.h"
@@ -27,8 +28,9 @@ class SampleSlots {
       id = free_.back();
       free_.pop_back();
     }
-    Slot& s = slots_[id];
-    s = Slot{};
+    // Built in place, not assigned from a Slot{} on the stack: that copy's 16-byte loads met
+    // the temporary's narrower stores still in flight (a failed forward on every sample).
+    Slot& s = *std::construct_at(&slots_[id]);
     s.pixel = pixel;
     s.sample = sample;
     s.tile = tile;
