@@ -42,6 +42,7 @@ void RayThread::BeginFrame(FrameShared* shared) {
   results_.clear();
   rays_reported_ = 0;
   pending_.clear();
+  shadows_.clear();
   taken_chunks_.clear();
   std::lock_guard lock(inbox_mu_);
   inbox_.clear();
@@ -627,6 +628,45 @@ void RayThread::TraceBvh(RayRecord ray) {
   Finish(ray);
 }
 
+void RayThread::TraceShadows() {
+  // Popped one by one, the shadow rays of a tile's primary hits come in the pixels' priority
+  // order, spread over the tile; sorted by 4 x 4 pixel block, 16 in a row mostly leave
+  // neighbouring points for one point light, and walk the tree as one packet
+  // (WideBvh::OccludedPacket). Only those are put aside (RunSync): shadow rays of later
+  // bounces, or towards random points of emitters, point every way, and a tiny model's (the
+  // Cornell box's) cost less alone than their packet's set-up (path tracing 8% slower when all
+  // were). Results do not depend on the order in which rays finish (sample_slots.h sums
+  // exactly), so the image is the same bit for bit.
+  // Key: the pixel's block (row of blocks, then column), its place in the block, the ray's
+  // index in shadows_ (20 bits each).
+  static_assert(render::kMaxImageSide / 4 < (1 << 20) && kMaxShadowsAside <= (1u << 20));
+  constexpr uint64_t kIndex = (uint64_t{1} << 20) - 1;
+  const auto width = static_cast<uint32_t>(shared_->camera->width());
+  shadow_keys_.clear();
+  for (size_t i = 0; i < shadows_.size(); ++i) {
+    const uint32_t pixel = slots_.pixel(shadows_[i].slot);
+    const uint64_t x = pixel % width, y = pixel / width;
+    shadow_keys_.push_back((y / 4) << 44 | (x / 4) << 24 | (y % 4) << 22 | (x % 4) << 20 | i);
+  }
+  std::sort(shadow_keys_.begin(), shadow_keys_.end());
+  const store::StoreBvh& bvh = *shared_->bvh;
+  constexpr size_t kPacket = WideBvh::kPacketSize;
+  Ray rays[kPacket];
+  for (size_t first = 0; first < shadow_keys_.size(); first += kPacket) {
+    const size_t n = std::min(kPacket, shadow_keys_.size() - first);
+    for (size_t j = 0; j < n; ++j) SetRay(shadows_[shadow_keys_[first + j] & kIndex], &rays[j]);
+    const uint32_t occluded = bvh.OccludedPacket({rays, n});
+    for (size_t j = 0; j < n; ++j) {
+      const RayRecord& ray = shadows_[shadow_keys_[first + j] & kIndex];
+      if (occluded >> j & 1)
+        RayDone(ray.slot);
+      else
+        Finish(ray);  // reached the light
+    }
+  }
+  shadows_.clear();
+}
+
 void RayThread::RecordBvhHit(const Hit& hit, RayRecord* ray) {
   const store::BlockView* view = shared_->cache->ResidentView(hit.block_id);
   CHECK(view != nullptr);  // preloaded, and nothing is evicted without a budget
@@ -641,11 +681,16 @@ void RayThread::RunSync() {
     while (!pending_.empty() && !shared_->abort.load(std::memory_order_relaxed)) {
       RayRecord r = pending_.back();  // depth first: children come back on top
       pending_.pop_back();
-      if (shared_->bvh)
-        TraceBvh(r);
-      else
+      if (!shared_->bvh) {
         TraceSync(r);
+      } else if (IsShadow(r) && r.depth == 0 && shared_->shader->ShadowsEndAtPoints()) {
+        shadows_.push_back(r);
+        if (shadows_.size() >= kMaxShadowsAside) TraceShadows();
+      } else {
+        TraceBvh(r);
+      }
     }
+    if (!shadows_.empty() && !shared_->abort.load(std::memory_order_relaxed)) TraceShadows();
   }
   FlushResults();
   counters_.peak_open_samples = slots_.peak_open();

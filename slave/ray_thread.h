@@ -133,6 +133,9 @@ class RayThread {
   void TracePacket(const size_t* index, int n);
   // bvh mode: records a closer hit the one tree found, from the block that holds the triangle.
   void RecordBvhHit(const Hit& hit, RayRecord* ray);
+  // bvh mode: traces the shadow rays put aside in shadows_ (all of them), as packets of rays
+  // from neighbouring pixels, and finishes each (a shadow ray has no children).
+  void TraceShadows();
   const store::BlockView* AcquireSync(uint32_t block);
 
   FrameShared* shared_ = nullptr;
@@ -170,6 +173,12 @@ class RayThread {
   std::vector<int32_t> feed_grid_;  // bvh mode: a tile pixel's index in feed_pixels_, or -1
   ShadeOutput shade_;
   std::vector<RayRecord> pending_;  // rays to route (children, primaries): no recursion
+  // bvh mode: shadow rays put aside until the rays fed before them are done (TraceShadows),
+  // and their order there: a pixel's 4 x 4 block, then the ray (shadow_keys_).
+  // At most this many (1 MB), so a thread's memory stays bounded whatever the lights or depth.
+  static constexpr size_t kMaxShadowsAside = size_t{1} << 14;
+  std::vector<RayRecord> shadows_;
+  std::vector<uint64_t> shadow_keys_;
   std::vector<uint32_t> taken_chunks_;
   // One chunk's rays of one kind for the block's batch calls (TraceChunk), and where each came from.
   Ray batch_rays_[kChunkRays];

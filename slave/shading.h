@@ -38,6 +38,9 @@ class Shader {
   void Finish(const RayRecord& ray, uint32_t pixel, uint32_t sample, ShadeOutput* out) const;
 
   bool path() const { return path_; }
+  // Whether every shadow ray ends at a point light (no emitters to aim at): then those of
+  // neighbouring primary hits run side by side, and walk a tree well as one packet.
+  bool ShadowsEndAtPoints() const { return area_ == nullptr || area_->empty(); }
 
  private:
   // `p`: the hit point, where the light's distance and angles are measured; `origin`: p moved

@@ -107,6 +107,31 @@ INSTANTIATE_TEST_SUITE_P(
                       std::make_tuple(render::MaterialType::kDiffuse, render::IntegratorType::kPath),
                       std::make_tuple(render::MaterialType::kGlass, render::IntegratorType::kPath)));
 
+// bvh mode puts the shadow rays of primary hits aside and traces them as packets once the rays
+// fed before them are done, or once it holds RayThread::kMaxShadowsAside (16,384) of them. With
+// 40 lights and tiles of 4,096 samples, tiles hold more than that: both ways are taken.
+TEST(RenderEngine, BvhModeWithMoreShadowRaysThanItPutsAsideRendersTheSameImage) {
+  static TestStore s = BuildGenerated("spheres:60000");
+  render::Scene scene = SpheresScene(*s.reader, render::IntegratorType::kWhitted, 4);
+  const Bounds3f b = s.reader->model_bounds();
+  const Vec3f size = b.upper - b.lower;
+  while (scene.lights.size() < 40) {
+    const float k = static_cast<float>(scene.lights.size());
+    scene.lights.push_back({b.upper + Vec3f{size.x * (k / 20 - 1), size.y * 0.3f, size.z * (k / 40)},
+                            {2, 2, 2}});
+  }
+  const int tile = 32;  // 32 x 32 pixels x 4 samples: one feed of 4,096 samples a tile
+  const RenderOutcome incore = Render(*s.reader, scene, Mode(TraceMode::kIncore, 0), tile);
+  ASSERT_TRUE(incore.status.ok()) << incore.status.message();
+  const RenderOutcome bvh = Render(*s.reader, scene, Mode(TraceMode::kBvh, 0), tile);
+  ASSERT_TRUE(bvh.status.ok()) << bvh.status.message();
+  const uint64_t shadow = bvh.stats.rays[static_cast<int>(slave::RayType::kShadow)];
+  EXPECT_GT(shadow, 2 * 16384 * bvh.stats.samples / 4096) << "fewer than twice the limit a tile";
+  EXPECT_TRUE(SameBits(bvh.image.rgba, incore.image.rgba));
+  EXPECT_TRUE(SameBits(bvh.image.z, incore.image.z));
+  EXPECT_EQ(bvh.stats.rays_total, incore.stats.rays_total);
+}
+
 TEST(RenderEngine, DepthEqualsBruteForceAtEveryPixel) {
   const std::string spec = "spheres:40000";
   TestStore s = BuildGenerated(spec);
