@@ -76,6 +76,11 @@ struct FrameShared {
 // freed memory back; a slave's warm frame made ~80 of them here).
 class RayThread {
  public:
+  // bvh mode: the most shadow rays a thread puts aside (RunSync), so its memory stays bounded
+  // whatever the lights: 1 MB of records.
+  static constexpr size_t kMaxShadowsAside = size_t{1} << 14;
+  static_assert(kMaxShadowsAside * sizeof(RayRecord) == size_t{1} << 20);
+
   RayThread(uint32_t index, uint32_t block_count);
 
   // Starts a frame: no rays, no tiles, counters at zero; the memory stays.
@@ -133,8 +138,10 @@ class RayThread {
   void TracePacket(const size_t* index, int n);
   // bvh mode: records a closer hit the one tree found, from the block that holds the triangle.
   void RecordBvhHit(const Hit& hit, RayRecord* ray);
+  // bvh mode: puts a shadow ray of a primary hit aside (RunSync), with its key for TraceShadows.
+  void PutAside(const RayRecord& ray);
   // bvh mode: traces the shadow rays put aside in shadows_ (all of them), as packets of rays
-  // from neighbouring pixels, and finishes each (a shadow ray has no children).
+  // from neighbouring pixels to one light, and finishes each (a shadow ray has no children).
   void TraceShadows();
   const store::BlockView* AcquireSync(uint32_t block);
 
@@ -173,12 +180,11 @@ class RayThread {
   std::vector<int32_t> feed_grid_;  // bvh mode: a tile pixel's index in feed_pixels_, or -1
   ShadeOutput shade_;
   std::vector<RayRecord> pending_;  // rays to route (children, primaries): no recursion
-  // bvh mode: shadow rays put aside until the rays fed before them are done (TraceShadows),
-  // and their order there: a pixel's 4 x 4 block, then the ray (shadow_keys_).
-  // At most this many (1 MB), so a thread's memory stays bounded whatever the lights or depth.
-  static constexpr size_t kMaxShadowsAside = size_t{1} << 14;
+  // bvh mode: shadow rays put aside until the rays fed with them are done (TraceShadows), and
+  // their order there (PutAside's keys).
   std::vector<RayRecord> shadows_;
   std::vector<uint64_t> shadow_keys_;
+  uint32_t aside_ordinal_ = 0;  // the last ray put aside: which of its sample's shadow rays
   std::vector<uint32_t> taken_chunks_;
   // One chunk's rays of one kind for the block's batch calls (TraceChunk), and where each came from.
   Ray batch_rays_[kChunkRays];

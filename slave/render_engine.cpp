@@ -251,6 +251,7 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
     s.peak_stack_bytes += c.peak_stack_bytes;
     s.peak_stack_rays += c.peak_stack_rays;
     s.peak_open_samples += c.peak_open_samples;
+    s.peak_shadows_aside = std::max(s.peak_shadows_aside, c.peak_shadows_aside);
     s.ray_idle_seconds += c.idle_seconds;
     s.ray_tile_wait_seconds += c.tile_wait_seconds;
     s.ray_busy_seconds += std::max(0.0, c.run_seconds - c.idle_seconds - c.tile_wait_seconds);

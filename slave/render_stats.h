@@ -17,6 +17,7 @@ struct ThreadCounters {
   uint64_t peak_stack_bytes = 0;
   uint64_t peak_stack_rays = 0;
   uint64_t peak_open_samples = 0;
+  uint64_t peak_shadows_aside = 0;  // bvh mode: shadow rays put aside at once (RayThread::PutAside)
   // Stack mode: asleep with every ray waiting for the loader. Sync mode: reading a block, or
   // waiting for another thread's read of it (the time its I/O took from the thread).
   double idle_seconds = 0;
@@ -66,6 +67,9 @@ struct RenderStats {
   uint64_t peak_stack_bytes = 0;   // sum over threads of each one's peak queue memory
   uint64_t peak_stack_rays = 0;
   uint64_t peak_open_samples = 0;
+  // bvh mode: the most shadow rays one thread put aside at once (RayThread::PutAside; not in
+  // the JSON: a check of that bound, for the tests).
+  uint64_t peak_shadows_aside = 0;
   uint64_t ray_record_bytes = sizeof(RayRecord);
   uint64_t peak_rss_bytes = 0;
 
