@@ -186,7 +186,8 @@ class RayThread {
   std::vector<uint64_t> shadow_keys_;
   uint32_t aside_ordinal_ = 0;  // the last ray put aside: which of its sample's shadow rays
   std::vector<uint32_t> taken_chunks_;
-  // One chunk's rays of one kind for the block's batch calls (TraceChunk), and where each came from.
+  // One chunk's rays of one kind for the block's batch calls (TraceChunk), and where each came
+  // from.
   Ray batch_rays_[kChunkRays];
   Hit batch_hits_[kChunkRays];
   uint8_t shadow_flags_[kChunkRays];

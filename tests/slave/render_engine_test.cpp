@@ -118,8 +118,8 @@ TEST(RenderEngine, BvhModeWithMoreShadowRaysThanItPutsAsideRendersTheSameImage) 
   const Vec3f size = b.upper - b.lower;
   while (scene.lights.size() < 40) {
     const float k = static_cast<float>(scene.lights.size());
-    scene.lights.push_back({b.upper + Vec3f{size.x * (k / 20 - 1), size.y * 0.3f, size.z * (k / 40)},
-                            {2, 2, 2}});
+    const Vec3f offset{size.x * (k / 20 - 1), size.y * 0.3f, size.z * (k / 40)};
+    scene.lights.push_back({b.upper + offset, {2, 2, 2}});
   }
   const int tile = 32;  // 32 x 32 pixels x 4 samples: one feed of 4,096 samples a tile
   const RenderOutcome incore = Render(*s.reader, scene, Mode(TraceMode::kIncore, 0), tile);
