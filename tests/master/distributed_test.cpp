@@ -106,10 +106,12 @@ void SilentSlave(transport::Transport* net, uint32_t spp) {
 
 // With `plan`, every frame is rendered as that progressive plan, and `keep_going` is the
 // master's stop rule.
+// `configure` may change the slaves' engine options (Options(store) otherwise).
 JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, int slaves,
                   bool rem = false, int tile = 8, const JobFaults& faults = {},
                   const render::FramePlan* plan = nullptr,
-                  const std::function<bool()>& keep_going = [] { return true; }) {
+                  const std::function<bool()>& keep_going = [] { return true; },
+                  const std::function<void(EngineOptions*)>& configure = {}) {
   JobOutcome out;
   transport::InProcessHub hub(slaves + 1);
   out.slaves.resize(static_cast<size_t>(slaves));
@@ -123,6 +125,7 @@ JobOutcome RunJob(const store::StoreReader& store, const render::Scene& scene, i
       std::unique_ptr<slave::PeerBlocks> peers;
       if (rem) peers = std::make_unique<slave::PeerBlocks>(net.get(), store, slave::FaultOptions{});
       EngineOptions options = Options(store);
+      if (configure) configure(&options);
       if (r == faults.damaged_rank) options.faults.corrupt_read = 2;
       auto engine = slave::RenderEngine::Create(store, options, peers.get());
       ASSERT_TRUE(engine.ok());
@@ -276,6 +279,27 @@ TEST_P(DistributedImage, EqualsTheOneProcessImageBitForBit) {
       EXPECT_EQ(corners.size(), listed);
       EXPECT_LE(listed, tiles);
     }
+  }
+}
+
+// Slaves in --mode bvh (one tree over every triangle, primary rays and their shadow rays as
+// packets) under a master give the one-process image of the ray stack, bit for bit.
+TEST(Distributed, SlavesInBvhModeGiveTheOneProcessImage) {
+  TestStore s = BuildGenerated("spheres:30000");
+  const render::Scene scene = TestScene(*s.reader, render::IntegratorType::kWhitted);
+  const std::vector<image::ImageLayers> reference = ReferenceFrames(*s.reader, scene);
+  const JobOutcome job = RunJob(*s.reader, scene, 2, false, 8, {}, nullptr, [] { return true; },
+                                [](EngineOptions* o) {
+                                  o->mode = TraceMode::kBvh;
+                                  o->cache_bytes = 0;  // every block stays
+                                });
+  ASSERT_TRUE(job.master.ok()) << job.master.message();
+  for (const Status& st : job.slaves) ASSERT_TRUE(st.ok()) << st.message();
+  ASSERT_EQ(job.frames.size(), scene.cameras.size());
+  for (size_t f = 0; f < scene.cameras.size(); ++f) {
+    EXPECT_TRUE(SameBits(job.frames[f].rgba, reference[f].rgba)) << "frame " << f;
+    EXPECT_TRUE(SameBits(job.frames[f].z, reference[f].z)) << "frame " << f;
+    EXPECT_EQ(job.frames[f].samples, reference[f].samples) << "frame " << f;
   }
 }
 
