@@ -289,21 +289,19 @@ void RecordHit(const store::BlockView& view, const Hit& hit, RayRecord* ray) {
   ray->material = m == store::kNoMaterial ? store::kNoMaterial16 : static_cast<uint16_t>(m);
 }
 
-Ray ToRay(const RayRecord& r) {
-  Ray ray;
-  ray.origin = r.origin;
-  ray.direction = r.direction;
-  ray.tmin = 0;
-  ray.tmax = r.tmax;
-  return ray;
-}
-
-// ToRay into *out, field by field (see TraceChunk).
+// A waiting ray's geometry into *out, field by field: written in place, not built on the stack
+// and copied (see TraceChunk).
 void SetRay(const RayRecord& r, Ray* out) {
   out->origin = r.origin;
   out->direction = r.direction;
   out->tmin = 0;
   out->tmax = r.tmax;
+}
+
+Ray ToRay(const RayRecord& r) {
+  Ray ray;
+  SetRay(r, &ray);
+  return ray;
 }
 
 Hit ToHit(const RayRecord& r) {
