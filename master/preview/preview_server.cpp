@@ -289,12 +289,14 @@ class PreviewServer::Impl {
   // is closed; none (false) when every connection has sent one (16 streams and answers).
   Slot EvictOldestIdle();
   void AcceptFailed(const error_code& ec);
+  // Copying the film holds its lock (a merge waits meanwhile): on a large film, refresh
+  // less often, so that copies hold it at most 1/kMaxCopyShare of the time.
+  std::chrono::steady_clock::duration CopyPace() const {
+    return std::max<std::chrono::steady_clock::duration>(std::chrono::milliseconds(kRefreshMs),
+                                                         last_copy_ * kMaxCopyShare);
+  }
   void ArmTick() {
-    // Copying the film holds its lock (a merge waits meanwhile): on a large film, refresh
-    // less often, so that copies hold it at most 1/kMaxCopyShare of the time.
-    const auto wait = std::max<std::chrono::steady_clock::duration>(
-        std::chrono::milliseconds(kRefreshMs), last_copy_ * kMaxCopyShare);
-    tick_.expires_after(wait);
+    tick_.expires_after(CopyPace());
     tick_.async_wait([this](const error_code& ec) {
       if (ec) return;
       Refresh();
@@ -302,10 +304,13 @@ class PreviewServer::Impl {
     });
   }
   // Takes a new copy of the film if someone watches and it changed, and sends it and the
-  // status to every viewer (each keeps only the newest).
-  void Refresh();
+  // status to every viewer (each keeps only the newest). `for_status`: a /status.json request
+  // wants the tiles still in flight, which the copy's sample counts tell; without a viewer
+  // there is then a copy too, at most one per CopyPace().
+  void Refresh(bool for_status = false);
   // The status as the viewers get it (the server's thread).
   std::string CurrentStatusJson() {
+    Refresh(/*for_status=*/true);
     PreviewStatus status;
     {
       std::lock_guard lock(status_mu_);
@@ -345,6 +350,7 @@ class PreviewServer::Impl {
   // The server's thread only.
   static constexpr int kMaxCopyShare = 20;
   std::chrono::steady_clock::duration last_copy_{};
+  std::chrono::steady_clock::time_point last_copy_at_{};
   std::vector<std::shared_ptr<Viewer>> viewers_list_;
   std::shared_ptr<const FilmSnapshot> latest_;
   std::shared_ptr<const std::string> latest_status_;
@@ -652,20 +658,25 @@ void PreviewServer::Impl::CloseViewers() {
   viewers_.store(0);
 }
 
-void PreviewServer::Impl::Refresh() {
+void PreviewServer::Impl::Refresh(bool for_status) {
   std::shared_ptr<const FilmSnapshot> fresh;
+  const auto now = std::chrono::steady_clock::now();
+  // Without a viewer no copy is taken, and /status.json would list every tile of the last few
+  // given to each slave, those finished too.
+  const bool wanted = !viewers_list_.empty() || (for_status && now - last_copy_at_ >= CopyPace());
   {
     std::lock_guard lock(film_mu_);
     if (final_) {
       fresh = std::move(final_);
       final_.reset();
-    } else if (film_ != nullptr && !viewers_list_.empty()) {
+    } else if (film_ != nullptr && wanted) {
       // Only when it changed: a paused render costs nothing.
       const uint64_t merged = film_->samples_merged();
       if (merged != last_merged_) {
         // The film's lock only (not the new snapshot's allocation, which merges do not wait
         // for: counting it slowed a 960 x 540 preview to a frame every 1.5-3 s here).
         fresh = std::make_shared<const FilmSnapshot>(TakeSnapshot(*film_, film_frame_, &last_copy_));
+        last_copy_at_ = now;
         snapshots_.fetch_add(1);
         last_merged_ = merged;
       }

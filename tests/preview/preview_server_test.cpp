@@ -118,6 +118,42 @@ TEST(PreviewServer, ServesTheStatusAsJson) {
   EXPECT_EQ(Get((*open)->port(), "/status.json?token=" + (*open)->token()), 200);
 }
 
+// With no page open the server took no copy of the film, so /status.json listed the tiles a
+// slave had finished as still in flight. A request now brings a copy (paced as the viewers'
+// refreshes are), and the finished tile is left out.
+TEST(PreviewServer, TheStatusAsJsonLeavesOutFinishedTilesWithoutAViewer) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  render::Film film(8, 4);
+  server->AttachFilm(&film, 0);
+  std::vector<render::SampleResult> left_half;  // the pixels x < 4, one sample each
+  for (uint32_t y = 0; y < 4; ++y)
+    for (uint32_t x = 0; x < 4; ++x) {
+      render::SampleResult s{};
+      s.pixel = y * 8 + x;
+      left_half.push_back(s);
+    }
+  film.Merge(left_half);
+  PreviewStatus status;
+  status.frames = 1;
+  status.spp = 1;
+  status.samples_total = 32;
+  status.samples_done = 16;
+  status.tiles = {{1, {{0, 0, 4, 4}, {4, 0, 8, 4}}, ""}};
+  server->Publish(status);
+  nlohmann::json json;
+  std::string body;
+  ASSERT_TRUE(WaitUntil([&] {
+    body.clear();
+    if (Get(server->port(), "/status.json", "127.0.0.1", "", &body) != 200) return false;
+    json = nlohmann::json::parse(body, nullptr, false);
+    return !json.is_discarded() && json["tiles"].size() == 1 && json["tiles"][0]["tiles"].size() == 1;
+  })) << body;
+  EXPECT_EQ(json["tiles"][0]["tiles"][0], nlohmann::json({4, 0, 8, 4}));  // in flight
+  EXPECT_EQ(server->counters().viewers, 0);
+  server->DetachFilm();
+}
+
 TEST(PreviewServer, OnLoopbackRefusesForeignHostsAndOrigins) {
   auto server = StartOn("127.0.0.1");
   ASSERT_TRUE(server);
