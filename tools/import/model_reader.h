@@ -101,8 +101,9 @@ struct ReadOptions {
   // importer, a library of its own, does not include).
   uint64_t max_triangles = 0xfffffffeull;
   PositionShift* shift = nullptr;               // --shift (shared by a run's files), if any
-  // Called with what a file's header declares (PLY), before its body is read: the converter
-  // checks its disk against it (hours of reading a large scan ended on a full disk).
+  // Called with what a file's header declares (PLY), or for an OBJ the fewest faces its size
+  // allows, before its body is read: the converter checks its disk against it (hours of
+  // reading a large scan ended on a full disk).
   std::function<void(const DeclaredModel&)> declared;
 };
 

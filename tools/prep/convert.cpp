@@ -243,7 +243,8 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   }
   import::PositionShift shift = args.shift_by;  // one for every file: `automatic` sets it once
   // The disk the conversion will write, checked as soon as a PLY header says how many faces
-  // follow (before hours of reading), and again once the model is read: said once.
+  // follow (an OBJ: the fewest its size allows) before hours of reading, and again once the
+  // model is read: said once.
   const std::string temp_folder = std::filesystem::path(temp->path()).parent_path().string();
   const uint64_t copies = static_cast<uint64_t>(args.replicate[0]) * args.replicate[1] * args.replicate[2];
   bool disk_warned = false;
