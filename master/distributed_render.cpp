@@ -231,10 +231,10 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
             s.done.cache_budget_bytes == std::numeric_limits<uint64_t>::max()
                 ? StrFormat("; cache: in core, peak RSS %.1f MB",
                             static_cast<double>(s.done.peak_rss_bytes) / 1e6)
-                : StrFormat("; cache: hit rate %.4f, peak %.1f MB of %.1f MB, %llu evictions; peak "
-                            "RSS %.1f MB", s.done.cache_hit_rate,
-                            static_cast<double>(s.done.cache_peak_bytes) / 1e6,
-                            static_cast<double>(s.done.cache_budget_bytes) / 1e6,
+                : StrFormat("; cache: hit rate %.4f, peak %.1f MiB of %g MiB, %llu evictions; "
+                            "peak RSS %.1f MB", s.done.cache_hit_rate,
+                            static_cast<double>(s.done.cache_peak_bytes) / 0x1p20,
+                            static_cast<double>(s.done.cache_budget_bytes) / 0x1p20,
                             static_cast<unsigned long long>(s.done.evictions),
                             static_cast<double>(s.done.peak_rss_bytes) / 1e6);
         std::printf("  rank %d%s: %.3f s (ray threads busy %.3f s; CPU: process %.3f s, ray threads "
@@ -283,8 +283,10 @@ bool UseRemoteBlocks(const RenderArgs& args, const store::StoreReader& store, in
   const uint64_t stored = StoredBytes(store);
   const uint64_t share = stored / static_cast<uint64_t>(slaves);
   const bool fits = share <= args.engine.cache_bytes / 2;
-  *why = StrFormat("store %.1f MB on disk, %.1f MB per slave's share, %.1f MiB cache per slave",
-                   static_cast<double>(stored) / 1e6, static_cast<double>(share) / 1e6,
+  // In MiB throughout, the unit of --cache-mb, as they are compared; %g keeps a small budget
+  // from reading 0.0 (a user's --cache-mb 0.05).
+  *why = StrFormat("store %.1f MiB on disk, %.1f MiB per slave's share, %g MiB cache per slave",
+                   static_cast<double>(stored) / kMiB, static_cast<double>(share) / kMiB,
                    static_cast<double>(args.engine.cache_bytes) / kMiB);
   if (args.blocks == "rem") return true;
   if (args.blocks == "loc") return false;

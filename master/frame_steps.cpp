@@ -362,7 +362,7 @@ bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, int r
   const uint64_t share = rem_slaves > 0 ? StoredBytes(*store) / static_cast<uint64_t>(rem_slaves) : 0;
   const uint64_t room = args.engine.cache_bytes > share ? args.engine.cache_bytes - share : 0;
   const bool fits = decoded <= room;
-  *why = StrFormat("decoded blocks %.1f MB %s the %.1f MiB cache", static_cast<double>(decoded) / 1e6,
+  *why = StrFormat("decoded blocks %.1f MiB %s the %g MiB cache", static_cast<double>(decoded) / kMiB,
                    fits ? "fit in" : "exceed", static_cast<double>(args.engine.cache_bytes) / kMiB);
   if (share > 0)
     *why += StrFormat(" less its rem share of %.1f MiB", static_cast<double>(share) / kMiB);
@@ -482,9 +482,12 @@ void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& fi
                       finished.status().message().c_str())
       : *finished == 0
           ? StrFormat("interrupted (%s): no pixel has all its %u samples yet (each pass covers "
-                      "every pixel a little), so nothing is kept for --resume and %s is left as "
-                      "it was (next time, %s; or --time-limit, which ends the frame with the "
-                      "samples it has)", name, spp, path.c_str(),
+                      "every pixel a little), so nothing is kept for --resume and %s (next "
+                      "time, %s; or --time-limit, which ends the frame with the samples it "
+                      "has)", name, spp,
+                      std::filesystem::exists(path)
+                          ? (path + " is left as it was").c_str()
+                          : ("no image is written to " + path).c_str(),
                       WholeTilesAdvice(spp).c_str())
           : StrFormat("interrupted (%s): the frame so far is in %s, %llu of %llu pixels with all "
                       "their samples; the same command with --resume keeps those and renders "

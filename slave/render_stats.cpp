@@ -78,9 +78,10 @@ std::string RenderStats::ToText() const {
   const std::string budget =
       cache_budget_bytes == std::numeric_limits<uint64_t>::max()
           ? std::string("(no budget: in core)")
-          : StrFormat("of %.1f MB", static_cast<double>(cache_budget_bytes) / 1e6);
-  s += StrFormat("\n  cache: hit rate %.4f, peak %.1f MB %s, %llu evictions", cache_hit_rate,
-                 static_cast<double>(cache_peak_bytes) / 1e6, budget.c_str(),
+          : StrFormat("of %g MiB", static_cast<double>(cache_budget_bytes) / 0x1p20);
+  // In MiB, the unit of --cache-mb (a user did not know 536.9 MB for the 512 they gave).
+  s += StrFormat("\n  cache: hit rate %.4f, peak %.1f MiB %s, %llu evictions", cache_hit_rate,
+                 static_cast<double>(cache_peak_bytes) / 0x1p20, budget.c_str(),
                  static_cast<unsigned long long>(evictions));
   s += StrFormat("\n  ray stack: %llu-byte records, peak %.2f MB (%llu rays); peak RSS %.1f MB",
                  static_cast<unsigned long long>(ray_record_bytes),

@@ -23,7 +23,7 @@ extern "C" void NoteInterrupt(int sig) {
   g_signal.store(sig);
   if (g_announce.load()) {
     constexpr char kText[] =
-        "\nraystack render: interrupted: writing the frame so far (once more to end at once)\n";
+        "\nraystack render: interrupted: keeping what can be kept (once more to end at once)\n";
     (void)!write(STDERR_FILENO, kText, sizeof kText - 1);  // async-signal-safe, unlike stdio
   }
 }

@@ -501,6 +501,23 @@ std::string Detail(const char* what) {
   return text;
 }
 
+// The likely slip behind the parser's words, for the mistakes people make writing JSON by
+// hand (a user read "unexpected '}'; expected string literal" without seeing the comma).
+std::string SlipHint(const std::string& detail) {
+  auto has = [&](const char* words) { return detail.find(words) != std::string::npos; };
+  if (has("parsing object key - unexpected '}'"))
+    return " (a comma after the last member? JSON allows none before '}')";
+  if (has("parsing value - unexpected ']'"))
+    return " (a comma after the last item? JSON allows none before ']')";
+  if (has("parsing object - unexpected") && has("expected '}'"))
+    return " (a comma missing before this member?)";
+  if (has("parsing array - unexpected") && has("expected ']'"))
+    return " (a comma missing before this item?)";
+  if (has("parsing object key - invalid literal; last read: '{''"))
+    return " (JSON strings take double quotes, not single)";
+  return "";
+}
+
 }  // namespace
 
 uint64_t IntegratorDesc::SeedOfFrame(size_t frame) const {
@@ -552,8 +569,9 @@ Expected<Scene> ParseScene(std::string_view json_text, const std::string& source
     return Status::Error(source_name + ": " + (e.path.empty() ? "" : e.path + ": ") + e.what);
   } catch (const Json::parse_error& e) {
     const size_t offset = e.byte > 0 ? e.byte - 1 : 0;
+    const std::string detail = Detail(e.what());
     return Status::Error(source_name + ":" + LineColumn(json_text, offset) +
-                         ": invalid JSON: " + Detail(e.what()));
+                         ": invalid JSON: " + detail + SlipHint(detail));
   } catch (const Json::out_of_range& e) {
     // A number beyond double range ("number overflow parsing '1e400'"): find it for the place.
     std::string detail = Detail(e.what());

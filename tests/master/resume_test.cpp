@@ -276,6 +276,8 @@ TEST_F(Resume, AnInterruptKeepsTheFramesThatFinishedBehindASlowDisk) {
   std::string err;
   EXPECT_EQ(InterruptFrame(*dir_, 1, 0, "--fault-slow-writes", "2", &err), 128 + SIGINT) << err;
   EXPECT_NE(err.find("interrupted (SIGINT): no pixel has all its"), std::string::npos) << err;
+  // No file there before: not "left as it was" (a persona looked for one).
+  EXPECT_NE(err.find("no image is written to " + dir_->File("frame-1.exr")), std::string::npos) << err;
   Expected<image::ImageLayers> frame0 = image::ReadExr(dir_->File("frame-0.exr"));
   ASSERT_TRUE(frame0.ok()) << frame0.status().message() << "\n" << err;
   EXPECT_FALSE(frame0->partial);

@@ -157,7 +157,13 @@ TEST(Scene, ErrorNamesFileAndJsonPathExactly) {
 TEST(Scene, SyntaxErrorsGiveLineAndColumn) {
   ExpectError("{\n  \"store\": \"s\",\n  \"camera\": tru\n}", {"scene.json:3:", "invalid JSON"});
   ExpectError("{\n  \"store\": \"s\",\n  \"camera\": {},\n}\n",
-              {"scene.json:4:1:", "invalid JSON"});
+              {"scene.json:4:1:", "invalid JSON", "(a comma after the last member?"});
+  // The slips people make by hand are named (a user did not see the comma in the parser's words).
+  ExpectError(R"({"store": "s", "camera": {"up": [0, 1, 0,]}})",
+              {"scene.json:1:", "(a comma after the last item? JSON allows none before ']')"});
+  ExpectError("{\"store\": \"s\"\n \"camera\": {}}", {"scene.json:2:", "(a comma missing before this member?)"});
+  ExpectError(R"({"store": "s", "camera": {"up": [0 1 0]}})", {"(a comma missing before this item?)"});
+  ExpectError("{'store': 's'}", {"(JSON strings take double quotes, not single)"});
   ExpectError("{\"store\": \"s\"", {"scene.json:1:14:", "end of input"});
   ExpectError("", {"scene.json:1:1:", "invalid JSON"});
   ExpectError(Minimal(", \"background\": [NaN, 0, 0]"), {"scene.json:1:", "invalid JSON"});
