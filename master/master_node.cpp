@@ -271,15 +271,25 @@ Status MasterNode::Drop(Frame* f, int rank, bool lost, const std::string& why) {
   f->returned.insert(f->returned.end(), back.begin(), back.end());
   // The host: on a cluster the operator looks for the bad disk or node there.
   const std::string on = s.host.empty() ? std::string() : " (on " + s.host + ")";
-  LOG_WARNING("master", "rank %d%s %s: %s; its %zu unfinished tiles (%zu samples taken back) go "
-              "to the other slaves", rank, on.c_str(), lost ? "is lost" : "failed", why.c_str(),
-              back.size(), merged.size());
+  const std::string tiles =
+      back.empty() ? std::string("it had no tile in flight")
+                   : StrFormat("its %zu unfinished tiles (%zu samples taken back) go to the other "
+                               "slaves", back.size(), merged.size());
+  LOG_WARNING("master", "rank %d%s %s: %s; %s", rank, on.c_str(), lost ? "is lost" : "failed",
+              why.c_str(), tiles.c_str());
   // The others read its blocks from disk from now on (--blocks rem).
   for (int r = 1; r < net_->size(); ++r)
     if (!slaves_[static_cast<size_t>(r)].dropped)
       (void)Send(r, wire::Encode(0, wire::RankLost{static_cast<uint32_t>(rank), lost ? 1u : 0u}),
                  f->figures);
   if (f->remaining == 0 && WorkLeft(*f)) {
+    // One cause for all (a store path none can open, say) is said once, not once a rank.
+    bool same = true;
+    for (int r = 2; r < net_->size(); ++r)
+      same = same && slaves_[static_cast<size_t>(r)].failure == slaves_[1].failure;
+    if (same && net_->size() > 2)
+      return Status::Error(StrFormat("no slave is left to finish the frame: ranks 1 to %d: %s",
+                                     net_->size() - 1, slaves_[1].failure.c_str()));
     std::string all;
     for (int r = 1; r < net_->size(); ++r)
       all += StrFormat("%srank %d: %s", all.empty() ? "" : "; ", r,

@@ -394,6 +394,20 @@ TEST_F(DistributedCli, ABadSceneEndsTheJobWithOneError) {
   }
 }
 
+// A store no rank can open: the slaves fail alike, and the job's error gives the cause once, not
+// once a rank, without "its 0 unfinished tiles go to the other slaves" (a new user's review).
+TEST_F(DistributedCli, AStoreNoRankCanOpenIsSaidOnce) {
+  const std::string scene = dir_->File("nowhere.json");
+  std::ofstream(scene) << R"({ "store": "nowhere.store", "camera": { "width": 32, "height": 24 },
+    "lights": [ { "type": "point", "position": [0, 5, 0], "intensity": [10, 10, 10] } ] })";
+  const ProcessResult r = Render(scene, 3, dir_->File("nowhere.exr"));
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("no slave is left to finish the frame: ranks 1 to 2: "), std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("unfinished tiles"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("it had no tile in flight"), std::string::npos) << r.err;
+}
+
 // --blocks rem with a cache smaller than a slave's share of the store: the master says so once,
 // before any slave starts (each slave used to fail on its own, after the job had begun).
 TEST_F(DistributedCli, ARemShareTooLargeForTheCacheEndsTheJobBeforeItStarts) {
