@@ -208,10 +208,46 @@ class PlotTool(unittest.TestCase):
         self.assertIn("other.csv:1: not a raystack convergence log", r.stderr)
         noref = os.path.join(self.tmp, "noref.csv")
         write_log(noref, [(0.1, ""), (1.0, "")], estimate=[0.3, 0.2])
-        r = self.run_tool(noref, "-o", os.path.join(self.tmp, "p.png"))
+        r = self.run_tool(noref, "-o", os.path.join(self.tmp, "p.png"), "--metric", "rmse")
         self.assertEqual(r.returncode, 1)
         self.assertIn("without --reference", r.stderr)
         self.assertFalse(os.path.exists(os.path.join(self.tmp, "p.png")))
+
+    def test_defaults_follow_the_log(self):
+        # Found by a new user: a log of `--frames 1` gave "no rows for frame 0", then (with
+        # --frame 1) "no rmse values": a render without --reference has the estimate only.
+        log = os.path.join(self.tmp, "one.csv")
+        with open(log, "w") as f:
+            f.write(HEADER + "1,tick,0,0.5,10,10,10,2,0.3,,,\n1,tick,1,1.5,20,20,10,4,0.2,,,\n")
+        out = os.path.join(self.tmp, "p.png")
+        r = self.run_tool(log, "-o", out, "--area")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("no rmse (rendered without --reference): plotting error_estimate", r.stderr)
+        self.assertIn("one: area 0.3 (error_estimate x seconds, 0.500 to 1.500 s)", r.stdout)
+        self.assertTrue(os.path.exists(out))
+        # A log of several frames: its first, said.
+        two = os.path.join(self.tmp, "two.csv")
+        with open(two, "w") as f:
+            f.write(HEADER + "2,tick,0,0.5,10,10,10,1,,,0.5,\n3,tick,0,0.5,10,10,10,1,,,0.9,\n"
+                    "2,tick,1,1.5,10,10,10,1,,,0.25,\n")
+        r = self.run_tool(two, "-o", out, "--area")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("two.csv holds frames 2 to 3: plotting frame 2", r.stderr)
+        self.assertIn("two: area 0.5 (rmse", r.stdout)
+        r = self.run_tool(two, "-o", out, "--frame", "0")
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("no rows for frame 0 (it holds frames 2 to 3)", r.stderr)
+
+    def test_an_estimate_starts_once_every_pixel_has_two_samples(self):
+        # Before, it averages the few pixels that have two: a curve from far below (a user's plot).
+        log = os.path.join(self.tmp, "e.csv")
+        with open(log, "w") as f:
+            f.write(HEADER + "0,tick,0,0.5,10,10,10,1,0.01,,,\n0,tick,1,1.0,10,10,10,2,0.4,,,\n"
+                    "0,tick,2,2.0,10,10,10,4,0.2,,,\n")
+        r = self.run_tool(log, "-o", os.path.join(self.tmp, "p.png"), "--area",
+                          "--metric", "error_estimate")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("e: area 0.4 (error_estimate x seconds, 1.000 to 2.000 s)", r.stdout)
 
 
 if __name__ == "__main__":
