@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "common/base/log.h"
+#include "common/base/unknown_option.h"
 #include "common/base/usable_cores.h"
 #include "slave/block_loader.h"
 
@@ -332,7 +333,7 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
     } else if (arg == "-q" || arg == "--quiet") {
       a->quiet = true;
     } else if (!arg.empty() && arg[0] == '-') {
-      return Status::Error("unknown option " + arg + " (see --help)");
+      return Status::Error(UnknownOption(arg));
     } else if (a->scene.empty()) {
       a->scene = arg;
     } else {

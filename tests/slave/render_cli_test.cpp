@@ -586,6 +586,8 @@ TEST_F(RenderCli, BadInputIsAClearError) {
       {{kRaystack, "render", good, "--cache-mb", "0"}, "--cache-mb 0: must be from 0.001 to 16777216 (MiB)", 2},
       {{kRaystack, "render", good, "--threads", "x"}, "--threads: 'x' is not a number; give one from 1", 2},
       {{kRaystack, "render", good, "--frobnicate"}, "unknown option", 2},
+      // A new user's GNU habit: the value goes after a space here.
+      {{kRaystack, "render", good, "--spp=4"}, "unknown option --spp=4 (a value follows its option after a space: --spp 4;", 2},
       // Found by a helper reading the docs: numbers the option's type cannot hold were "not a
       // number", and options that only another option uses were taken and did nothing.
       {{kRaystack, "render", good, "--threads", "99999999999"}, "--threads 99999999999: must be from 1 to 64", 2},

@@ -10,6 +10,7 @@
 #include "common/base/build_id.h"
 #include "common/base/log.h"
 #include "common/base/progress.h"
+#include "common/base/unknown_option.h"
 #include "common/render/material_table.h"
 #include "common/store/store_writer.h"
 #include "common/store/store_reader.h"
@@ -189,7 +190,7 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--verify")) verify = true;
     else if (!std::strcmp(argv[i], "--blocks")) list = true;
     else if (argv[i][0] == '-') {
-      std::fprintf(stderr, "raystack-info: unknown option %s (see --help)\n", argv[i]);
+      std::fprintf(stderr, "raystack-info: %s\n", raystack::UnknownOption(argv[i]).c_str());
       return 2;
     } else if (dir.empty()) dir = argv[i];
     else {

@@ -15,6 +15,7 @@
 #include "common/base/build_id.h"
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
+#include "common/base/unknown_option.h"
 #include "common/store/format.h"
 #include "tools/prep/convert.h"
 #include "tools/prep/generator.h"
@@ -155,7 +156,7 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
     } else if (arg == "-q" || arg == "--quiet") {
       a->convert.quiet = true;
     } else if (!arg.empty() && arg[0] == '-') {
-      return Status::Error("unknown option " + arg + " (see --help)");
+      return Status::Error(UnknownOption(arg));
     } else {
       a->convert.inputs.push_back(arg);
     }

@@ -1,0 +1,18 @@
+#pragma once
+// The words for an option a command does not know, shared by raystack, raystack-prep and
+// raystack-info: "--spp=1" is the GNU habit, and a new user read "unknown option --spp=1"
+// without seeing that the value goes after a space here.
+
+#include <string>
+
+namespace raystack {
+
+inline std::string UnknownOption(const std::string& arg) {
+  const size_t equals = arg.find('=');
+  if (arg.rfind("--", 0) == 0 && equals != std::string::npos && equals > 2)
+    return "unknown option " + arg + " (a value follows its option after a space: " +
+           arg.substr(0, equals) + " " + arg.substr(equals + 1) + "; see --help)";
+  return "unknown option " + arg + " (see --help)";
+}
+
+}  // namespace raystack
