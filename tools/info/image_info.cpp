@@ -43,6 +43,16 @@ void PrintLayers(const image::ImageLayers& im) {
 
 }  // namespace
 
+bool LooksLikeExr(const std::string& path) {
+  unsigned char magic[4] = {};
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (f == nullptr) return false;
+  const size_t n = std::fread(magic, 1, sizeof magic, f);
+  std::fclose(f);
+  return n == sizeof magic && magic[0] == 0x76 && magic[1] == 0x2f && magic[2] == 0x31 &&
+         magic[3] == 0x01;
+}
+
 int ShowImage(const std::string& path) {
   Expected<image::ImageLayers> read = image::ReadExr(path);
   if (!read.ok()) {

@@ -13,4 +13,7 @@ namespace raystack::info {
 // written by raystack, or partial: said on stderr, with what to do).
 int ShowImage(const std::string& path);
 
+// Whether the file at `path` starts as an OpenEXR file does (its magic number).
+bool LooksLikeExr(const std::string& path);
+
 }  // namespace raystack::info

@@ -211,6 +211,13 @@ int main(int argc, char** argv) {
                    dir.c_str());
       return 2;
     }
+    // A file that is not an EXR (a scene file, a model) is neither thing this tool reads: said
+    // so, not as an EXR that could not be read (a new user gave it a scene file).
+    if (!exr_name && !raystack::info::LooksLikeExr(dir)) {
+      std::fprintf(stderr, "raystack-info: %s is neither a block store (a folder made by "
+                   "raystack-prep) nor an OpenEXR image\n", dir.c_str());
+      return 1;
+    }
     return raystack::info::ShowImage(dir);
   }
   return raystack::Run(dir, verify, list);
