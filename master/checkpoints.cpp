@@ -2,8 +2,10 @@
 
 #include <chrono>
 #include <csignal>
+#include <filesystem>
 
 #include "common/base/log.h"
+#include "common/image/exr_io.h"
 
 namespace raystack::master {
 
@@ -46,7 +48,7 @@ void Checkpoints::Maybe(const render::Film& film) {
   (void)writer_->Write(std::move(image));
 }
 
-Expected<uint64_t> Checkpoints::Final(const render::Film& film, uint32_t spp) {
+Expected<Checkpoints::Kept> Checkpoints::Final(const render::Film& film, uint32_t spp) {
   if (Status earlier = writer_->Finish(); !earlier.ok())
     return Status::Error("an earlier frame's image was not written: " + earlier.message());
   auto result = std::make_shared<Status>();
@@ -57,14 +59,17 @@ Expected<uint64_t> Checkpoints::Final(const render::Film& film, uint32_t spp) {
   image.layers.provenance = provenance_;
   image.layers.partial = true;
   image.layers.stopped.clear();  // (the layers may be a stopped frame's, reused)
-  uint64_t finished = 0;
-  for (const uint32_t n : image.layers.samples) finished += n >= spp;
-  if (finished == 0) return finished;
+  Kept kept;
+  for (const uint32_t n : image.layers.samples) kept.finished += n >= spp;
+  std::error_code ec;
+  const bool finished_image_there = std::filesystem::exists(path_, ec) && !image::IsPartialFrame(path_);
+  if (kept.finished == 0 && (film.samples_merged() == 0 || finished_image_there)) return kept;
   image.done = [result](const Status& s) { *result = s; };
   RAYSTACK_RETURN_IF_ERROR(writer_->Write(std::move(image)));
   RAYSTACK_RETURN_IF_ERROR(writer_->Finish());
   RAYSTACK_RETURN_IF_ERROR(*result);
-  return finished;
+  kept.written = true;
+  return kept;
 }
 
 }  // namespace raystack::master

@@ -37,10 +37,16 @@ class Checkpoints {
   // animator: a Ctrl-C with no pixel of the current frame finished ended the process without
   // them, two finished frames lost). Then writes a checkpoint of `film` now, whatever the
   // interval (also with every_s 0), on every core, and waits until it is written. Returns how
-  // many pixels have all `spp` samples (those --resume keeps). With none, no checkpoint is
-  // written: --resume could keep nothing, and the file there (a finished image of an earlier
-  // run, say) would be lost for nothing. An earlier frame's failed write is the error returned.
-  Expected<uint64_t> Final(const render::Film& film, uint32_t spp);
+  // many pixels have all `spp` samples (those --resume keeps) and whether it was written. With
+  // none it is written all the same, for a look at the frame so far (a user's Ctrl-C in the
+  // first passes left no image of minutes of work), unless the film has no sample yet or the
+  // file there is a finished image (of an earlier run), which would be lost for nothing
+  // --resume could keep. An earlier frame's failed write is the error returned.
+  struct Kept {
+    uint64_t finished = 0;  // pixels with all their samples
+    bool written = false;
+  };
+  Expected<Kept> Final(const render::Film& film, uint32_t spp);
 
  private:
   // What the writer's thread updates once a checkpoint is written: shared, so the frame (and

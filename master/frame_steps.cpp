@@ -470,29 +470,46 @@ void EndIfInterruptedBetweenFrames(size_t frame, FrameRange range, FrameWriter* 
   std::_Exit(128 + signal);
 }
 
+namespace {
+
+// What a frame that stops early (interrupted, failed) leaves at `path`, for its message;
+// `resume` says when --resume is worth it ("the same command", or after a fix).
+std::string WhatIsKept(const Checkpoints::Kept& kept, const render::Film& film,
+                       const std::string& path, uint32_t spp, const char* resume) {
+  if (kept.finished > 0)
+    return StrFormat("the frame so far is in %s, %llu of %llu pixels with all their samples; %s "
+                     "with --resume keeps those and renders the rest", path.c_str(),
+                     static_cast<unsigned long long>(kept.finished),
+                     static_cast<unsigned long long>(film.width()) *
+                         static_cast<unsigned long long>(film.height()),
+                     resume);
+  const std::string next = StrFormat("next time, %s; or --time-limit, which ends the frame with "
+                                     "the samples it has", WholeTilesAdvice(spp).c_str());
+  if (kept.written)
+    return StrFormat("the frame so far is in %s to look at, but no pixel has all its %u samples "
+                     "yet (each pass covers every pixel a little), so --resume keeps none of it "
+                     "(%s)", path.c_str(), spp, next.c_str());
+  std::error_code ec;
+  return StrFormat("no pixel has all its %u samples yet, so nothing is kept for --resume, and %s "
+                   "(%s)", spp,
+                   std::filesystem::exists(path, ec)
+                       ? (path + ", a finished image, is left as it was").c_str()
+                       : ("no image is written to " + path).c_str(),
+                   next.c_str());
+}
+
+}  // namespace
+
 void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& film,
                     const std::string& path, uint32_t spp, const AfterInterrupt& then,
                     const std::string& sigterm_hint) {
   const char* name = InterruptName(signal);
-  Expected<uint64_t> finished = checkpoints->Final(film, spp);
-  const uint64_t pixels = static_cast<uint64_t>(film.width()) * static_cast<uint64_t>(film.height());
+  Expected<Checkpoints::Kept> kept = checkpoints->Final(film, spp);
   const std::string said =
-      !finished.ok()
-          ? StrFormat("interrupted (%s); not written: %s", name,
-                      finished.status().message().c_str())
-      : *finished == 0
-          ? StrFormat("interrupted (%s): no pixel has all its %u samples yet (each pass covers "
-                      "every pixel a little), so nothing is kept for --resume and %s (next "
-                      "time, %s; or --time-limit, which ends the frame with the samples it "
-                      "has)", name, spp,
-                      std::filesystem::exists(path)
-                          ? (path + " is left as it was").c_str()
-                          : ("no image is written to " + path).c_str(),
-                      WholeTilesAdvice(spp).c_str())
-          : StrFormat("interrupted (%s): the frame so far is in %s, %llu of %llu pixels with all "
-                      "their samples; the same command with --resume keeps those and renders "
-                      "the rest", name, path.c_str(), static_cast<unsigned long long>(*finished),
-                      static_cast<unsigned long long>(pixels));
+      kept.ok() ? StrFormat("interrupted (%s): %s", name,
+                            WhatIsKept(*kept, film, path, spp, "the same command").c_str())
+                : StrFormat("interrupted (%s); not written: %s", name,
+                            kept.status().message().c_str());
   std::fprintf(stderr, "raystack render: %s\n", said.c_str());
   if (signal == SIGTERM && !sigterm_hint.empty())
     std::fprintf(stderr, "raystack render: %s\n", sigterm_hint.c_str());
@@ -505,20 +522,13 @@ void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& fi
 Status KeepFrameSoFar(const Status& why, Checkpoints* checkpoints, const render::Film& film,
                       const std::string& path, uint32_t spp) {
   if (film.samples_merged() == 0) return why;
-  Expected<uint64_t> finished = checkpoints->Final(film, spp);
-  const uint64_t pixels = static_cast<uint64_t>(film.width()) * static_cast<uint64_t>(film.height());
-  if (!finished.ok())
+  Expected<Checkpoints::Kept> kept = checkpoints->Final(film, spp);
+  if (!kept.ok())
     return Status::Error(why.message() + "; the frame so far could not be written either: " +
-                         finished.status().message());
-  if (*finished == 0)
-    return Status::Error(why.message() + "; no pixel had all its samples yet, so nothing is kept "
-                         "for --resume (next time, " + WholeTilesAdvice(spp) + ")");
-  return Status::Error(why.message() +
-                       StrFormat("; the frame so far is in %s, %llu of %llu pixels with all their "
-                                 "samples: once the cause is fixed, the same command with "
-                                 "--resume keeps those and renders the rest", path.c_str(),
-                                 static_cast<unsigned long long>(*finished),
-                                 static_cast<unsigned long long>(pixels)));
+                         kept.status().message());
+  return Status::Error(why.message() + "; " +
+                       WhatIsKept(*kept, film, path, spp,
+                                  "once the cause is fixed, the same command"));
 }
 
 Status LoadReference(const RenderArgs& args, size_t f, size_t frames, const render::Camera& camera,

@@ -171,9 +171,10 @@ TEST(Checkpoints, AFailedOneIsNotTheJobsError) {
   EXPECT_TRUE(writer.Finish().ok());
 }
 
-// An interrupt with no pixel of the frame finished writes no checkpoint, but the images of the
-// frames that finished before, still queued behind a slow disk, are written before the process
-// ends (found by an animator: Ctrl-C lost two finished frames the writer still held).
+// The images of the frames that finished before an interrupt, still queued behind a slow disk,
+// are written before the process ends (found by an animator: Ctrl-C lost two finished frames
+// the writer still held). The frame rendering is written too, to look at, though no pixel of it
+// has all its samples (a user's Ctrl-C in the first passes left no image of minutes of work).
 TEST(Checkpoints, TheFinalOneWaitsForTheFinishedFramesQueuedBefore) {
   Expected<TempDir> dir = TempDir::Create();
   ASSERT_TRUE(dir.ok());
@@ -184,14 +185,38 @@ TEST(Checkpoints, TheFinalOneWaitsForTheFinishedFramesQueuedBefore) {
   ASSERT_TRUE(writer.Write(Flat(dir->File("frame-1.exr"), 2)).ok());
   const std::string path = dir->File("frame-2.exr");
   master::Checkpoints checkpoints(0, path, "test", &writer);
-  Expected<uint64_t> kept = checkpoints.Final(film, 4);
+  Expected<master::Checkpoints::Kept> kept = checkpoints.Final(film, 4);
   ASSERT_TRUE(kept.ok()) << kept.status().message();
-  EXPECT_EQ(*kept, 0u);
-  EXPECT_FALSE(std::filesystem::exists(path)) << "nothing of this frame to keep";
+  EXPECT_EQ(kept->finished, 0u);
+  EXPECT_TRUE(kept->written);
+  EXPECT_TRUE(image::IsPartialFrame(path)) << "the frame so far, to look at";
   for (const char* name : {"frame-0.exr", "frame-1.exr"}) {
     Expected<image::ImageLayers> read = image::ReadExr(dir->File(name));
     EXPECT_TRUE(read.ok()) << name << ": " << read.status().message();
   }
+}
+
+// ... but a finished image of an earlier run there is not replaced by a frame --resume could keep
+// nothing of; with a pixel to keep, it is.
+TEST(Checkpoints, TheFinalOneKeepsAFinishedImageWhenItHasNothingToKeep) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  const std::string path = dir->File("frame.exr");
+  master::FrameWriter writer(false, 0, master::FrameWriter::kRetrySeconds, 0);
+  ASSERT_TRUE(writer.Write(Flat(path, 1)).ok());
+  ASSERT_TRUE(writer.Finish().ok());
+  render::Film film(4, 2);
+  Fill(&film, 5);  // pixel 0 has 1 sample
+  master::Checkpoints checkpoints(0, path, "test", &writer);
+  Expected<master::Checkpoints::Kept> kept = checkpoints.Final(film, 4);
+  ASSERT_TRUE(kept.ok()) << kept.status().message();
+  EXPECT_FALSE(kept->written);
+  EXPECT_FALSE(image::IsPartialFrame(path)) << "the earlier finished image stays";
+  kept = checkpoints.Final(film, 1);  // now pixel 0 has all its samples
+  ASSERT_TRUE(kept.ok()) << kept.status().message();
+  EXPECT_EQ(kept->finished, 1u);
+  EXPECT_TRUE(kept->written);
+  EXPECT_TRUE(image::IsPartialFrame(path));
 }
 
 // An earlier frame's failed write is what the final checkpoint returns (the interrupt's message
@@ -206,7 +231,7 @@ TEST(Checkpoints, TheFinalOneSaysWhichEarlierFramesAreNotWritten) {
   ASSERT_TRUE(writer.Write(Flat(dir->File("frame-0.exr"), 1)).ok());
   ASSERT_TRUE(writer.Write(Flat(dir->File("frame-1.exr"), 2)).ok());
   master::Checkpoints checkpoints(0, dir->File("frame-2.exr"), "test", &writer);
-  Expected<uint64_t> kept = checkpoints.Final(film, 1);
+  Expected<master::Checkpoints::Kept> kept = checkpoints.Final(film, 1);
   ASSERT_FALSE(kept.ok());
   const std::string said = kept.status().message();
   EXPECT_NE(said.find("an earlier frame's image was not written: " + dir->File("frame-0.exr")),
