@@ -195,7 +195,7 @@ void Film::ResolveInto(image::ImageLayers* into) const {
 
 void Film::ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts,
                          std::chrono::steady_clock::duration* held) const {
-  rgb->resize(pixels_.size() * 3);
+  if (rgb) rgb->resize(pixels_.size() * 3);
   counts->resize(pixels_.size());
   std::lock_guard lock(mu_);
   const auto start = std::chrono::steady_clock::now();
@@ -209,6 +209,7 @@ void Film::ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts,
   for (size_t i = 0; i < pixels_.size(); ++i) {
     const Pixel& p = pixels_[i];
     (*counts)[i] = p.count;
+    if (!rgb) continue;
     const double n = p.count;  // divided as in Resolve, so both give the same bits
     for (int c = 0; c < 3; ++c)
       (*rgb)[3 * i + static_cast<size_t>(c)] = p.count > 0 ? static_cast<float>(p.rgb[c].Value() / n) : 0.0f;
@@ -217,7 +218,7 @@ void Film::ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts,
   // them as not computed, and its progress stopped short of 100%).
   for (const uint32_t i : restored_pixels_) {
     if (i >= pixels_.size()) continue;
-    for (size_t c = 0; c < 3; ++c) (*rgb)[3 * i + c] = restored_.rgba[4 * i + c];
+    for (size_t c = 0; rgb && c < 3; ++c) (*rgb)[3 * i + c] = restored_.rgba[4 * i + c];
     (*counts)[i] = restored_.samples.empty() ? 1 : restored_.samples[i];
   }
 }

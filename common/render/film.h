@@ -66,6 +66,7 @@ class Film {
   // (restored pixels as Resolve gives them), into the caller's buffers (resized): the light copy the live preview takes several times a
   // second, holding the lock far shorter than Resolve. Thread-safe.
   // `held` (optional): how long the film's lock was held, the copy without the allocation.
+  // `rgb` null: the counts alone (/status.json's tiles in flight).
   void ResolveColour(std::vector<float>* rgb, std::vector<uint32_t>* counts,
                      std::chrono::steady_clock::duration* held = nullptr) const;
 

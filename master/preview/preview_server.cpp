@@ -304,21 +304,35 @@ class PreviewServer::Impl {
     });
   }
   // Takes a new copy of the film if someone watches and it changed, and sends it and the
-  // status to every viewer (each keeps only the newest). `for_status`: a /status.json request
-  // wants the tiles still in flight, which the copy's sample counts tell; without a viewer
-  // there is then a copy too, at most one per CopyPace().
-  void Refresh(bool for_status = false);
-  // The status as the viewers get it (the server's thread).
+  // status to every viewer (each keeps only the newest).
+  void Refresh();
+  // The status as the viewers get it (the server's thread). The tiles still in flight are told
+  // by the film's sample counts: the viewers' copy, or, with none watching (no copy is taken
+  // then, and every tile given lately was listed, finished ones too), a copy of the counts
+  // alone (4 bytes a pixel), at most one per CopyPace() whatever the requests.
   std::string CurrentStatusJson() {
-    Refresh(/*for_status=*/true);
     PreviewStatus status;
     {
       std::lock_guard lock(status_mu_);
       status = status_;
     }
-    const bool same_frame = latest_ && latest_->frame == status.frame;
-    return StatusJson(status, same_frame ? latest_->width : 0,
-                      same_frame ? latest_->counts : std::vector<uint32_t>()) + "\n";
+    if (!viewers_list_.empty() && latest_ && latest_->frame == status.frame)
+      return StatusJson(status, latest_->width, latest_->counts) + "\n";
+    CopyCounts();
+    const bool same_frame = counts_frame_ == status.frame && !counts_.empty();
+    return StatusJson(status, same_frame ? counts_width_ : 0,
+                      same_frame ? counts_ : std::vector<uint32_t>()) + "\n";
+  }
+  void CopyCounts() {
+    const auto now = std::chrono::steady_clock::now();
+    if (counts_at_ != std::chrono::steady_clock::time_point{} && now - counts_at_ < CopyPace())
+      return;
+    std::lock_guard lock(film_mu_);
+    if (film_ == nullptr) return;
+    film_->ResolveColour(nullptr, &counts_);
+    counts_width_ = film_->width();
+    counts_frame_ = film_frame_;
+    counts_at_ = now;
   }
   void CloseViewers();
 
@@ -350,8 +364,12 @@ class PreviewServer::Impl {
   // The server's thread only.
   static constexpr int kMaxCopyShare = 20;
   std::chrono::steady_clock::duration last_copy_{};
-  std::chrono::steady_clock::time_point last_copy_at_{};
   std::vector<std::shared_ptr<Viewer>> viewers_list_;
+  // CurrentStatusJson's counts without a viewer.
+  std::vector<uint32_t> counts_;
+  int counts_width_ = 0;
+  uint32_t counts_frame_ = 0;
+  std::chrono::steady_clock::time_point counts_at_{};
   std::shared_ptr<const FilmSnapshot> latest_;
   std::shared_ptr<const std::string> latest_status_;
   bool said_full_ = false, said_accept_failed_ = false, said_evicting_ = false;  // each warned of once
@@ -658,25 +676,20 @@ void PreviewServer::Impl::CloseViewers() {
   viewers_.store(0);
 }
 
-void PreviewServer::Impl::Refresh(bool for_status) {
+void PreviewServer::Impl::Refresh() {
   std::shared_ptr<const FilmSnapshot> fresh;
-  const auto now = std::chrono::steady_clock::now();
-  // Without a viewer no copy is taken, and /status.json would list every tile of the last few
-  // given to each slave, those finished too.
-  const bool wanted = !viewers_list_.empty() || (for_status && now - last_copy_at_ >= CopyPace());
   {
     std::lock_guard lock(film_mu_);
     if (final_) {
       fresh = std::move(final_);
       final_.reset();
-    } else if (film_ != nullptr && wanted) {
+    } else if (film_ != nullptr && !viewers_list_.empty()) {
       // Only when it changed: a paused render costs nothing.
       const uint64_t merged = film_->samples_merged();
       if (merged != last_merged_) {
         // The film's lock only (not the new snapshot's allocation, which merges do not wait
         // for: counting it slowed a 960 x 540 preview to a frame every 1.5-3 s here).
         fresh = std::make_shared<const FilmSnapshot>(TakeSnapshot(*film_, film_frame_, &last_copy_));
-        last_copy_at_ = now;
         snapshots_.fetch_add(1);
         last_merged_ = merged;
       }
