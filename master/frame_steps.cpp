@@ -1,5 +1,6 @@
 #include "master/frame_steps.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <csignal>
@@ -112,15 +113,34 @@ Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene) {
                        ": " + s.message());
 }
 
+namespace {
+
+// Whether the partial frame at `exr` has no pixel with `spp` samples: nothing --resume would
+// keep (a frame written to look at when interrupted in its first passes, or such a checkpoint).
+bool NothingToResume(const std::string& exr, uint32_t spp) {
+  Expected<image::ImageLayers> read = image::ReadExr(exr);
+  return read.ok() && !read->samples.empty() &&
+         std::none_of(read->samples.begin(), read->samples.end(), [spp](uint32_t n) { return n >= spp; });
+}
+
+}  // namespace
+
 Status CheckNoUnfinishedFrame(const RenderArgs& args, const render::Scene& scene) {
   if (args.resume) return OkStatus();
   const FrameRange range = FramesOf(args, scene);
+  const auto spp = static_cast<uint32_t>(scene.integrator.spp);
   for (size_t f = range.begin; f < range.end; ++f) {
     const std::string exr = FrameExrPath(args, scene, f);
-    if (image::IsPartialFrame(exr))
-      return Status::Error(exr + " holds a frame a stopped run left unfinished: --resume "
-                           "continues it; to render it from the start, remove it or give "
-                           "another --output");
+    if (!image::IsPartialFrame(exr)) continue;
+    // A plain run after one interrupted in its first passes was refused, for nothing to keep.
+    if (NothingToResume(exr, spp)) {
+      LOG_INFO("render", "%s: a stopped run's frame with no pixel finished, which --resume could "
+               "not use: rendered from the start", exr.c_str());
+      continue;
+    }
+    return Status::Error(exr + " holds a frame a stopped run left unfinished: --resume "
+                         "continues it; to render it from the start, remove it or give "
+                         "another --output");
   }
   return OkStatus();
 }

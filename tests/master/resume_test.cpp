@@ -287,6 +287,16 @@ TEST_F(Resume, AnInterruptKeepsTheFramesThatFinishedBehindASlowDisk) {
   Expected<image::ImageLayers> frame1 = image::ReadExr(dir_->File("frame-1.exr"));
   ASSERT_TRUE(frame1.ok()) << frame1.status().message() << "\n" << err;
   EXPECT_TRUE(frame1->partial);
+  // Nothing there for --resume to keep, so a plain run renders it from the start, not refused
+  // as unfinished (the day's review).
+  const ProcessResult again = RunProcess({kRaystackBinary, "render", dir_->File("three.json"),
+                                          "--threads", "1", "--time-limit", "0.1", "--frames", "1",
+                                          "--output", dir_->File("frame.exr"), "--no-png"},
+                                         dir_->path());
+  EXPECT_EQ(again.exit_code, 0) << again.err;
+  EXPECT_NE(again.err.find("frame-1.exr: a stopped run's frame with no pixel finished"),
+            std::string::npos) << again.err;
+  EXPECT_FALSE(image::IsPartialFrame(dir_->File("frame-1.exr")));
 }
 
 // Ctrl-C while a finished frame's write is tried again (a full disk) gives it up, and the job
