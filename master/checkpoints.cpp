@@ -8,6 +8,15 @@
 #include "common/image/exr_io.h"
 
 namespace raystack::master {
+namespace {
+
+uint64_t FinishedPixels(const image::ImageLayers& layers, uint32_t spp) {
+  uint64_t finished = 0;
+  for (const uint32_t n : layers.samples) finished += n >= spp;
+  return finished;
+}
+
+}  // namespace
 
 Checkpoints::Checkpoints(double every_s, std::string path, std::string provenance,
                          FrameWriter* writer, int64_t kill_after, int64_t fail_first)
@@ -15,7 +24,12 @@ Checkpoints::Checkpoints(double every_s, std::string path, std::string provenanc
       writer_(writer), fail_first_(fail_first),
       written_(std::make_shared<Written>(Written{kill_after})) {}
 
-void Checkpoints::Maybe(const render::Film& film) {
+bool Checkpoints::KeepsWhatIsThere(uint64_t finished) const {
+  std::error_code ec;
+  return finished == 0 && std::filesystem::exists(path_, ec) && !image::IsPartialFrame(path_);
+}
+
+void Checkpoints::Maybe(const render::Film& film, uint32_t spp) {
   if (every_s_ <= 0) return;
   const auto now = std::chrono::steady_clock::now();
   if (std::chrono::duration<double>(now - last_).count() < every_s_) return;
@@ -30,6 +44,7 @@ void Checkpoints::Maybe(const render::Film& film) {
   image.background = true;  // the frame goes on rendering
   image.layers = writer_->TakeSpare();  // the last image's memory, when there is one
   film.ResolveInto(&image.layers);
+  if (KeepsWhatIsThere(FinishedPixels(image.layers, spp))) return;
   image.layers.provenance = provenance_;
   image.layers.partial = true;
   image.layers.stopped.clear();  // (the layers may be a stopped frame's, reused)
@@ -60,10 +75,8 @@ Expected<Checkpoints::Kept> Checkpoints::Final(const render::Film& film, uint32_
   image.layers.partial = true;
   image.layers.stopped.clear();  // (the layers may be a stopped frame's, reused)
   Kept kept;
-  for (const uint32_t n : image.layers.samples) kept.finished += n >= spp;
-  std::error_code ec;
-  const bool finished_image_there = std::filesystem::exists(path_, ec) && !image::IsPartialFrame(path_);
-  if (kept.finished == 0 && (film.samples_merged() == 0 || finished_image_there)) return kept;
+  kept.finished = FinishedPixels(image.layers, spp);
+  if (kept.finished == 0 && (film.samples_merged() == 0 || KeepsWhatIsThere(0))) return kept;
   image.done = [result](const Status& s) { *result = s; };
   RAYSTACK_RETURN_IF_ERROR(writer_->Write(std::move(image)));
   RAYSTACK_RETURN_IF_ERROR(writer_->Finish());

@@ -29,8 +29,10 @@ class Checkpoints {
   Checkpoints(double every_s, std::string path, std::string provenance, FrameWriter* writer,
               int64_t kill_after = -1, int64_t fail_first = 0);
 
-  // Queues a checkpoint of `film` when one is due.
-  void Maybe(const render::Film& film);
+  // Queues a checkpoint of `film` (pixels finished with `spp` samples) when one is due; not
+  // over a finished image of an earlier run while no pixel has all its samples (it would be
+  // lost for nothing --resume could keep).
+  void Maybe(const render::Film& film, uint32_t spp);
   // The job is being interrupted, and the process ends next. First waits until everything
   // queued before is written: the images of frames that finished rendering, which the writer
   // may still hold (it can lag two frames behind), are their frames' only copies (found by an
@@ -40,8 +42,8 @@ class Checkpoints {
   // many pixels have all `spp` samples (those --resume keeps) and whether it was written. With
   // none it is written all the same, for a look at the frame so far (a user's Ctrl-C in the
   // first passes left no image of minutes of work), unless the film has no sample yet or the
-  // file there is a finished image (of an earlier run), which would be lost for nothing
-  // --resume could keep. An earlier frame's failed write is the error returned.
+  // file there is not a partial frame (KeepsWhatIsThere). An earlier frame's failed write is
+  // the error returned.
   struct Kept {
     uint64_t finished = 0;  // pixels with all their samples
     bool written = false;
@@ -49,6 +51,10 @@ class Checkpoints {
   Expected<Kept> Final(const render::Film& film, uint32_t spp);
 
  private:
+  // Whether the file at the path is to be kept rather than replaced by a frame with `finished`
+  // pixels that have all their samples: none, over a file that is not a partial frame (a
+  // finished image of an earlier run; a file another program wrote).
+  bool KeepsWhatIsThere(uint64_t finished) const;
   // What the writer's thread updates once a checkpoint is written: shared, so the frame (and
   // this object) may end before its last checkpoint is.
   struct Written {

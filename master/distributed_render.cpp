@@ -165,7 +165,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
                                  const uint64_t done = film.samples_merged();
                                  progress.Update(done - shown);
                                  shown = done;
-                                 checkpoints.Maybe(film);
+                                 checkpoints.Maybe(film, plan.spp());
                                  const bool go_on = monitor.Poll();
                                  preview->SetErrorEstimate(monitor.last().error_estimate);
                                  preview->Update(assigned);

@@ -510,12 +510,11 @@ std::string WhatIsKept(const Checkpoints::Kept& kept, const render::Film& film,
                      "yet (each pass covers every pixel a little), so --resume keeps none of it "
                      "(%s)", path.c_str(), spp, next.c_str());
   std::error_code ec;
+  const std::string there = std::filesystem::exists(path, ec) ? path + " is left as it was"
+                                                              : "no image is written to " + path;
+  if (film.samples_merged() == 0) return "no sample is merged yet: " + there;
   return StrFormat("no pixel has all its %u samples yet, so nothing is kept for --resume, and %s "
-                   "(%s)", spp,
-                   std::filesystem::exists(path, ec)
-                       ? (path + ", a finished image, is left as it was").c_str()
-                       : ("no image is written to " + path).c_str(),
-                   next.c_str());
+                   "(%s)", spp, there.c_str(), next.c_str());
 }
 
 }  // namespace

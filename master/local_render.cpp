@@ -219,7 +219,7 @@ Status RenderLocally(const RenderArgs& args) {
         const uint64_t done = film.samples_merged();
         progress.Update(done - shown);
         shown = done;
-        checkpoints.Maybe(film);
+        checkpoints.Maybe(film, plan.spp());
         if (!monitor.Poll()) tiles.Stop();
         preview->SetErrorEstimate(monitor.last().error_estimate);  // at each pass end
         preview->Update([&] { return tiles.Given(); });

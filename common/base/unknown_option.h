@@ -10,8 +10,8 @@ namespace raystack {
 inline std::string UnknownOption(const std::string& arg) {
   const size_t equals = arg.find('=');
   if (arg.rfind("--", 0) == 0 && equals != std::string::npos && equals > 2)
-    return "unknown option " + arg + " (a value follows its option after a space: " +
-           arg.substr(0, equals) + " " + arg.substr(equals + 1) + "; see --help)";
+    return "unknown option " + arg + " (no option takes '=': an option's value, if it takes one, "
+           "follows it after a space; see --help)";
   return "unknown option " + arg + " (see --help)";
 }
 

@@ -69,7 +69,7 @@ class Gate {
 // Calls Maybe once a checkpoint of `every_s` is due.
 void MaybeWhenDue(master::Checkpoints* checkpoints, const render::Film& film, double every_s) {
   std::this_thread::sleep_for(std::chrono::duration<double>(every_s * 1.5));
-  checkpoints->Maybe(film);
+  checkpoints->Maybe(film, 1);
 }
 
 TEST(Checkpoints, AreWrittenByTheWriterWhileTheLoopGoesOn) {
@@ -131,7 +131,7 @@ TEST(Checkpoints, WaitForNoRoomButAreTriedAtTheNextCall) {
   gate.Release();
   ASSERT_TRUE(writer.Finish().ok());
   EXPECT_FALSE(std::filesystem::exists(path)) << "skipped, the writer had no room";
-  checkpoints.Maybe(film);  // still due: written now
+  checkpoints.Maybe(film, 1);  // still due: written now
   ASSERT_TRUE(writer.Finish().ok());
   Expected<image::ImageLayers> read = image::ReadExr(path);
   ASSERT_TRUE(read.ok()) << read.status().message();
@@ -212,7 +212,17 @@ TEST(Checkpoints, TheFinalOneKeepsAFinishedImageWhenItHasNothingToKeep) {
   ASSERT_TRUE(kept.ok()) << kept.status().message();
   EXPECT_FALSE(kept->written);
   EXPECT_FALSE(image::IsPartialFrame(path)) << "the earlier finished image stays";
-  kept = checkpoints.Final(film, 1);  // now pixel 0 has all its samples
+  // Nor by a periodic checkpoint (the day's review: the first one replaced it).
+  master::Checkpoints periodic(1e-9, path, "test", &writer);
+  std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  periodic.Maybe(film, 4);
+  ASSERT_TRUE(writer.Finish().ok());
+  EXPECT_FALSE(image::IsPartialFrame(path)) << "the earlier finished image stays";
+  std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  periodic.Maybe(film, 1);  // pixel 0 finished: worth a checkpoint
+  ASSERT_TRUE(writer.Finish().ok());
+  EXPECT_TRUE(image::IsPartialFrame(path));
+  kept = checkpoints.Final(film, 1);
   ASSERT_TRUE(kept.ok()) << kept.status().message();
   EXPECT_EQ(kept->finished, 1u);
   EXPECT_TRUE(kept->written);

@@ -145,15 +145,19 @@ TEST_F(Resume, AJobKilledAfterACheckpointResumesToTheSameImage) {
 // without --resume refuses a partial one, naming the way out; a final image is replaced as ever.
 TEST_F(Resume, AnUnfinishedFrameIsNotOverwrittenWithoutResume) {
   const std::string out = dir_->File("frame.exr");
-  // Long enough (480 samples a pixel) to be killed by its first checkpoint on a loaded machine.
-  const std::vector<std::string> slow = {"--spp", "480", "--pass-spp", "480"};
+  // Long enough (480 samples a pixel) to be killed by its first checkpoint on a loaded machine,
+  // in whole tiles of 4 x 4 that finish one by one, so that the checkpoint holds finished
+  // pixels (one with none is not protected: nothing in it for --resume).
+  const std::vector<std::string> slow = {"--spp", "480", "--pass-spp", "480", "--tile-size", "4"};
   std::vector<std::string> killed = slow;
-  killed.insert(killed.end(), {"--checkpoint-s", "0.05", "--fault-kill-after-checkpoints", "1"});
+  killed.insert(killed.end(), {"--checkpoint-s", "0.15", "--fault-kill-after-checkpoints", "1"});
   const ProcessResult died = Render(out, 0, killed);
   ASSERT_NE(died.exit_code, 0) << "the render outran its first checkpoint: " << died.err;
   Expected<image::ImageLayers> checkpoint = image::ReadExr(out);
   ASSERT_TRUE(checkpoint.ok()) << checkpoint.status().message();
   EXPECT_TRUE(checkpoint->partial);
+  ASSERT_TRUE(std::any_of(checkpoint->samples.begin(), checkpoint->samples.end(),
+                          [](uint32_t n) { return n >= 480; })) << "no tile finished by then";
   EXPECT_TRUE(image::IsPartialFrame(out));
   const std::string left = Slurp(out);
 

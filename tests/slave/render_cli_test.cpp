@@ -564,7 +564,7 @@ TEST_F(RenderCli, AFailureWithNothingToKeepLeavesTheOutputAsItWas) {
   const ProcessResult r = RunProcess(failing, dir_->path());
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_NE(r.err.find("yet, so nothing is kept for --resume, and " + dir_->File("out.exr") +
-                       ", a finished image, is left as it was"),
+                       " is left as it was"),
             std::string::npos) << r.err;
   EXPECT_TRUE(prep::testing::Slurp(dir_->File("out.exr")) == finished) << "the finished image was replaced";
   EXPECT_EQ(RunProcess(common, dir_->path()).exit_code, 0);
@@ -589,7 +589,7 @@ TEST_F(RenderCli, BadInputIsAClearError) {
       {{kRaystack, "render", good, "--threads", "x"}, "--threads: 'x' is not a number; give one from 1", 2},
       {{kRaystack, "render", good, "--frobnicate"}, "unknown option", 2},
       // A new user's GNU habit: the value goes after a space here.
-      {{kRaystack, "render", good, "--spp=4"}, "unknown option --spp=4 (a value follows its option after a space: --spp 4;", 2},
+      {{kRaystack, "render", good, "--spp=4"}, "unknown option --spp=4 (no option takes '=': an option's value, if it takes one, follows it after a space;", 2},
       // Found by a helper reading the docs: numbers the option's type cannot hold were "not a
       // number", and options that only another option uses were taken and did nothing.
       {{kRaystack, "render", good, "--threads", "99999999999"}, "--threads 99999999999: must be from 1 to 64", 2},
