@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/base/build_id.h"
+#include "common/base/byte_sizes.h"
 #include "common/base/interrupt.h"
 #include "common/base/log.h"
 #include "common/base/process_names.h"
@@ -231,10 +232,10 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
             s.done.cache_budget_bytes == std::numeric_limits<uint64_t>::max()
                 ? StrFormat("; cache: in core, peak RSS %.1f MB",
                             static_cast<double>(s.done.peak_rss_bytes) / 1e6)
-                : StrFormat("; cache: hit rate %.4f, peak %.1f MiB of %g MiB, %llu evictions; "
+                : StrFormat("; cache: hit rate %.4f, peak %s of %s, %llu evictions; "
                             "peak RSS %.1f MB", s.done.cache_hit_rate,
-                            static_cast<double>(s.done.cache_peak_bytes) / 0x1p20,
-                            static_cast<double>(s.done.cache_budget_bytes) / 0x1p20,
+                            MiB(s.done.cache_peak_bytes).c_str(),
+                            MiB(s.done.cache_budget_bytes).c_str(),
                             static_cast<unsigned long long>(s.done.evictions),
                             static_cast<double>(s.done.peak_rss_bytes) / 1e6);
         std::printf("  rank %d%s: %.3f s (ray threads busy %.3f s; CPU: process %.3f s, ray threads "
@@ -283,11 +284,8 @@ bool UseRemoteBlocks(const RenderArgs& args, const store::StoreReader& store, in
   const uint64_t stored = StoredBytes(store);
   const uint64_t share = stored / static_cast<uint64_t>(slaves);
   const bool fits = share <= args.engine.cache_bytes / 2;
-  // In MiB throughout, the unit of --cache-mb, as they are compared; %g keeps a small budget
-  // from reading 0.0 (a user's --cache-mb 0.05).
-  *why = StrFormat("store %.1f MiB on disk, %.1f MiB per slave's share, %g MiB cache per slave",
-                   static_cast<double>(stored) / kMiB, static_cast<double>(share) / kMiB,
-                   static_cast<double>(args.engine.cache_bytes) / kMiB);
+  *why = StrFormat("store %s on disk, %s per slave's share, %s cache per slave",
+                   MiB(stored).c_str(), MiB(share).c_str(), MiB(args.engine.cache_bytes).c_str());
   if (args.blocks == "rem") return true;
   if (args.blocks == "loc") return false;
   return fits;
@@ -319,10 +317,10 @@ Status RunSlave(const RenderArgs& args, const render::Scene& scene, transport::T
     peers = std::make_unique<slave::PeerBlocks>(net, **store, options.faults);
     // The share this slave keeps for its peers counts against its budget.
     if (peers->owned_bytes() >= options.cache_bytes)
-      store = Status::Error(StrFormat("--blocks rem: this slave's share of the store (%.1f MiB) "
-                                      "does not fit its --cache-mb (%.1f MiB); use --blocks loc "
-                                      "or more slaves", static_cast<double>(peers->owned_bytes()) / kMiB,
-                                      static_cast<double>(options.cache_bytes) / kMiB));
+      store = Status::Error(StrFormat("--blocks rem: this slave's share of the store (%s) "
+                                      "does not fit its --cache-mb (%s); use --blocks loc "
+                                      "or more slaves", MiB(peers->owned_bytes()).c_str(),
+                                      MiB(options.cache_bytes).c_str()));
     else
       options.cache_bytes -= peers->owned_bytes();
   }
@@ -427,10 +425,9 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
       if (share > 0 && share >= args.engine.cache_bytes) {
         MasterNode(net).Shutdown(1);
         return Status::Error(StrFormat(
-            "--blocks rem: a slave's share of the store (%.1f MiB on average over %d slaves) "
-            "does not fit its --cache-mb (%.1f MiB); use --blocks loc, more slaves or a larger "
-            "--cache-mb", static_cast<double>(share) / kMiB, net->size() - 1,
-            static_cast<double>(args.engine.cache_bytes) / kMiB));
+            "--blocks rem: a slave's share of the store (%s on average over %d slaves) "
+            "does not fit its --cache-mb (%s); use --blocks loc, more slaves or a larger "
+            "--cache-mb", MiB(share).c_str(), net->size() - 1, MiB(args.engine.cache_bytes).c_str()));
       }
     }
     // Each tile is a request to the master and an answer: tiles of a few pixels make the job

@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "common/base/build_id.h"
+#include "common/base/byte_sizes.h"
 #include "common/base/interrupt.h"
 #include "common/base/log.h"
 #include "common/base/process_names.h"
@@ -382,10 +383,9 @@ bool CoarseRounds(const RenderArgs& args, const store::StoreReader* store, int r
   const uint64_t share = rem_slaves > 0 ? StoredBytes(*store) / static_cast<uint64_t>(rem_slaves) : 0;
   const uint64_t room = args.engine.cache_bytes > share ? args.engine.cache_bytes - share : 0;
   const bool fits = decoded <= room;
-  *why = StrFormat("decoded blocks %.1f MiB %s the %g MiB cache", static_cast<double>(decoded) / kMiB,
-                   fits ? "fit in" : "exceed", static_cast<double>(args.engine.cache_bytes) / kMiB);
-  if (share > 0)
-    *why += StrFormat(" less its rem share of %.1f MiB", static_cast<double>(share) / kMiB);
+  *why = StrFormat("decoded blocks %s %s the %s cache", MiB(decoded).c_str(),
+                   fits ? "fit in" : "exceed", MiB(args.engine.cache_bytes).c_str());
+  if (share > 0) *why += " less its rem share of " + MiB(share);
   return fits;
 }
 

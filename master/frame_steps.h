@@ -28,9 +28,6 @@
 
 namespace raystack::master {
 
-// --cache-mb counts MiB (2^20 bytes), and the messages about the cache say MiB too.
-inline constexpr double kMiB = 1024.0 * 1024.0;
-
 // A frame a stopped run left unfinished (its EXR says "partial") is not overwritten by a run
 // without --resume: an operator lost 44,592 finished pixels that way, without a word. After the
 // output's lock is taken, so that a render still writing it is named as such instead.

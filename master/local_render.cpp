@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include "common/base/byte_sizes.h"
 #include "common/base/interrupt.h"
 #include "common/base/log.h"
 #include "common/base/progress.h"
@@ -101,9 +102,9 @@ Status RenderLocally(const RenderArgs& args) {
   if (!args.quiet && (args.engine.mode == slave::TraceMode::kIncore ||
                       args.engine.mode == slave::TraceMode::kBvh))
     // The frame's progress stays at 0 meanwhile: say why (a user waited 47 s on "0.0%").
-    std::printf("loading every block first (--mode %s: %.1f MB decoded%s), then rendering\n",
+    std::printf("loading every block first (--mode %s: %s decoded%s), then rendering\n",
                 args.engine.mode == slave::TraceMode::kBvh ? "bvh" : "incore",
-                static_cast<double>((*store)->summary().raw_bytes) / 1e6,
+                MiB((*store)->summary().raw_bytes).c_str(),
                 args.engine.mode == slave::TraceMode::kBvh ? ", and the BVH over them" : "");
   for (const std::string& option : args.slave_options)
     LOG_WARNING("render", "%s has no effect in one process: it is for the slaves of an mpirun "

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "common/base/byte_sizes.h"
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
 
@@ -36,11 +37,9 @@ Status ChooseReads(DirectIo mode, uint64_t cache_bytes, store::StoreReader* stor
   // memory the page cache needs, on paper, and chose direct reads for no reason.
   cache_bytes = std::min(cache_bytes, store->summary().raw_bytes);
   const std::string sizes =
-      available ? StrFormat("blocks.bin %.1f MB, %.1f MB of memory available, cache up to %.1f MB",
-                            static_cast<double>(stored) / 1e6, static_cast<double>(*available) / 1e6,
-                            static_cast<double>(cache_bytes) / 1e6)
-                : StrFormat("blocks.bin %.1f MB, available memory unknown",
-                            static_cast<double>(stored) / 1e6);
+      available ? StrFormat("blocks.bin %s, %s of memory available, cache up to %s",
+                            MiB(stored).c_str(), MiB(*available).c_str(), MiB(cache_bytes).c_str())
+                : StrFormat("blocks.bin %s, available memory unknown", MiB(stored).c_str());
   if (!AutoDirect(stored, cache_bytes, available)) {
     *why = "buffered (--direct-io auto: " + sizes + ")";
     return OkStatus();

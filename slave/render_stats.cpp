@@ -6,6 +6,7 @@
 #include <sstream>
 #include <string>
 
+#include "common/base/byte_sizes.h"
 #include "common/base/log.h"
 
 namespace raystack::slave {
@@ -78,10 +79,9 @@ std::string RenderStats::ToText() const {
   const std::string budget =
       cache_budget_bytes == std::numeric_limits<uint64_t>::max()
           ? std::string("(no budget: in core)")
-          : StrFormat("of %g MiB", static_cast<double>(cache_budget_bytes) / 0x1p20);
-  // In MiB, the unit of --cache-mb (a user did not know 536.9 MB for the 512 they gave).
-  s += StrFormat("\n  cache: hit rate %.4f, peak %.1f MiB %s, %llu evictions", cache_hit_rate,
-                 static_cast<double>(cache_peak_bytes) / 0x1p20, budget.c_str(),
+          : "of " + MiB(cache_budget_bytes);
+  s += StrFormat("\n  cache: hit rate %.4f, peak %s %s, %llu evictions", cache_hit_rate,
+                 MiB(cache_peak_bytes).c_str(), budget.c_str(),
                  static_cast<unsigned long long>(evictions));
   s += StrFormat("\n  ray stack: %llu-byte records, peak %.2f MB (%llu rays); peak RSS %.1f MB",
                  static_cast<unsigned long long>(ray_record_bytes),

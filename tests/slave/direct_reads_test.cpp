@@ -129,7 +129,7 @@ TEST(DirectReads, OnAndOffAreObeyed) {
   ASSERT_TRUE(fresh.ok());
   ASSERT_TRUE(slave::ChooseReads(slave::DirectIo::kAuto, 64 * kMB, fresh->get(), &why).ok());
   EXPECT_FALSE((*fresh)->direct_reads()) << why;
-  EXPECT_NE(why.find("MB of memory available"), std::string::npos) << why;
+  EXPECT_NE(why.find("MiB of memory available"), std::string::npos) << why;
 }
 
 TEST(DirectReads, ParsesItsOption) {
