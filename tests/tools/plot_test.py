@@ -238,6 +238,46 @@ class PlotTool(unittest.TestCase):
         self.assertEqual(r.returncode, 1)
         self.assertIn("no rows for frame 0 (it holds frames 2 to 3)", r.stderr)
 
+    def test_nonsense_in_a_log_is_refused_naming_the_line(self):
+        # Found by a hostile-input review: an inf rmse gave "area inf", time going back a
+        # negative area, a header alone "no rows for frame None", an empty frame a traceback.
+        cases = [("0,tick,0,0.5,10,10,10,1,,,inf,\n", "t.csv:2: rmse is inf, not a finite value >= 0"),
+                 ("0,tick,0,0.5,10,10,10,1,,,-1,\n", "t.csv:2: rmse is -1, not a finite value >= 0"),
+                 ("0,tick,0,1.0,10,10,10,1,,,1,\n0,tick,1,0.5,10,10,10,1,,,1,\n",
+                  "t.csv:3: seconds 0.5 is before the row above's"),
+                 (",tick,0,0.5,10,10,10,1,,,1,\n", "t.csv:2: frame is '', not a frame number"),
+                 ("", "t.csv: no rows (an empty log)")]
+        for body, said in cases:
+            log = os.path.join(self.tmp, "t.csv")
+            with open(log, "w") as f:
+                f.write(HEADER + body)
+            r = self.run_tool(log, "-o", os.path.join(self.tmp, "p.png"))
+            self.assertEqual(r.returncode, 1, body)
+            self.assertIn(said, r.stderr)
+            self.assertNotIn("Traceback", r.stderr)
+
+    def test_logs_of_different_frames_are_named_so(self):
+        a, b = os.path.join(self.tmp, "a.csv"), os.path.join(self.tmp, "b.csv")
+        with open(a, "w") as f:
+            f.write(HEADER + "0,tick,0,0.5,10,10,10,1,,,0.5,\n")
+        with open(b, "w") as f:
+            f.write(HEADER + "2,tick,0,0.5,10,10,10,1,,,0.5,\n")
+        r = self.run_tool(a, b, "-o", os.path.join(self.tmp, "p.png"), "--area")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("the logs' first frames differ (0, 2)", r.stderr)
+        self.assertIn("b (frame 2): area", r.stdout)
+
+    def test_an_estimate_from_tiles_that_finish_one_by_one_keeps_its_rows(self):
+        # --pass-spp = spp: every pixel has 2 samples only at the end; the curve is not one point.
+        log = os.path.join(self.tmp, "w.csv")
+        with open(log, "w") as f:
+            f.write(HEADER + "0,tick,0,0.5,10,10,10,0,0.3,,,\n0,tick,0,1.0,10,10,10,0,0.2,,,\n"
+                    "0,pass,1,2.0,10,10,10,4,0.1,,,\n")
+        r = self.run_tool(log, "-o", os.path.join(self.tmp, "p.png"), "--area",
+                          "--metric", "error_estimate")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertIn("w: area 0.35 (error_estimate x seconds, 0.500 to 2.000 s)", r.stdout)
+
     def test_an_estimate_starts_once_every_pixel_has_two_samples(self):
         # Before, it averages the few pixels that have two: a curve from far below (a user's plot).
         log = os.path.join(self.tmp, "e.csv")
