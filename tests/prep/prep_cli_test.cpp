@@ -472,9 +472,9 @@ TEST_F(PrepCliTest, ADiskTooSmallForTheBuildIsSaidBeforeItIsWritten) {
   EXPECT_NE(early, std::string::npos) << r.err;
   EXPECT_LT(early, r.err.find("scan.ply:6")) << "before the body's error: " << r.err;
 
-  // An OBJ declares nothing: its size does, at kObjMostBytesPerTriangle (256) bytes a triangle
-  // at most. 1 GB (sparse: no disk) holds at least 4 M triangles, too many for the folder; said
-  // before the body's error, as for the PLY.
+  // An OBJ declares nothing: its size does, at kObjMostBytesPerTriangle (512) bytes a triangle
+  // at most. 1 GB (sparse: no disk) holds at least 2 M triangles, too many for the folder; said,
+  // as the least it needs, before the body's error, as for the PLY.
   const std::string obj = dir_->File("scan.obj");
   std::ofstream(obj) << "v 0 0 0\nv 1 0 zero\n";
   std::filesystem::resize_file(obj, uint64_t{1} << 30);
@@ -482,6 +482,7 @@ TEST_F(PrepCliTest, ADiskTooSmallForTheBuildIsSaidBeforeItIsWritten) {
   EXPECT_NE(r.exit_code, 0);
   const size_t said = r.err.find("GB of temporary files in " + small.path);
   EXPECT_NE(said, std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the build will write at least "), std::string::npos) << r.err;
   EXPECT_LT(said, r.err.find("scan.obj:2")) << "before the body's error: " << r.err;
 
   // A header's normals count: 300,000 faces with them spool at 104 bytes each, not 44 (a review:

@@ -91,6 +91,7 @@ struct PositionShift {
 struct DeclaredModel {
   uint64_t faces = 0, vertices = 0;
   bool attributes = false;  // normals or texture coordinates per vertex
+  bool lower_bound = false;  // `faces` is the fewest the file may hold (an OBJ's size)
 };
 
 struct ReadOptions {

@@ -22,8 +22,9 @@ constexpr size_t kMtlBufferBytes = size_t{64} << 10;
 
 // An OBJ says nothing of its size up front; its bytes give the fewest triangles it may hold
 // at this many bytes each, its share of the `v`, `vt` and `vn` lines included (the shared
-// models: 32 for the motorBike, 82 for the conference room, 80 for the Cornell box's quads).
-constexpr uint64_t kObjMostBytesPerTriangle = 256;
+// models: 32 for the motorBike, 82 for the conference room, 80 for the Cornell box's quads;
+// triangles that share no corner, each with its own full-precision v, vt and vn: about 400).
+constexpr uint64_t kObjMostBytesPerTriangle = 512;
 
 // Keywords are identifiers; anything else means the file is not OBJ text (or is damaged).
 bool IsKeyword(std::string_view word) {
@@ -340,7 +341,7 @@ Status ReadObj(BufferedInput& input, const ReadOptions& options, TriangleSink& s
   // What the converter checks its disk against before hours of reading, as a PLY header's
   // count: the fewest triangles the file may hold, so it warns only of a disk surely too small.
   if (options.declared && input.file_size() >= kObjMostBytesPerTriangle)
-    options.declared({input.file_size() / kObjMostBytesPerTriangle, 0, false});
+    options.declared({input.file_size() / kObjMostBytesPerTriangle, 0, false, /*lower_bound=*/true});
   ObjReader reader(input, options, sink, info);
   return reader.Read();
 }

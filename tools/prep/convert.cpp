@@ -259,7 +259,7 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     BuildDiskNeeds needs = EstimateBuildDisk(read * copies, read * copies * per, declared.attributes, planned);
     // The spool, past what it keeps in memory (a fifth of the budget): all of it once spilled.
     if (read * per > budget / 5) needs.spool_bytes = read * per;
-    disk_warned = WarnIfDiskMayRunOut(needs, temp_folder, args.output);
+    disk_warned = WarnIfDiskMayRunOut(needs, temp_folder, args.output, declared.lower_bound);
   };
   for (const std::string& input : args.inputs) {
     std::error_code ec;

@@ -36,7 +36,9 @@ double Gb(uint64_t bytes) { return static_cast<double>(bytes) / 1e9; }
 }  // namespace
 
 bool WarnIfDiskMayRunOut(const BuildDiskNeeds& needs, const std::string& temp_dir,
-                         const std::string& store_dir) {
+                         const std::string& store_dir, bool lower_bound) {
+  const char* write = lower_bound ? "write at least" : "likely write about";
+  const char* take = lower_bound ? "take at least" : "likely take about";
   const std::optional<Room> temp = RoomOf(temp_dir), store = RoomOf(store_dir);
   if (!temp || !store) return false;
   const uint64_t temp_peak = needs.spool_bytes + needs.temp_bytes;
@@ -45,25 +47,25 @@ bool WarnIfDiskMayRunOut(const BuildDiskNeeds& needs, const std::string& temp_di
     // both at once): the peak is the larger, beside the spool.
     const uint64_t peak = needs.spool_bytes + std::max(needs.temp_bytes, needs.store_bytes);
     if (peak <= temp->free_bytes) return false;
-    LOG_WARNING("prep", "the build will likely write about %.2f GB of temporary files in %s and "
+    LOG_WARNING("prep", "the build will %s %.2f GB of temporary files in %s and "
                 "%.2f GB of store in %s, on one file system with %.2f GB free: it would fail when the disk fills; free space there, or give --temp-dir "
-                "or -o on another disk", Gb(temp_peak), temp_dir.c_str(),
+                "or -o on another disk", write, Gb(temp_peak), temp_dir.c_str(),
                 Gb(needs.store_bytes), store_dir.c_str(), Gb(temp->free_bytes));
     return true;
   }
   bool warned = false;
   if (temp_peak > temp->free_bytes) {
     warned = true;
-    LOG_WARNING("prep", "the build will likely write about %.2f GB of temporary files in %s, "
+    LOG_WARNING("prep", "the build will %s %.2f GB of temporary files in %s, "
                 "whose file system has %.2f GB free: it would fail when the disk fills; free space there, "
-                "or give --temp-dir on a larger disk", Gb(temp_peak), temp_dir.c_str(),
+                "or give --temp-dir on a larger disk", write, Gb(temp_peak), temp_dir.c_str(),
                 Gb(temp->free_bytes));
   }
   if (needs.store_bytes > store->free_bytes) {
     warned = true;
-    LOG_WARNING("prep", "the store will likely take about %.2f GB in %s, whose file system has "
+    LOG_WARNING("prep", "the store will %s %.2f GB in %s, whose file system has "
                 "%.2f GB free: it would fail when the disk fills; free space there, or give -o on a larger "
-                "disk", Gb(needs.store_bytes), store_dir.c_str(), Gb(store->free_bytes));
+                "disk", take, Gb(needs.store_bytes), store_dir.c_str(), Gb(store->free_bytes));
   }
   return warned;
 }
