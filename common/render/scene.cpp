@@ -1,5 +1,7 @@
 #include "common/render/scene.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -502,19 +504,22 @@ std::string Detail(const char* what) {
 }
 
 // The likely slip behind the parser's words, for the mistakes people make writing JSON by
-// hand (a user read "unexpected '}'; expected string literal" without seeing the comma).
-std::string SlipHint(const std::string& detail) {
+// hand (a user read "unexpected '}'; expected string literal" without seeing the comma), from
+// the parser's words and the text around the place (`at`: the offending character).
+std::string SlipHint(const std::string& detail, std::string_view text, size_t at) {
   auto has = [&](const char* words) { return detail.find(words) != std::string::npos; };
-  if (has("parsing object key - unexpected '}'"))
-    return " (a comma after the last member? JSON allows none before '}')";
-  if (has("parsing value - unexpected ']'"))
-    return " (a comma after the last item? JSON allows none before ']')";
-  if (has("parsing object - unexpected") && has("expected '}'"))
+  size_t before = std::min(at, text.size());
+  while (before > 0 && std::isspace(static_cast<unsigned char>(text[before - 1]))) --before;
+  const char previous = before > 0 ? text[before - 1] : '\0';
+  const char here = at < text.size() ? text[at] : '\0';
+  if (here == '\'') return " (JSON strings take double quotes, not single)";
+  if (previous == ',' && (has("unexpected '}'") || has("unexpected ']'")))
+    return StrFormat(" (a comma after the last %s? JSON allows none before '%c')",
+                     here == '}' ? "member" : "item", here);
+  if (has("parsing object - unexpected string literal"))
     return " (a comma missing before this member?)";
-  if (has("parsing array - unexpected") && has("expected ']'"))
+  if (has("parsing array - unexpected") && !has("unexpected '}'") && !has("unexpected end"))
     return " (a comma missing before this item?)";
-  if (has("parsing object key - invalid literal; last read: '{''"))
-    return " (JSON strings take double quotes, not single)";
   return "";
 }
 
@@ -571,7 +576,7 @@ Expected<Scene> ParseScene(std::string_view json_text, const std::string& source
     const size_t offset = e.byte > 0 ? e.byte - 1 : 0;
     const std::string detail = Detail(e.what());
     return Status::Error(source_name + ":" + LineColumn(json_text, offset) +
-                         ": invalid JSON: " + detail + SlipHint(detail));
+                         ": invalid JSON: " + detail + SlipHint(detail, json_text, offset));
   } catch (const Json::out_of_range& e) {
     // A number beyond double range ("number overflow parsing '1e400'"): find it for the place.
     std::string detail = Detail(e.what());

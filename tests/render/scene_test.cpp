@@ -164,6 +164,14 @@ TEST(Scene, SyntaxErrorsGiveLineAndColumn) {
   ExpectError("{\"store\": \"s\"\n \"camera\": {}}", {"scene.json:2:", "(a comma missing before this member?)"});
   ExpectError(R"({"store": "s", "camera": {"up": [0 1 0]}})", {"(a comma missing before this item?)"});
   ExpectError("{'store': 's'}", {"(JSON strings take double quotes, not single)"});
+  ExpectError("{\"store\": 's'}", {"(JSON strings take double quotes, not single)"});
+  // ... and only those: a missing value or a mismatched bracket is not a comma (the review).
+  for (const char* text : {R"({"store": "s", "camera": {"up": ]}})", R"({"camera": {}])",
+                           R"({"store": "s", "camera": {"up": [0, 1}})"}) {
+    Expected<Scene> scene = Parse(text);
+    ASSERT_FALSE(scene.ok()) << text;
+    EXPECT_EQ(scene.status().message().find("comma"), std::string::npos) << scene.status().message();
+  }
   ExpectError("{\"store\": \"s\"", {"scene.json:1:14:", "end of input"});
   ExpectError("", {"scene.json:1:1:", "invalid JSON"});
   ExpectError(Minimal(", \"background\": [NaN, 0, 0]"), {"scene.json:1:", "invalid JSON"});
