@@ -1,5 +1,8 @@
 #include "master/convergence_monitor.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
@@ -10,16 +13,37 @@
 namespace raystack::master {
 
 Expected<std::unique_ptr<ConvergenceLog>> ConvergenceLog::Open(const std::string& path) {
-  std::FILE* f = std::fopen(path.c_str(), "w");
-  if (!f)
+  // O_NONBLOCK: a FIFO no program reads fails at once (ENXIO) rather than holding the job in
+  // open(), deaf to a first Ctrl-C (found by a hostile-input review); the writes then block.
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NONBLOCK, 0644);
+  if (fd < 0)
+    return Status::Error(StrFormat("%s: cannot write the convergence log: %s", path.c_str(),
+                                   errno == ENXIO ? "a pipe that no program reads"
+                                                  : std::strerror(errno)));
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+  std::FILE* f = ::fdopen(fd, "w");
+  if (!f) {
+    ::close(fd);
     return Status::Error(StrFormat("%s: cannot write the convergence log: %s", path.c_str(),
                                    std::strerror(errno)));
+  }
+  auto log = std::unique_ptr<ConvergenceLog>(new ConvergenceLog(f, path));
   std::fputs("frame,event,pass,seconds,rays,samples,pixels_covered,min_samples,error_estimate,"
              "rel_error_estimate,rmse,relmse\n", f);
-  return std::unique_ptr<ConvergenceLog>(new ConvergenceLog(f));
+  return log;
 }
 
-ConvergenceLog::~ConvergenceLog() { std::fclose(file_); }
+ConvergenceLog::~ConvergenceLog() {
+  if (file_) std::fclose(file_);
+}
+
+Status ConvergenceLog::Close() {
+  if (file_ && std::fclose(file_) != 0 && failed_.ok())
+    failed_ = Status::Error(StrFormat("%s: cannot write the convergence log: %s", path_.c_str(),
+                                      std::strerror(errno)));
+  file_ = nullptr;
+  return failed_;
+}
 
 void ConvergenceLog::Write(uint32_t frame, const char* event, uint32_t pass,
                            const render::ConvergencePoint& p) {
@@ -30,7 +54,13 @@ void ConvergenceLog::Write(uint32_t frame, const char* event, uint32_t pass,
                static_cast<unsigned long long>(p.pixels_covered), p.min_samples,
                number(p.error_estimate).c_str(), number(p.rel_error_estimate).c_str(),
                number(p.rmse).c_str(), number(p.relmse).c_str());
-  std::fflush(file_);  // a reader (or a crash) sees every row written so far
+  // A reader (or a crash) sees every row written so far. A failed write (a full disk) was
+  // silent, the job ending with 0 and the rows lost (a hostile-input review's /dev/full).
+  if (std::fflush(file_) != 0 && failed_.ok()) {
+    failed_ = Status::Error(StrFormat("%s: cannot write the convergence log: %s; its rows since "
+                                      "are lost", path_.c_str(), std::strerror(errno)));
+    LOG_WARNING("render", "%s (the render goes on)", failed_.message().c_str());
+  }
 }
 
 ConvergenceMonitor::ConvergenceMonitor(const render::Film& film, const render::FramePlan& plan,

@@ -36,13 +36,20 @@ struct StopRules {
 // The CSV file (one for every frame of a job). Not thread-safe: the monitor's thread writes.
 class ConvergenceLog {
  public:
+  // A pipe (a FIFO another program reads) is fine; one that no program reads is an error now,
+  // not a job held in open() until one does.
   static Expected<std::unique_ptr<ConvergenceLog>> Open(const std::string& path);
   ~ConvergenceLog();
+  // A row; a failed write (a full disk) is said at once, once, and kept for Close.
   void Write(uint32_t frame, const char* event, uint32_t pass, const render::ConvergencePoint& p);
+  // The first failed write, if any (rows lost: the job ends with it, after its images).
+  Status Close();
 
  private:
-  explicit ConvergenceLog(std::FILE* f) : file_(f) {}
+  ConvergenceLog(std::FILE* f, std::string path) : file_(f), path_(std::move(path)) {}
   std::FILE* file_;
+  std::string path_;
+  Status failed_;
 };
 
 class ConvergenceMonitor {

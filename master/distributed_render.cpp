@@ -439,8 +439,10 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
     const bool coarse_rounds = CoarseRounds(args, store.ok() ? store->get() : nullptr,
                                             rem ? net->size() - 1 : 0, &why);
     LogFirstPass(args, coarse_rounds, why);
-    return RunMaster(args, *scene, net, log->get(), coarse_rounds,
-                     store.ok() ? std::optional<bool>(rem) : std::nullopt);
+    Status done = RunMaster(args, *scene, net, log->get(), coarse_rounds,
+                            store.ok() ? std::optional<bool>(rem) : std::nullopt);
+    if (done.ok() && *log) done = (*log)->Close();  // rows lost: said after the images
+    return done;
   }
   return RunSlave(args, *scene, net);
 }

@@ -257,6 +257,8 @@ Status RenderLocally(const RenderArgs& args) {
   }
   if (Status s = writer.Finish(); !s.ok()) return failed(std::move(s));  // the last frame's write
   if (Status s = stats_file.Finish(); !s.ok()) return failed(std::move(s));
+  if (*log)
+    if (Status s = (*log)->Close(); !s.ok()) return failed(std::move(s));
   preview->Finish();
   return OkStatus();
 }

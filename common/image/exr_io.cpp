@@ -236,6 +236,10 @@ Status ReadExrInto(const std::string& path, ImageLayers* into) {
     return Status::Error(path + ": cannot read: no such file");
   if (std::filesystem::is_directory(path, ec))
     return Status::Error(path + ": cannot read: it is a folder");
+  // A pipe would hold the job in open() until something writes it, deaf to a first Ctrl-C
+  // (found by a hostile-input review: --resume with a FIFO as the output).
+  if (!std::filesystem::is_regular_file(path, ec))
+    return Status::Error(path + ": cannot read: not a regular file (a pipe or a device)");
   // With the pool empty, decompressed where read (ReadRows' threads): a reference read as a
   // frame starts then shares the pool with the last frame's image, compressed aside on its
   // thread, instead of waiting for it.

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
 #include <sched.h>
 #include <sys/resource.h>
 #include <unistd.h>
@@ -537,6 +539,26 @@ TEST_F(RenderCli, SyncModeFiguresSayTheRayThreadsRead) {
   EXPECT_NE(r.out.find("reads (by the ray threads themselves, each waiting for its own)"),
             std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("loader"), std::string::npos) << r.out;
+}
+
+// Found by a hostile-input review: a convergence log whose writes failed (a full disk) ended
+// the job with 0, its rows lost without a word; one a pipe with no reader held the job in
+// open(), deaf to a first Ctrl-C. Now the first is said at once and ends the job with 1 after
+// its image, the second is an error before anything starts.
+TEST_F(RenderCli, AConvergenceLogThatCannotBeWrittenIsSaid) {
+  ProcessResult r = RunProcess({kRaystack, "render", Scene(), "--convergence-log", "/dev/full",
+                                "--log-interval", "0.01", "-q", "--no-png"}, dir_->path());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("/dev/full: cannot write the convergence log: No space left on device"),
+            std::string::npos) << r.err;
+  EXPECT_TRUE(std::filesystem::exists(dir_->File("out.exr"))) << "the image is kept";
+  const std::string fifo = dir_->File("log.fifo");
+  ASSERT_EQ(mkfifo(fifo.c_str(), 0600), 0);
+  r = RunProcess({kRaystack, "render", Scene(), "--convergence-log", fifo, "-q", "--no-png",
+                  "--output", dir_->File("fifo.exr")}, dir_->path());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find(fifo + ": cannot write the convergence log: a pipe that no program reads"),
+            std::string::npos) << r.err;
 }
 
 // A --stats file that cannot be written was found after the render (which then failed, its

@@ -14,13 +14,16 @@ namespace raystack::import {
 
 Expected<BufferedInput> BufferedInput::Open(const std::string& path, ProgressReporter* progress,
                                             size_t buffer_bytes) {
-  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  // O_NONBLOCK: a pipe (an `mtllib` naming a FIFO, found by a hostile-input review) would hold
+  // open() until something writes it; opened at once, it is refused below as not a file.
+  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) return Status::Error("cannot open " + path + ": " + std::strerror(errno));
   struct stat st {};
   if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
     ::close(fd);
     return Status::Error(path + ": not a regular file");
   }
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
   // Tells the kernel to read ahead aggressively; the whole file is read once, in order.
   ::posix_fadvise(fd, 0, 0, POSIX_FADV_SEQUENTIAL);
   return BufferedInput(path, fd, static_cast<uint64_t>(st.st_size), buffer_bytes, progress);
