@@ -75,9 +75,13 @@ Status StatsFile::Write(const std::string& bytes, uint64_t at) {
 Status StatsFile::Open() {
   target_ = ResolveStatsTarget(path_);
   if (target_.stream) {
+    // O_NONBLOCK: a FIFO that no program reads fails at once (ENXIO) rather than holding the
+    // job in open(), deaf to a first Ctrl-C (found by a hostile-input review).
     fd_ = target_.std_fd >= 0 ? ::fcntl(target_.std_fd, F_DUPFD_CLOEXEC, 0)
-                             : ::open(target_.path.c_str(), O_WRONLY | O_CLOEXEC);
-    if (fd_ < 0) return CannotWrite(path_, std::strerror(errno));
+                             : ::open(target_.path.c_str(), O_WRONLY | O_CLOEXEC | O_NONBLOCK);
+    if (fd_ < 0)
+      return CannotWrite(path_, errno == ENXIO ? "a pipe that no program reads" : std::strerror(errno));
+    if (target_.std_fd < 0) ::fcntl(fd_, F_SETFL, ::fcntl(fd_, F_GETFL) & ~O_NONBLOCK);
     return Write("[\n", 0);
   }
   const std::string aside = target_.path + ".tmp";
