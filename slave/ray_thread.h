@@ -61,6 +61,7 @@ struct FrameShared {
   // serves all of them (chunks of 4,096 loaded 20-55% more blocks with a small cache; found by
   // the day's review).
   static constexpr uint32_t kResidentFeedSamples = 4096;
+  static constexpr uint64_t kMostFedShadowRays = uint64_t{1} << 20;
   uint32_t max_feed_samples = std::numeric_limits<uint32_t>::max();
 
   // The first error ends the frame on every thread.

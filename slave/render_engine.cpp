@@ -181,6 +181,13 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   shared.result_batch = options_.result_batch;
   if (cache_->budget() >= store_.summary().raw_bytes)  // every block stays resident
     shared.max_feed_samples = FrameShared::kResidentFeedSamples;
+  // Whitted's hits each send a shadow ray to every point light at once: with many lights, fewer
+  // samples fed at a time keep the stack's records to about kMostFedShadowRays (64 MB), down
+  // to one sample over the tile.
+  if (scene.integrator.type == render::IntegratorType::kWhitted && !scene.lights.empty())
+    shared.max_feed_samples = std::min<uint32_t>(
+        shared.max_feed_samples,
+        std::max<uint32_t>(1, static_cast<uint32_t>(FrameShared::kMostFedShadowRays / scene.lights.size())));
   shared.stack = options_.mode != TraceMode::kSync && options_.mode != TraceMode::kBvh;
   shared.bvh = bvh_.get();
 

@@ -207,6 +207,11 @@ class SceneParser {
     if (root.contains("integrator"))
       RAYSTACK_RETURN_IF_ERROR(
           ReadIntegrator(root["integrator"], "integrator", &scene->integrator));
+    if (scene->integrator.type == IntegratorType::kWhitted && scene->lights.size() > kMaxWhittedLights)
+      return Error("lights", StrFormat("%zu point lights: the whitted integrator traces a shadow "
+                                       "ray from every hit to each, and takes at most %zu (the "
+                                       "path integrator picks one a hit, and takes any number)",
+                                       scene->lights.size(), kMaxWhittedLights));
     if (root.contains("output"))
       RAYSTACK_RETURN_IF_ERROR(ReadPath(root["output"], "output", &scene->output));
     else

@@ -180,6 +180,22 @@ TEST(Scene, SyntaxErrorsGiveLineAndColumn) {
               {"scene.json:2:25:", "1e400"});
 }
 
+// Found by a hostile-input review: 100,000 point lights under whitted (a shadow ray from every
+// hit to each, all at once) took 5.4 GB for a 32 x 32 image. The path integrator picks one.
+TEST(Scene, WhittedTakesAtMostkMaxWhittedLights) {
+  auto with_lights = [](size_t n, const char* integrator) {
+    std::string lights;
+    for (size_t i = 0; i < n; ++i)
+      lights += std::string(i ? "," : "") + R"({"type": "point", "position": [0, 5, 0], "intensity": [1, 1, 1]})";
+    return Minimal(std::string(", \"lights\": [") + lights + "], \"integrator\": {\"type\": \"" +
+                   integrator + "\"}");
+  };
+  EXPECT_TRUE(Parse(with_lights(kMaxWhittedLights, "whitted")).ok());
+  ExpectError(with_lights(kMaxWhittedLights + 1, "whitted"),
+              {"scene.json: lights: 1025 point lights: the whitted integrator", "at most 1024"});
+  EXPECT_TRUE(Parse(with_lights(kMaxWhittedLights + 1, "path")).ok());
+}
+
 TEST(Scene, MissingRequiredKeys) {
   ExpectError(R"({"camera": {}})", {"scene.json: store: required key missing"});
   ExpectError(R"({"store": "s"})", {"scene.json: camera: required key missing", "cameras"});
