@@ -43,6 +43,7 @@ Status CheckBvh(std::span<const BvhNode> nodes, uint32_t triangle_count, uint32_
     for (int a = 0; a < 3; ++a) {
       if (std::isnan(n.lower[a]) || std::isnan(n.upper[a]))
         return Bad(block_id, "NaN in BVH bounds");
+      if (n.lower[a] > n.upper[a]) return Bad(block_id, "an inverted BVH box");
     }
     if (n.count > 0) {
       if (uint64_t{n.offset} + n.count > triangle_count)
@@ -51,6 +52,14 @@ Status CheckBvh(std::span<const BvhNode> nodes, uint32_t triangle_count, uint32_
     } else {
       if (n.offset <= item.node + 1 || n.axis > 2)
         return Bad(block_id, "BVH inner node with a bad child or axis");
+      // A box is the union of its children's: one outside it hides their triangles from the
+      // walk (a forged block, checksums made again: a hostile-input review).
+      for (const uint32_t c : {item.node + 1, n.offset}) {
+        if (c >= nodes.size()) return Bad(block_id, "BVH child index out of range");
+        for (int a = 0; a < 3; ++a)
+          if (nodes[c].lower[a] < n.lower[a] || nodes[c].upper[a] > n.upper[a])
+            return Bad(block_id, "a BVH box outside its parent's");
+      }
       CHECK(top + 2 <= static_cast<int>(std::size(stack)));
       stack[top++] = {n.offset, item.depth + 1};
       stack[top++] = {item.node + 1, item.depth + 1};
@@ -131,6 +140,23 @@ Expected<BlockView> BlockView::Parse(const uint8_t* raw, uint64_t size, uint32_t
   std::memcpy(&v.magnitude_, &largest, sizeof largest);
   RAYSTACK_RETURN_IF_ERROR(CheckBvh(v.nodes(), h.triangle_count, block_id));
   return v;
+}
+
+uint32_t BlockView::LargestTriangleId() const {
+  uint32_t largest = 0;
+  for (uint32_t t = 0; t < header_->triangle_count; ++t) largest = ids_[t] > largest ? ids_[t] : largest;
+  return largest;
+}
+
+Bounds3f BlockView::VertexBounds() const {
+  Bounds3f b;
+  const float* axes[3] = {x_, y_, z_};
+  for (int a = 0; a < 3; ++a)
+    for (uint32_t i = 0; i < header_->vertex_count; ++i) {  // finite (Parse checked)
+      b.lower[a] = std::min(b.lower[a], axes[a][i]);
+      b.upper[a] = std::max(b.upper[a], axes[a][i]);
+    }
+  return b;
 }
 
 BoxBounds BlockView::bounds() const {

@@ -47,6 +47,10 @@ class BlockView {
   void TriangleVertices(uint32_t t, Vec3f* p0, Vec3f* p1, Vec3f* p2) const;
   uint32_t VertexIndex(uint32_t t, int corner) const;
   uint32_t TriangleId(uint32_t t) const { return ids_[t]; }
+  // The largest triangle id (0 without triangles), and the box of every vertex (empty without):
+  // for the reader's checks of what a block claims (StoreReader::Decode).
+  uint32_t LargestTriangleId() const;
+  Bounds3f VertexBounds() const;
   // Material index into the store's material table, or kNoMaterial.
   uint32_t Material(uint32_t t) const;
   bool has_normals() const { return header_->flags & kBlockNormals; }

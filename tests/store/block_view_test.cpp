@@ -14,6 +14,7 @@
 #include <random>
 
 #include "common/store/block_codec.h"
+#include "common/store/block_layout.h"
 #include "common/store/block_encoder.h"
 #include "tools/prep/clip.h"
 
@@ -214,6 +215,41 @@ TEST(BlockView, HostileHeadersAreRefused) {
   EXPECT_FALSE(mutate([](BlockHeader& h) { h.vertex_count += 1000; }));
   EXPECT_FALSE(mutate([](BlockHeader& h) { h.node_count = 0x7fffffff; }));
   EXPECT_FALSE(mutate([](BlockHeader& h) { h.flags |= 0x100; }));
+}
+
+// A block whose checksum was made again after its BVH was changed (a hostile-input review's
+// forged stores rendered wrong images with exit 0): a box outside its parent's hides its
+// triangles from the walk, an inverted one meets no ray.
+TEST(BlockView, BvhBoxesOutsideTheirParentsOrInvertedAreRefused) {
+  Fixture f(100);
+  AlignedBuffer buffer;
+  BlockHeader h;
+  std::memcpy(&h, f.raw.data(), sizeof h);
+  ASSERT_GT(h.node_count, 2u);
+  const uint64_t nodes = BlockLayout::For(h).nodes;
+  auto with_node_1 = [&](auto change) {
+    std::vector<uint8_t> raw = f.raw;
+    BvhNode n;
+    std::memcpy(&n, raw.data() + nodes + sizeof(BvhNode), sizeof n);
+    change(n);
+    std::memcpy(raw.data() + nodes + sizeof(BvhNode), &n, sizeof n);
+    Expected<BlockView> v = ParseCopy(raw, &buffer, 4);
+    return v.ok() ? std::string() : v.status().message();
+  };
+  EXPECT_EQ(with_node_1([](BvhNode&) {}), "");
+  EXPECT_NE(with_node_1([](BvhNode& n) { n.lower[1] -= 1; }).find("a BVH box outside its parent's"),
+            std::string::npos);
+  EXPECT_NE(with_node_1([](BvhNode& n) { n.upper[0] = n.lower[0] - 0.01f; }).find("an inverted BVH box"),
+            std::string::npos);
+  // What the reader checks a block's claims with: its ids and its vertices' box.
+  Expected<BlockView> v = ParseCopy(f.raw, &buffer, 4);
+  ASSERT_TRUE(v.ok());
+  EXPECT_EQ(v->LargestTriangleId(), 1099u);
+  const Bounds3f box = v->VertexBounds();
+  for (int a = 0; a < 3; ++a) {
+    EXPECT_GE(box.lower[a], 0.05f);
+    EXPECT_LE(box.upper[a], 1.0f);
+  }
 }
 
 TEST(BlockView, EverySingleByteCorruptionIsRefusedOrHarmless) {

@@ -197,6 +197,21 @@ TEST_F(StoreReaderTest, BoundsThatAreNotTheBlocksBvhAreRefusedNamingTheBlock) {
   EXPECT_TRUE((*s)->Load(victim + 1, &stored, &scratch, &raw).ok());
 }
 
+// A triangle id the store does not have (a forged block's 0xffffffff, the id of no hit, drew a
+// black image with exit 0: a hostile-input review) is refused naming the block.
+TEST_F(StoreReaderTest, ATriangleIdBeyondTheStoresIsRefusedNamingTheBlock) {
+  EditSummary([](StoreSummary* s) { s->source_triangles = 10; });
+  Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
+  ASSERT_TRUE(s.ok()) << s.status().message();
+  std::vector<uint8_t> stored;
+  AlignedBuffer scratch, raw;
+  Expected<BlockView> v = (*s)->Load(5, &stored, &scratch, &raw);
+  ASSERT_FALSE(v.ok());
+  EXPECT_NE(v.status().message().find("block 5 "), std::string::npos) << v.status().message();
+  EXPECT_NE(v.status().message().find("is beyond the store's 10 triangles"), std::string::npos)
+      << v.status().message();
+}
+
 TEST_F(StoreReaderTest, NanBoundsAreRefusedAtOpen) {
   EditIndexEntry(2, [](BlockEntry* e) { e->bounds_lower[0] = std::numeric_limits<float>::quiet_NaN(); });
   Expected<std::unique_ptr<StoreReader>> s = StoreReader::Open(path_);
