@@ -554,6 +554,14 @@ TEST_F(PrepCliTest, StatsInsideTheStoreAreRefusedUpFront) {
   // The store folder itself (a review: converted the whole model, then "Is a directory").
   EXPECT_EQ(Prep({"--generate", "sphere:1000", "-o", dir_->File("s"), "--stats-json", dir_->File("s")}).exit_code, 2);
   EXPECT_FALSE(std::filesystem::exists(dir_->File("s")));
+  // Any other folder (a hostile-input review: refused after the whole conversion).
+  std::filesystem::create_directories(dir_->File("figures"));
+  const ProcessResult folder = Prep({"--generate", "sphere:1000", "-o", dir_->File("s"),
+                                     "--stats-json", dir_->File("figures")});
+  EXPECT_EQ(folder.exit_code, 2) << folder.err;
+  EXPECT_NE(folder.err.find("--stats-json " + dir_->File("figures") + " is a folder"), std::string::npos)
+      << folder.err;
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("s")));
 }
 
 // Found by a converter persona: each encoding thread holds ~150 KB of scratch, so --threads 1024

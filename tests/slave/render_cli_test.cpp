@@ -570,6 +570,12 @@ TEST_F(RenderCli, AStatsFileThatCannotBeWrittenIsFoundBeforeTheRender) {
   EXPECT_NE(r.err.find("--stats: " + dir_->File("none/stats.json") + ": cannot write"), std::string::npos)
       << r.err;
   EXPECT_FALSE(std::filesystem::exists(dir_->File("out.exr"))) << "it rendered first";
+  // A folder (a hostile-input review: found after the whole job).
+  const ProcessResult folder = RunProcess({kRaystack, "render", Scene(), "--stats", dir_->path(), "-q"},
+                                          dir_->path());
+  EXPECT_EQ(folder.exit_code, 1) << folder.err;
+  EXPECT_NE(folder.err.find("--stats " + dir_->path() + " is a folder"), std::string::npos) << folder.err;
+  EXPECT_FALSE(std::filesystem::exists(dir_->File("out.exr"))) << "it rendered first";
 }
 
 // From the review of that fix: a failure before any pixel had all its samples wrote the frame

@@ -216,6 +216,13 @@ int Run(const Args& args) {
       return 2;
     }
     const bool exists = std::filesystem::exists(args.stats_json);
+    // A folder given as the file: found at the end, after the whole conversion (a hostile-input
+    // review).
+    if (std::filesystem::is_directory(args.stats_json)) {
+      std::fprintf(stderr, "raystack-prep: error: --stats-json %s is a folder: give a file (e.g. "
+                   "%s/stats.json)\n", args.stats_json.c_str(), args.stats_json.c_str());
+      return 2;
+    }
     if (::access(exists ? args.stats_json.c_str() : folder.c_str(), W_OK) != 0) {
       std::fprintf(stderr, "raystack-prep: error: --stats-json %s: cannot write %s: %s\n",
                    args.stats_json.c_str(), exists ? "it" : ("in " + folder).c_str(), std::strerror(errno));
