@@ -174,6 +174,10 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
       if (!Trim(values.rest()).empty()) out_of_range(key, "more than 3 numbers; the rest ignored");
       if (colour->x < 0 || colour->y < 0 || colour->z < 0)
         out_of_range(key, "a colour value below 0 (rendered as 0)");
+      // As a scene file's albedo above 1 is warned of (a hostile-input review's Kd 1e30 passed
+      // without a word, its pixels at 1e18). Ke is an emission: any value is one.
+      if (key != "Ke" && (colour->x > 1 || colour->y > 1 || colour->z > 1))
+        out_of_range(key, "a colour value above 1: the surface reflects more light than it receives");
     } else if (key == "Ni") {  // (below 1, as many exporters write for opaque materials: 1.5 for glass)
       RAYSTACK_RETURN_IF_ERROR(values.Float(&current->ni));
     } else if (key == "d" || key == "Tr") {  // opacity, or transparency (its complement)
