@@ -73,6 +73,21 @@ TEST(MtlReader, ValuesOutOfRangeAreStoredAsWritten) {
   EXPECT_EQ(materials[1].d, 2.0f);
 }
 
+// Found by a hostile-input review: Kd 1e30 passed without a word (pixels at 1e18). A colour
+// above 1 reflects more than it receives: said, naming the place, and kept as written; an
+// emission (Ke) may be any size.
+TEST(MtlReader, AReflectanceAboveOneIsSaid) {
+  ScratchFiles files;
+  MaterialTable table;
+  testing::internal::CaptureStderr();
+  ASSERT_TRUE(ReadMtlText(files, "newmtl a\nKe 20 20 20\nKd 0.5 1e30 0.5\n", &table).ok());
+  const std::string err = testing::internal::GetCapturedStderr();
+  EXPECT_NE(err.find(":3: Kd: a colour value above 1: the surface reflects more light than it "
+                     "receives"), std::string::npos) << err;
+  EXPECT_EQ(err.find("Ke"), std::string::npos) << err;
+  EXPECT_EQ(table.Take()[0].kd, (Vec3f{0.5f, 1e30f, 0.5f}));
+}
+
 // Found by a helper converting exporters' files: keys in another case ("KD", "ILLUM") were
 // ignored without a word, and "d -halo 0.6" (the MTL spec's halo form) was a fatal error.
 TEST(MtlReader, KeysInAnyCaseAndTheHaloFormOfDAreRead) {
