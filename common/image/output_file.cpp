@@ -48,7 +48,26 @@ Status CheckFolder(const std::string& path) {
 
 }  // namespace
 
-Expected<AtomicOutput> AtomicOutput::Create(const std::string& path) {
+namespace {
+
+// The file a path names, through any symbolic links (relative ones from their own folder): a
+// link given as the output was replaced by the file written, its target left as it was (a
+// hostile-input review; --stats followed links already).
+std::string FollowLinks(const std::string& given) {
+  fs::path p = given;
+  std::error_code ec;
+  for (int hops = 0; hops < 40 && fs::is_symlink(fs::symlink_status(p, ec)); ++hops) {
+    const fs::path to = fs::read_symlink(p, ec);
+    if (ec) break;
+    p = to.is_absolute() ? to : p.parent_path() / to;
+  }
+  return p.string();
+}
+
+}  // namespace
+
+Expected<AtomicOutput> AtomicOutput::Create(const std::string& given) {
+  const std::string path = FollowLinks(given);
   RAYSTACK_RETURN_IF_ERROR(CheckFolder(path));
   // Hidden, and unique per process and call, so concurrent writers of one path never share
   // a temporary. O_EXCL rather than mkstemp: mkstemp's mode 0600 would stay on the result.

@@ -94,6 +94,22 @@ TEST(AtomicOutput, CommitReplacesTheTargetAndDropRemovesTheTemporary) {
   EXPECT_EQ(EntryCount(dir.path()), 1u);
 }
 
+// A symbolic link given as the output: the file it names is written, the link stays (it was
+// replaced by the file, its target left as it was: a hostile-input review).
+TEST(AtomicOutput, ALinkIsFollowedToTheFileItNames) {
+  TempDir dir = TempDir::Create().value();
+  std::filesystem::create_directories(dir.File("real"));
+  std::ofstream(dir.File("real/image.exr")) << "old";
+  std::filesystem::create_symlink("real/image.exr", dir.File("link.exr"));
+  Expected<AtomicOutput> output = AtomicOutput::Create(dir.File("link.exr"));
+  ASSERT_TRUE(output.ok()) << output.status().message();
+  std::ofstream(output->temp_path()) << "new";
+  ASSERT_TRUE(output->Commit().ok());
+  EXPECT_TRUE(std::filesystem::is_symlink(dir.File("link.exr")));
+  EXPECT_EQ(ReadBytes(dir.File("real/image.exr")), "new");
+  EXPECT_EQ(EntryCount(dir.File("real")), 1u);  // no temporary left beside it
+}
+
 // A killed run leaves its temporary (as large as the image); the next run removes those of
 // processes no longer running on this machine, and nothing else: not a live process's, not
 // another machine's (a shared folder), not a name of another shape.
