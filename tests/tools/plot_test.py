@@ -85,6 +85,20 @@ class PlotTool(unittest.TestCase):
     def run_tool(self, *args):
         return subprocess.run([sys.executable, TOOL, *args], capture_output=True, text=True)
 
+    def log_of(self, name, *rows):
+        """A log `name` in the test's folder holding `rows` (CSV lines) after the header."""
+        path = os.path.join(self.tmp, name)
+        with open(path, "w") as f:
+            f.write(HEADER + "".join(row + "\n" for row in rows))
+        return path
+
+    def area_of(self, logs, *args):
+        """The tool's run with --area on `logs` (one or a list; then `args`), which must succeed."""
+        logs = [logs] if isinstance(logs, str) else logs
+        r = self.run_tool(*logs, "-o", os.path.join(self.tmp, "p.png"), "--area", *args)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        return r
+
     def test_png_size_and_curve_colours(self):
         a = os.path.join(self.tmp, "a.csv")
         b = os.path.join(self.tmp, "b.csv")
@@ -216,25 +230,18 @@ class PlotTool(unittest.TestCase):
     def test_defaults_follow_the_log(self):
         # Found by a new user: a log of `--frames 1` gave "no rows for frame 0", then (with
         # --frame 1) "no rmse values": a render without --reference has the estimate only.
-        log = os.path.join(self.tmp, "one.csv")
-        with open(log, "w") as f:
-            f.write(HEADER + "1,tick,0,0.5,10,10,10,2,0.3,,,\n1,tick,1,1.5,20,20,10,4,0.2,,,\n")
-        out = os.path.join(self.tmp, "p.png")
-        r = self.run_tool(log, "-o", out, "--area")
-        self.assertEqual(r.returncode, 0, r.stderr)
+        log = self.log_of("one.csv", "1,tick,0,0.5,10,10,10,2,0.3,,,", "1,tick,1,1.5,20,20,10,4,0.2,,,")
+        r = self.area_of(log)
         self.assertIn("no rmse (rendered without --reference): plotting error_estimate", r.stderr)
         self.assertIn("one: area 0.3 (error_estimate x seconds, 0.500 to 1.500 s)", r.stdout)
-        self.assertTrue(os.path.exists(out))
+        self.assertTrue(os.path.exists(os.path.join(self.tmp, "p.png")))
         # A log of several frames: its first, said.
-        two = os.path.join(self.tmp, "two.csv")
-        with open(two, "w") as f:
-            f.write(HEADER + "2,tick,0,0.5,10,10,10,1,,,0.5,\n3,tick,0,0.5,10,10,10,1,,,0.9,\n"
-                    "2,tick,1,1.5,10,10,10,1,,,0.25,\n")
-        r = self.run_tool(two, "-o", out, "--area")
-        self.assertEqual(r.returncode, 0, r.stderr)
+        two = self.log_of("two.csv", "2,tick,0,0.5,10,10,10,1,,,0.5,", "3,tick,0,0.5,10,10,10,1,,,0.9,",
+                          "2,tick,1,1.5,10,10,10,1,,,0.25,")
+        r = self.area_of(two)
         self.assertIn("two.csv holds frames 2 to 3: plotting frame 2", r.stderr)
         self.assertIn("two: area 0.5 (rmse", r.stdout)
-        r = self.run_tool(two, "-o", out, "--frame", "0")
+        r = self.run_tool(two, "-o", os.path.join(self.tmp, "p.png"), "--frame", "0")
         self.assertEqual(r.returncode, 1)
         self.assertIn("no rows for frame 0 (it holds frames 2 to 3)", r.stderr)
 
@@ -248,45 +255,31 @@ class PlotTool(unittest.TestCase):
                  (",tick,0,0.5,10,10,10,1,,,1,\n", "t.csv:2: frame is '', not a frame number"),
                  ("", "t.csv: no rows (an empty log)")]
         for body, said in cases:
-            log = os.path.join(self.tmp, "t.csv")
-            with open(log, "w") as f:
-                f.write(HEADER + body)
+            log = self.log_of("t.csv", *body.splitlines())
             r = self.run_tool(log, "-o", os.path.join(self.tmp, "p.png"))
             self.assertEqual(r.returncode, 1, body)
             self.assertIn(said, r.stderr)
             self.assertNotIn("Traceback", r.stderr)
 
     def test_logs_of_different_frames_are_named_so(self):
-        a, b = os.path.join(self.tmp, "a.csv"), os.path.join(self.tmp, "b.csv")
-        with open(a, "w") as f:
-            f.write(HEADER + "0,tick,0,0.5,10,10,10,1,,,0.5,\n")
-        with open(b, "w") as f:
-            f.write(HEADER + "2,tick,0,0.5,10,10,10,1,,,0.5,\n")
-        r = self.run_tool(a, b, "-o", os.path.join(self.tmp, "p.png"), "--area")
-        self.assertEqual(r.returncode, 0, r.stderr)
+        a = self.log_of("a.csv", "0,tick,0,0.5,10,10,10,1,,,0.5,")
+        b = self.log_of("b.csv", "2,tick,0,0.5,10,10,10,1,,,0.5,")
+        r = self.area_of([a, b])
         self.assertIn("the logs' first frames differ (0, 2)", r.stderr)
         self.assertIn("b (frame 2): area", r.stdout)
 
     def test_an_estimate_from_tiles_that_finish_one_by_one_keeps_its_rows(self):
         # --pass-spp = spp: every pixel has 2 samples only at the end; the curve is not one point.
-        log = os.path.join(self.tmp, "w.csv")
-        with open(log, "w") as f:
-            f.write(HEADER + "0,tick,0,0.5,10,10,10,0,0.3,,,\n0,tick,0,1.0,10,10,10,0,0.2,,,\n"
-                    "0,pass,1,2.0,10,10,10,4,0.1,,,\n")
-        r = self.run_tool(log, "-o", os.path.join(self.tmp, "p.png"), "--area",
-                          "--metric", "error_estimate")
-        self.assertEqual(r.returncode, 0, r.stderr)
+        log = self.log_of("w.csv", "0,tick,0,0.5,10,10,10,0,0.3,,,", "0,tick,0,1.0,10,10,10,0,0.2,,,",
+                          "0,pass,1,2.0,10,10,10,4,0.1,,,")
+        r = self.area_of(log, "--metric", "error_estimate")
         self.assertIn("w: area 0.35 (error_estimate x seconds, 0.500 to 2.000 s)", r.stdout)
 
     def test_an_estimate_starts_once_every_pixel_has_two_samples(self):
         # Before, it averages the few pixels that have two: a curve from far below (a user's plot).
-        log = os.path.join(self.tmp, "e.csv")
-        with open(log, "w") as f:
-            f.write(HEADER + "0,tick,0,0.5,10,10,10,1,0.01,,,\n0,tick,1,1.0,10,10,10,2,0.4,,,\n"
-                    "0,tick,2,2.0,10,10,10,4,0.2,,,\n")
-        r = self.run_tool(log, "-o", os.path.join(self.tmp, "p.png"), "--area",
-                          "--metric", "error_estimate")
-        self.assertEqual(r.returncode, 0, r.stderr)
+        log = self.log_of("e.csv", "0,tick,0,0.5,10,10,10,1,0.01,,,", "0,tick,1,1.0,10,10,10,2,0.4,,,",
+                          "0,tick,2,2.0,10,10,10,4,0.2,,,")
+        r = self.area_of(log, "--metric", "error_estimate")
         self.assertIn("e: area 0.4 (error_estimate x seconds, 1.000 to 2.000 s)", r.stdout)
 
 
