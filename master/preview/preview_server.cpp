@@ -325,10 +325,10 @@ class PreviewServer::Impl {
   }
   void CopyCounts() {
     const auto now = std::chrono::steady_clock::now();
-    if (counts_at_ != std::chrono::steady_clock::time_point{} && now - counts_at_ < CopyPace())
-      return;
     std::lock_guard lock(film_mu_);
     if (film_ == nullptr) return;
+    const bool fresh = counts_frame_ == film_frame_ && !counts_.empty() && now - counts_at_ < CopyPace();
+    if (fresh) return;
     film_->ResolveColour(nullptr, &counts_);
     counts_width_ = film_->width();
     counts_frame_ = film_frame_;
