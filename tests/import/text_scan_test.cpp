@@ -31,6 +31,17 @@ TEST(TextScan, RejectsNonFiniteAndMalformedFloats) {
   EXPECT_EQ(value, 7.0f);
 }
 
+// A token as an error message shows it (a hostile-input review: a NUL cut the message, a 1 MB
+// number was echoed whole; digits beyond float range then a letter were "out of range").
+TEST(TextScan, TokensAreQuotedShortAndPrintable) {
+  EXPECT_EQ(Quoted("1.5x"), "'1.5x'");
+  EXPECT_EQ(Quoted(std::string_view("0\0" "2", 3)), "'0\\x002'");
+  EXPECT_EQ(Quoted(std::string(1000, '7')), "'" + std::string(48, '7') + "'... (1000 bytes)");
+  float f = 0;
+  EXPECT_STREQ(ParseFloat("1" + std::string(100, '9') + "x", &f), "not a number");
+  EXPECT_STREQ(ParseFloat("1e60", &f), "number out of float range");
+}
+
 TEST(TextScan, ParsesIntegers) {
   int64_t value = 0;
   EXPECT_EQ(ParseInt("12", &value), nullptr);

@@ -137,18 +137,17 @@ Status ReadMtl(BufferedInput& input, MaterialTable* table) {
     const char* canonical = CanonicalKey(key);
     if (!canonical) {
       if (warned.insert("unknown " + std::string(key)).second)
-        LOG_WARNING("import", "%s:%llu: '%.*s' is no MTL statement raystack knows; ignored (the "
+        LOG_WARNING("import", "%s:%llu: %s is no MTL statement raystack knows; ignored (the "
                     "first such line)", input.path().c_str(),
-                    static_cast<unsigned long long>(input.line_number()),
-                    static_cast<int>(key.size()), key.data());
+                    static_cast<unsigned long long>(input.line_number()), Quoted(key).c_str());
       continue;
     }
     if (*canonical) key = canonical;
     MtlLine values(input, rest);
     if (key != "newmtl" && !any_newmtl && warned.insert("before newmtl").second)
-      LOG_WARNING("import", "%s:%llu: '%.*s' before any newmtl belongs to no material; ignored",
+      LOG_WARNING("import", "%s:%llu: %s before any newmtl belongs to no material; ignored",
                   input.path().c_str(), static_cast<unsigned long long>(input.line_number()),
-                  static_cast<int>(key.size()), key.data());
+                  Quoted(key).c_str());
     if (key == "newmtl") {
       any_newmtl = true;
       std::string_view name = Trim(rest);

@@ -150,7 +150,7 @@ Status ObjReader::ReadFloats(std::string_view* rest, float* out, int required, i
     }
     if (const char* why = ParseFloat(token, &out[i])) {
       if (!finite || (!SpellsNonFinite(token) && std::strcmp(why, "number out of float range") != 0))
-        return input_.LineError(std::string(why) + ": '" + std::string(token) + "'");
+        return input_.LineError(std::string(why) + ": " + Quoted(token));
       out[i] = std::numeric_limits<float>::quiet_NaN();
       *finite = false;
     }
@@ -167,7 +167,7 @@ Status ObjReader::ReadPosition(std::string_view rest) {
       if (token.empty())
         return input_.LineError(StrFormat("expected 3 numbers, found %d", a));
       if (const char* why = ParseDouble(token, &wide[a]))
-        return input_.LineError(std::string(why) + ": '" + std::string(token) + "'");
+        return input_.LineError(std::string(why) + ": " + Quoted(token));
     }
     shift_->Apply(wide, xyz);
   } else {
@@ -312,9 +312,9 @@ Status ObjReader::LoadMaterialLibraries(std::string_view rest) {
 
 void ObjReader::WarnOnce(std::string_view keyword) {
   if (!warned_keywords_.insert(std::string(keyword)).second) return;
-  LOG_WARNING("import", "%s:%llu: '%.*s' statements are not supported; skipping them",
+  LOG_WARNING("import", "%s:%llu: %s statements are not supported; skipping them",
               input_.path().c_str(), static_cast<unsigned long long>(input_.line_number()),
-              static_cast<int>(keyword.size()), keyword.data());
+              Quoted(keyword).c_str());
 }
 
 Status ObjReader::Finish() {

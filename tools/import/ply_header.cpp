@@ -84,7 +84,7 @@ Expected<PlyHeader> HeaderParser::Parse() {
                                 "' (truncated?)");
     else
       status = input_.LineError(
-          "unknown PLY header line '" + std::string(keyword) + "'" +
+          "unknown PLY header line " + Quoted(keyword) +
           (keyword.find_first_not_of("0123456789+-.eE") == std::string_view::npos
                ? " (numbers: the data? the header needs an end_header line before it)"
                : ""));

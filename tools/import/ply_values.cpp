@@ -115,7 +115,7 @@ Status PlyValueReader::ReadFloat(PlyType type, float* out, bool non_finite_as_na
         *out = std::numeric_limits<float>::quiet_NaN();
         return OkStatus();
       }
-      return Error(std::string(why) + ": '" + std::string(token) + "'");
+      return Error(std::string(why) + ": " + Quoted(token));
     }
     return OkStatus();
   }
@@ -142,7 +142,7 @@ Status PlyValueReader::ReadDouble(PlyType type, double* out) {
       return OkStatus();
     }
     if (const char* why = ParseDouble(token, out))
-      return Error(std::string(why) + ": '" + std::string(token) + "'");
+      return Error(std::string(why) + ": " + Quoted(token));
     return OkStatus();
   }
   int64_t integer = 0;
@@ -163,7 +163,7 @@ Status PlyValueReader::ReadInteger(PlyType type, int64_t* out) {
 
 Status PlyValueReader::ParseAsciiInteger(std::string_view token, PlyType type, int64_t* out) {
   if (const char* why = ParseInt(token, out))
-    return Error(std::string(why) + ": '" + std::string(token) + "'");
+    return Error(std::string(why) + ": " + Quoted(token));
   if (!FitsIntegerType(*out, type)) return Error("integer out of range for its type");
   return OkStatus();
 }

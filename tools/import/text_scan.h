@@ -15,6 +15,28 @@ namespace raystack::import {
 
 inline bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
 
+// A token of the file as an error message shows it: in quotes, control bytes (a NUL cut the
+// message there) as \xNN, at most kShownBytes of it (a 1 MB number was echoed whole: a
+// hostile-input review).
+inline std::string Quoted(std::string_view token) {
+  constexpr size_t kShownBytes = 48;
+  std::string out = "'";
+  for (size_t i = 0; i < token.size() && i < kShownBytes; ++i) {
+    const auto c = static_cast<unsigned char>(token[i]);
+    if (c < 0x20 || c == 0x7f) {
+      constexpr char kHex[] = "0123456789abcdef";
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 15];
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  out += "'";
+  if (token.size() > kShownBytes) out += "... (" + std::to_string(token.size()) + " bytes)";
+  return out;
+}
+
 // The text with leading and trailing blanks removed.
 inline std::string_view Trim(std::string_view text) {
   while (!text.empty() && IsBlank(text.front())) text.remove_prefix(1);
@@ -59,8 +81,8 @@ inline const char* ParseFloat(std::string_view token, float* out) {
     // Overflow or underflow: decide which in double precision.
     double wide = 0;
     auto [wide_ptr, wide_ec] = std::from_chars(token.data(), end, wide);
-    if (wide_ec != std::errc() || wide_ptr != end ||
-        std::fabs(wide) > static_cast<double>(std::numeric_limits<float>::max()))
+    if (wide_ptr != end) return "not a number";  // digits, then something else
+    if (wide_ec != std::errc() || std::fabs(wide) > static_cast<double>(std::numeric_limits<float>::max()))
       return "number out of float range";
     value = static_cast<float>(wide);
     ptr = end;
