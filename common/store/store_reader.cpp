@@ -390,8 +390,17 @@ Status StoreReader::OpenBlocks() {
   uint64_t end = sizeof h;
   for (uint32_t i = 0; i < blocks_.size(); ++i) {
     const BlockEntry& e = blocks_[i];
-    if (e.offset > blocks_file_bytes_ || e.stored_bytes > blocks_file_bytes_ - e.offset)
-      return Status::Error(BlockError(i, "lies outside the file (truncated?)"));
+    if (e.offset > blocks_file_bytes_ || e.stored_bytes > blocks_file_bytes_ - e.offset) {
+      // An index.bin of another store beside this blocks.bin read as "truncated?" (a
+      // hostile-input review); a cut file was found above (its header's size): the totals differ.
+      if (summary_.stored_bytes != h.body_bytes)
+        return Status::Error(StrFormat("%s holds %llu bytes of blocks where index.bin lists %llu: "
+                                       "the two files are not of one store (a conversion "
+                                       "interrupted or mixed): convert the model again",
+                                       path.c_str(), static_cast<unsigned long long>(h.body_bytes),
+                                       static_cast<unsigned long long>(summary_.stored_bytes)));
+      return Status::Error(BlockError(i, "lies outside the file"));
+    }
     if (e.offset != end)
       return Status::Error(BlockError(i, StrFormat("%s the block before it or the file header "
                                                    "(blocks lie back to back in id order: this "
@@ -402,7 +411,8 @@ Status StoreReader::OpenBlocks() {
   }
   if (end != blocks_file_bytes_)
     return Status::Error(StrFormat("%s: %llu bytes after the last block (the index says the "
-                                   "blocks end at byte %llu)", path.c_str(),
+                                   "blocks end at byte %llu; an index.bin of another store beside "
+                                   "it? then convert the model again)", path.c_str(),
                                    static_cast<unsigned long long>(blocks_file_bytes_ - end),
                                    static_cast<unsigned long long>(end)));
   return OkStatus();
