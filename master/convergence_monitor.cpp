@@ -15,7 +15,7 @@ namespace raystack::master {
 Expected<std::unique_ptr<ConvergenceLog>> ConvergenceLog::Open(const std::string& path) {
   // O_NONBLOCK: a FIFO no program reads fails at once (ENXIO) rather than holding the job in
   // open(), deaf to a first Ctrl-C (found by a hostile-input review); the writes then block.
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NONBLOCK, 0644);
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NONBLOCK, 0666);
   if (fd < 0)
     return Status::Error(StrFormat("%s: cannot write the convergence log: %s", path.c_str(),
                                    errno == ENXIO ? "a pipe that no program reads"
@@ -23,9 +23,10 @@ Expected<std::unique_ptr<ConvergenceLog>> ConvergenceLog::Open(const std::string
   ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
   std::FILE* f = ::fdopen(fd, "w");
   if (!f) {
+    const Status failed = Status::Error(StrFormat("%s: cannot write the convergence log: %s",
+                                                  path.c_str(), std::strerror(errno)));
     ::close(fd);
-    return Status::Error(StrFormat("%s: cannot write the convergence log: %s", path.c_str(),
-                                   std::strerror(errno)));
+    return failed;
   }
   auto log = std::unique_ptr<ConvergenceLog>(new ConvergenceLog(f, path));
   std::fputs("frame,event,pass,seconds,rays,samples,pixels_covered,min_samples,error_estimate,"

@@ -79,8 +79,8 @@ Status CheckStatsTarget(const RenderArgs& args, const render::Scene& scene) {
   if (args.stats.empty()) return OkStatus();
   std::error_code dir_ec;
   if (std::filesystem::is_directory(args.stats, dir_ec))  // found only after the job, before
-    return Status::Error("--stats " + args.stats + " is a folder: give a file (e.g. " + args.stats +
-                         "/stats.json)");
+    return Status::Error("--stats " + args.stats + " is a folder: give a file (e.g. " +
+                         (std::filesystem::path(args.stats) / "stats.json").lexically_normal().string() + ")");
   const StatsTarget target = ResolveStatsTarget(args.stats);
   if (target.stream) return OkStatus();  // a pipe, a terminal, the standard output: nothing to replace
   if (Status s = image::CheckWritable(target.path); !s.ok()) return Status::Error("--stats: " + s.message());

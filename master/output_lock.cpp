@@ -6,12 +6,15 @@
 
 #include "common/base/file_lock.h"
 #include "common/base/log.h"
+#include "common/image/output_file.h"
 
 namespace raystack::master {
 
 Expected<OutputLock> OutputLock::Take(const std::string& output, size_t first, size_t end,
                                       const std::string& option) {
-  const std::filesystem::path out(output);
+  // The file the name leads to: two jobs writing one file through a link and its target are
+  // one output (the day's second review).
+  const std::filesystem::path out(image::FollowLinks(output));
   std::string name = ".";  // (not "." + ...: GCC 12 warns falsely of an overlapping copy)
   name += out.filename().string();
   name += ".lock";

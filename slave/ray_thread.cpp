@@ -458,7 +458,7 @@ void RayThread::RunStack() {
     // which bounds the stack), so there is work to do while blocks are read, and more block
     // requests in flight to keep a slow disk or a network filesystem busy.
     if (queues_.rays() > 0 && !tiles_exhausted_ && open_tiles_ < kMaxOpenTiles &&
-        FeedNextTile(/*may_wait=*/false))
+        queues_.rays() < kMostWaitingToOpenMore && FeedNextTile(/*may_wait=*/false))
       continue;
     if (queues_.rays() > 0) {  // everything waits for the loader
       FlushResults();

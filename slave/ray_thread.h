@@ -161,6 +161,10 @@ class RayThread {
   // cut the ray threads' idle time 0.24 -> 0.14 s and the run 1.25 -> 1.16 s (medians of 5);
   // 16 loaded more blocks (the cache thrashes) and took 1.43 s.
   static constexpr uint32_t kMaxOpenTiles = 8;
+  // ... and only while fewer rays than this wait (64 MB of records): a whitted scene of many
+  // lights sends a shadow ray from every hit to each, and 8 such tiles held 839 MB at 1,024
+  // lights (the day's review). Far above any other scene's peak (thousands of rays).
+  static constexpr uint64_t kMostWaitingToOpenMore = uint64_t{1} << 20;
   // The tile being fed, in chunks of whole samples over all its pixels (at most
   // FrameShared::max_feed_samples, which keeps the feed order): its samples [feed_next_,
   // feed_end_) are still to feed; its chunks are the entries of tiles_ whose `feed` is

@@ -181,9 +181,9 @@ Status RenderEngine::RenderFrame(const render::Scene& scene,
   shared.result_batch = options_.result_batch;
   if (cache_->budget() >= store_.summary().raw_bytes)  // every block stays resident
     shared.max_feed_samples = FrameShared::kResidentFeedSamples;
-  // Whitted's hits each send a shadow ray to every point light at once: with many lights, fewer
-  // samples fed at a time keep the stack's records to about kMostFedShadowRays (64 MB), down
-  // to one sample over the tile.
+  // Whitted's hits each send a shadow ray to every point light at once: with many lights, a
+  // chunk of several samples a pixel is cut to about kMostFedShadowRays (64 MB) of them, down
+  // to one sample over the tile (the tiles a thread opens more are bounded by RayThread).
   if (scene.integrator.type == render::IntegratorType::kWhitted && !scene.lights.empty())
     shared.max_feed_samples = std::min<uint32_t>(
         shared.max_feed_samples,

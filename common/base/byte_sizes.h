@@ -10,10 +10,11 @@
 
 namespace raystack {
 
-// `bytes` in MiB with three significant digits ("0.07", "25.2", "512"), whole from 1000 on.
+// `bytes` in MiB with three significant digits ("0.07", "25.2", "512"), whole from 999.5 on
+// (where three digits would print "1e+03").
 inline std::string MiB(uint64_t bytes) {
   const double v = static_cast<double>(bytes) / (1024.0 * 1024.0);
-  return v >= 1000 ? StrFormat("%.0f MiB", v) : StrFormat("%.3g MiB", v);
+  return v >= 999.5 ? StrFormat("%.0f MiB", v) : StrFormat("%.3g MiB", v);
 }
 
 }  // namespace raystack

@@ -48,11 +48,6 @@ Status CheckFolder(const std::string& path) {
 
 }  // namespace
 
-namespace {
-
-// The file a path names, through any symbolic links (relative ones from their own folder): a
-// link given as the output was replaced by the file written, its target left as it was (a
-// hostile-input review; --stats followed links already).
 std::string FollowLinks(const std::string& given) {
   fs::path p = given;
   std::error_code ec;
@@ -63,8 +58,6 @@ std::string FollowLinks(const std::string& given) {
   }
   return p.string();
 }
-
-}  // namespace
 
 Expected<AtomicOutput> AtomicOutput::Create(const std::string& given) {
   const std::string path = FollowLinks(given);

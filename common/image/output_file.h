@@ -29,7 +29,12 @@ Expected<uint64_t> FreeSpace(const std::string& path);
 // Other machines' are left alone (a shared folder). Returns how many.
 int RemoveStaleTemporaries(const std::string& path);
 
-// A temporary file beside `path`; Commit() makes it `path`. Destroyed without a successful
+// The file `path` names, through any symbolic links (relative ones from their own folder): what
+// AtomicOutput writes and OutputLock locks (a link given as the output was replaced by the file
+// written, its target left as it was: a hostile-input review).
+std::string FollowLinks(const std::string& path);
+
+// A temporary file beside `path` (links followed); Commit() makes it the file. Destroyed without a successful
 // Commit(), it removes the temporary. Move-only; not thread-safe.
 class AtomicOutput {
  public:

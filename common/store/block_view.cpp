@@ -151,11 +151,17 @@ uint32_t BlockView::LargestTriangleId() const {
 Bounds3f BlockView::VertexBounds() const {
   Bounds3f b;
   const float* axes[3] = {x_, y_, z_};
-  for (int a = 0; a < 3; ++a)
-    for (uint32_t i = 0; i < header_->vertex_count; ++i) {  // finite (Parse checked)
-      b.lower[a] = std::min(b.lower[a], axes[a][i]);
-      b.upper[a] = std::max(b.upper[a], axes[a][i]);
+  for (int a = 0; a < 3; ++a) {
+    // Finite (Parse checked); in this form (not std::min) the loop takes vector min/max.
+    float lo = b.lower[a], hi = b.upper[a];
+    for (uint32_t i = 0; i < header_->vertex_count; ++i) {
+      const float v = axes[a][i];
+      lo = v < lo ? v : lo;
+      hi = v > hi ? v : hi;
     }
+    b.lower[a] = lo;
+    b.upper[a] = hi;
+  }
   return b;
 }
 

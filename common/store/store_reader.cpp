@@ -534,8 +534,14 @@ Expected<BlockView> StoreReader::Decode(uint32_t id, std::span<const uint8_t> st
       return Status::Error(BlockError(id, StrFormat("triangle id %u is beyond the store's %llu "
                                                     "triangles", view->LargestTriangleId(),
                                                     static_cast<unsigned long long>(summary_.source_triangles))));
+    // The header's cell is the index's (which Open checked against the octree), so a block
+    // moved whole, cell and all, is found too (the day's second review).
     const Bounds3f cell = view->cell(), box = {{root.lower[0], root.lower[1], root.lower[2]},
                                                {root.upper[0], root.upper[1], root.upper[2]}};
+    const Bounds3f listed{{e.cell_lower[0], e.cell_lower[1], e.cell_lower[2]},
+                          {e.cell_upper[0], e.cell_upper[1], e.cell_upper[2]}};
+    if (std::memcmp(&cell, &listed, sizeof cell) != 0)
+      return Status::Error(BlockError(id, "its cell differs from its cell in index.bin"));
     if (!cell.Contains(box))
       return Status::Error(BlockError(id, "its box lies outside its octree cell"));
     if (Intersection(view->VertexBounds(), box).Empty())

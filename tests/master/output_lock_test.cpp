@@ -38,6 +38,18 @@ TEST(OutputLock, FramesOfOneOutputLockApartAndOverlapsAreRefused) {
   EXPECT_FALSE(std::filesystem::exists(dir->File(".seq.exr.lock"))) << "the last one removes it";
 }
 
+// A job writing through a symbolic link and one writing its target are one output (the day's
+// second review: both exited 0, writing the same file).
+TEST(OutputLock, ALinkAndItsTargetAreOneOutput) {
+  Expected<TempDir> dir = TempDir::Create();
+  ASSERT_TRUE(dir.ok());
+  std::filesystem::create_directories(dir->File("real"));
+  std::filesystem::create_symlink("real/img.exr", dir->File("link.exr"));
+  Expected<master::OutputLock> a = master::OutputLock::Take(dir->File("real/img.exr"), 0, 1);
+  ASSERT_TRUE(a.ok()) << a.status().message();
+  EXPECT_FALSE(master::OutputLock::Take(dir->File("link.exr"), 0, 1).ok());
+}
+
 // An open descriptor of `path` (created) holding a lock on the whole file, as a job ending (it
 // widens its lock before it removes the file) or an older build's job does; -1 on failure.
 int HoldWholeFile(const std::string& path) {

@@ -215,12 +215,20 @@ int Run(const Args& args) {
                    store.string().c_str());
       return 2;
     }
-    const bool exists = std::filesystem::exists(args.stats_json);
+    // (error_code forms: a link loop threw out of main, exit 134; the day's second review.)
+    std::error_code exists_ec;
+    const bool exists = std::filesystem::exists(args.stats_json, exists_ec);
+    if (exists_ec) {
+      std::fprintf(stderr, "raystack-prep: error: --stats-json %s: cannot write it: %s\n",
+                   args.stats_json.c_str(), exists_ec.message().c_str());
+      return 1;
+    }
     // A folder given as the file: found at the end, after the whole conversion (a hostile-input
     // review).
-    if (std::filesystem::is_directory(args.stats_json)) {
+    if (std::filesystem::is_directory(args.stats_json, exists_ec)) {
       std::fprintf(stderr, "raystack-prep: error: --stats-json %s is a folder: give a file (e.g. "
-                   "%s/stats.json)\n", args.stats_json.c_str(), args.stats_json.c_str());
+                   "%s)\n", args.stats_json.c_str(),
+                   (std::filesystem::path(args.stats_json) / "stats.json").lexically_normal().c_str());
       return 2;
     }
     if (::access(exists ? args.stats_json.c_str() : folder.c_str(), W_OK) != 0) {
