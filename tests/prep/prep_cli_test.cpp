@@ -542,6 +542,23 @@ TEST_F(PrepCliTest, InfoNotesWhatAKilledConversionLeftBesideTheStore) {
   }
 }
 
+// Found by a hostile-input review: 65,535 'usemtl' names no MTL defines were "more than 65534
+// materials in the model's MTL libraries", naming no file (the model had no library at all).
+TEST_F(PrepCliTest, TooManyMaterialsNameTheFileAndCountUndefinedNames) {
+  const std::string obj = dir_->File("names.obj");
+  {
+    std::ofstream f(obj);
+    f << "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    for (int i = 0; i < 65535; ++i) f << "usemtl m" << i << "\nf 1 2 3\n";
+  }
+  const ProcessResult r = Prep({obj, "-o", dir_->File("names"), "-q"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find(obj + ": more than 65534 materials (the store format's limit)"),
+            std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("each 'usemtl' name that none defines counts as one more"),
+            std::string::npos) << r.err;
+}
+
 // Found by a converter persona: --stats-json inside the store worked once, and the next
 // conversion into that store refused the folder ("holds other files ('stats.json')").
 TEST_F(PrepCliTest, StatsInsideTheStoreAreRefusedUpFront) {

@@ -276,7 +276,11 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
     options.max_triangles = store::kMaxTriangles - std::min(sink.triangles(), store::kMaxTriangles);
     import::ModelInfo info;
     sink.set_material_offset(static_cast<uint32_t>(materials.size()));
-    RAYSTACK_RETURN_IF_ERROR(import::ReadModel(input, options, sink, &info));
+    if (Status read = import::ReadModel(input, options, sink, &info); !read.ok())
+      // The sink's own errors (the store's limits) do not know the file: named here.
+      return read.message().find(input) == std::string::npos
+                 ? Status::Error(input + ": " + read.message())
+                 : read;
     progress.Done();
     for (const import::Material& m : info.materials) materials.push_back(ToRecord(m));
     sources.insert(sources.end(), info.materials.begin(), info.materials.end());

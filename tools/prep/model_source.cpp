@@ -25,8 +25,10 @@ Status SpoolSink::Consume(std::span<const import::SourceTriangle> batch) {
     const uint32_t material =
         s.material == import::kNoMaterial ? store::kNoMaterial : s.material + material_offset_;
     if (material != store::kNoMaterial && material >= store::kMaxMaterials)
-      return Status::Error("more than 65534 materials in the model's MTL libraries (the store "
-                           "format's limit)");
+      // (Undefined names count too: a hostile-input review's 70,000 were blamed on the MTLs.)
+      return Status::Error("more than 65534 materials (the store format's limit): the model's "
+                           "MTL libraries define them, and each 'usemtl' name that none defines "
+                           "counts as one more");
     t.material_and_flags = material | (s.has_normals ? PackedTriangle::kHasNormals : 0) |
                            (s.has_uvs ? PackedTriangle::kHasUvs : 0);
     normals_ |= s.has_normals;
