@@ -10,6 +10,7 @@
 #include <filesystem>
 
 #include "common/base/log.h"
+#include "common/image/output_file.h"
 
 namespace raystack::master {
 namespace {
@@ -43,13 +44,8 @@ StatsTarget ResolveStatsTarget(const std::string& given) {
   }
   // A regular file, or none yet: links followed, also to a file not there yet (a job's stats
   // file appears at its first record), so that the lock is the file's whatever names it.
-  std::filesystem::path p = given;
+  const std::filesystem::path p = image::FollowLinks(given);
   std::error_code ec;
-  for (int hops = 0; hops < 40 && std::filesystem::is_symlink(std::filesystem::symlink_status(p, ec)); ++hops) {
-    const std::filesystem::path to = std::filesystem::read_symlink(p, ec);
-    if (ec) break;
-    p = to.is_absolute() ? to : p.parent_path() / to;
-  }
   const std::filesystem::path real = std::filesystem::weakly_canonical(p, ec);
   t.path = ec ? p.string() : real.string();
   return t;
