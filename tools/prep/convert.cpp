@@ -63,6 +63,24 @@ void WarnAboutCutNames(const std::vector<import::Material>& materials) {
   }
 }
 
+// Only the materials the faces use go into the store, in the order the sink numbered them (a
+// library of 70,000 materials of which a model uses one was refused as too many).
+void KeepUsedMaterials(const std::vector<uint32_t>& used, std::vector<store::MaterialRecord>* materials,
+                       std::vector<import::Material>* sources) {
+  if (used.size() == materials->size() && std::is_sorted(used.begin(), used.end())) return;
+  std::vector<store::MaterialRecord> kept;
+  std::vector<import::Material> kept_sources;
+  for (uint32_t k : used) {
+    kept.push_back((*materials)[k]);
+    kept_sources.push_back(std::move((*sources)[k]));
+  }
+  if (kept.size() < materials->size())
+    LOG_INFO("prep", "%zu of the model's %zu materials are used by its faces: only those are "
+             "stored", kept.size(), materials->size());
+  *materials = std::move(kept);
+  *sources = std::move(kept_sources);
+}
+
 // The reader's own error, found before its progress line starts: a file that cannot be
 // opened printed "reading X: 0 B in 0.0 s" before saying so.
 Status CheckReadable(const std::string& path) {
@@ -295,10 +313,8 @@ Expected<ConvertReport> Convert(const ConvertOptions& args) {
   }
   WarnAboutFloatSteps(read_bounds);
   RAYSTACK_RETURN_IF_ERROR(spool.Close());
+  KeepUsedMaterials(sink.used_materials(), &materials, &sources);
   WarnAboutCutNames(sources);
-  if (materials.size() > store::kMaxMaterials)
-    return Status::Error(StrFormat("%zu materials: a store holds at most %u", materials.size(),
-                                   store::kMaxMaterials));
   report.read_seconds = Since(start);
 
   ReplicatedSource source(spool, sink.bounds(), sink.has_attributes(), args.replicate);

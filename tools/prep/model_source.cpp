@@ -22,13 +22,20 @@ Status SpoolSink::Consume(std::span<const import::SourceTriangle> batch) {
       }
     }
     t.id = static_cast<uint32_t>(next_id_++);
-    const uint32_t material =
-        s.material == import::kNoMaterial ? store::kNoMaterial : s.material + material_offset_;
-    if (material != store::kNoMaterial && material >= store::kMaxMaterials)
-      // (Undefined names count too: a hostile-input review's 70,000 were blamed on the MTLs.)
-      return Status::Error("more than 65534 materials (the store format's limit): the model's "
-                           "MTL libraries define them, and each 'usemtl' name that none defines "
-                           "counts as one more");
+    uint32_t material = store::kNoMaterial;
+    if (s.material != import::kNoMaterial) {
+      const uint64_t merged = uint64_t{s.material} + material_offset_;
+      if (merged >= store_id_.size()) store_id_.resize(merged + 1, store::kNoMaterial);
+      material = store_id_[merged];
+      if (material == store::kNoMaterial) {
+        if (used_.size() >= store::kMaxMaterials)
+          // (Undefined names count too: a hostile-input review's 70,000 were blamed on the MTLs.)
+          return Status::Error("more than 65534 materials used by the faces (the store format's "
+                               "limit): each 'usemtl' name that no MTL defines counts as one");
+        material = store_id_[merged] = static_cast<uint32_t>(used_.size());
+        used_.push_back(static_cast<uint32_t>(merged));
+      }
+    }
     t.material_and_flags = material | (s.has_normals ? PackedTriangle::kHasNormals : 0) |
                            (s.has_uvs ? PackedTriangle::kHasUvs : 0);
     normals_ |= s.has_normals;

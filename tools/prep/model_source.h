@@ -1,6 +1,7 @@
 #pragma once
 // The converter's input side: triangles from readers or generators are packed into a
-// TriangleSpool (ids in source order, materials renumbered into one table), and the spool is
+// TriangleSpool (ids in source order; materials renumbered into one table of those the faces
+// use, in order of first use: an MTL's other definitions are never stored), and the spool is
 // offered to the octree builder as a TriangleSource, optionally replicated on a grid the way
 // the thesis built its huge models (Chevrolet x4096) — without writing the copies out first.
 
@@ -20,9 +21,13 @@ class SpoolSink : public import::TriangleSink {
  public:
   explicit SpoolSink(TriangleSpool* spool) : spool_(spool) {}
 
-  // Material indices of the next input are shifted by `offset` (its place in the merged table).
+  // Material indices of the next input are shifted by `offset` (its place in the merged table
+  // of every input's materials).
   void set_material_offset(uint32_t offset) { material_offset_ = offset; }
   Status Consume(std::span<const import::SourceTriangle> batch) override;
+  // The merged table's indices of the materials faces use, in the store's order (a store
+  // material k is the merged table's used_materials()[k]).
+  const std::vector<uint32_t>& used_materials() const { return used_; }
 
   const Bounds3f& bounds() const { return bounds_; }
   bool has_attributes() const { return normals_ || uvs_; }
@@ -33,6 +38,8 @@ class SpoolSink : public import::TriangleSink {
  private:
   TriangleSpool* spool_;
   uint32_t material_offset_ = 0;
+  std::vector<uint32_t> store_id_;  // merged index -> store material, kNoMaterial until used
+  std::vector<uint32_t> used_;
   uint64_t next_id_ = 0;
   Bounds3f bounds_;
   bool normals_ = false, uvs_ = false;
