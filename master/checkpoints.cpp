@@ -41,6 +41,8 @@ void Checkpoints::Maybe(const render::Film& film, uint32_t spp) {
   }
   FrameWriter::Image image;
   image.exr = path_;
+  image.png = png_;
+  image.exposure = exposure_;
   image.background = true;  // the frame goes on rendering
   image.layers = writer_->TakeSpare();  // the last image's memory, when there is one
   film.ResolveInto(&image.layers);
@@ -69,6 +71,8 @@ Expected<Checkpoints::Kept> Checkpoints::Final(const render::Film& film, uint32_
   auto result = std::make_shared<Status>();
   FrameWriter::Image image;
   image.exr = path_;
+  image.png = png_;
+  image.exposure = exposure_;
   image.layers = writer_->TakeSpare();
   film.ResolveInto(&image.layers);
   image.layers.provenance = provenance_;

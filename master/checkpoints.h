@@ -28,6 +28,14 @@ class Checkpoints {
   // fail as on a full disk.
   Checkpoints(double every_s, std::string path, std::string provenance, FrameWriter* writer,
               int64_t kill_after = -1, int64_t fail_first = 0);
+  // --png: every checkpoint writes the frame's quick-look too (`png`, at `exposure`), so the PNG
+  // beside the EXR is always of the same pixels (an interrupted frame written to look at left an
+  // earlier run's finished PNG beside it). Empty: no PNG.
+  void AlsoPng(std::string png, float exposure) {
+    png_ = std::move(png);
+    exposure_ = exposure;
+  }
+  const std::string& png() const { return png_; }
 
   // Queues a checkpoint of `film` (pixels finished with `spp` samples) when one is due; not
   // over a finished image of an earlier run while no pixel has all its samples (it would be
@@ -64,6 +72,8 @@ class Checkpoints {
   double every_s_;
   std::string path_;
   std::string provenance_;
+  std::string png_;
+  float exposure_ = 0;
   FrameWriter* writer_;
   int64_t fail_first_, attempts_ = 0;
   std::shared_ptr<Written> written_;

@@ -155,6 +155,7 @@ Status RunMaster(const RenderArgs& args, const render::Scene& scene, transport::
       Checkpoints checkpoints(args.checkpoint_s, exr_path,
                               Provenance(scene, f), &writer, args.kill_after_checkpoints,
                               args.fail_checkpoints);
+      checkpoints.AlsoPng(FramePngPath(args, scene, f), args.exposure);
       preview->BeginFrame(&film, static_cast<uint32_t>(f), static_cast<uint32_t>(frames),
                           scene.integrator.spp, plan.total_samples() - total,
                           static_cast<uint32_t>(range.end - 1));

@@ -223,16 +223,18 @@ std::string FrameExrPath(const RenderArgs& args, const render::Scene& scene, siz
   return FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".exr");
 }
 
+std::string FramePngPath(const RenderArgs& args, const render::Scene& scene, size_t f) {
+  return args.png ? FramePath(OutputOf(args, scene), f, scene.cameras.size(), ".png") : "";
+}
+
 Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& scene, size_t f,
                                  const render::Film& film, image::ImageLayers layers,
                                  const std::string& stopped, uint64_t rendered,
                                  FrameWriter* writer, std::function<void()> written) {
-  const size_t frames = scene.cameras.size();
-  const std::string output = OutputOf(args, scene);
   FrameWriter::Image image;
   image.exr = FrameExrPath(args, scene, f);
   image.written = std::move(written);
-  if (args.png) image.png = FramePath(output, f, frames, ".png");
+  image.png = FramePngPath(args, scene, f);
   // (A checkpoint with every pixel finished is written as the frame; a missing PNG is made
   // from the complete EXR's pixels, the EXR left as it is.)
   std::error_code ec;
@@ -496,13 +498,16 @@ void EndIfInterruptedBetweenFrames(size_t frame, FrameRange range, FrameWriter* 
 
 namespace {
 
-// What a frame that stops early (interrupted, failed) leaves at `path`, for its message;
-// `resume` says when --resume is worth it ("the same command", or after a fix).
+// What a frame that stops early (interrupted, failed) leaves at `path` (and `png`, its
+// quick-look with --png), for its message; `resume` says when --resume is worth it ("the same
+// command", or after a fix).
 std::string WhatIsKept(const Checkpoints::Kept& kept, const render::Film& film,
-                       const std::string& path, uint32_t spp, const char* resume) {
+                       const std::string& path, const std::string& png, uint32_t spp,
+                       const char* resume) {
+  const std::string written = png.empty() ? path : path + " (and " + png + ")";
   if (kept.finished > 0)
     return StrFormat("the frame so far is in %s, %llu of %llu pixels with all their samples; %s "
-                     "with --resume keeps those and renders the rest", path.c_str(),
+                     "with --resume keeps those and renders the rest", written.c_str(),
                      static_cast<unsigned long long>(kept.finished),
                      static_cast<unsigned long long>(film.width()) *
                          static_cast<unsigned long long>(film.height()),
@@ -512,7 +517,7 @@ std::string WhatIsKept(const Checkpoints::Kept& kept, const render::Film& film,
   if (kept.written)
     return StrFormat("the frame so far is in %s to look at, but no pixel has all its %u samples "
                      "yet (each pass covers every pixel a little), so --resume keeps none of it "
-                     "(%s)", path.c_str(), spp, next.c_str());
+                     "(%s)", written.c_str(), spp, next.c_str());
   std::error_code ec;
   const std::string there = std::filesystem::exists(path, ec) ? path + " is left as it was"
                                                               : "no image is written to " + path;
@@ -530,7 +535,7 @@ void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& fi
   Expected<Checkpoints::Kept> kept = checkpoints->Final(film, spp);
   const std::string said =
       kept.ok() ? StrFormat("interrupted (%s): %s", name,
-                            WhatIsKept(*kept, film, path, spp, "the same command").c_str())
+                            WhatIsKept(*kept, film, path, checkpoints->png(), spp, "the same command").c_str())
                 : StrFormat("interrupted (%s); not written: %s", name,
                             kept.status().message().c_str());
   std::fprintf(stderr, "raystack render: %s\n", said.c_str());
@@ -550,7 +555,7 @@ Status KeepFrameSoFar(const Status& why, Checkpoints* checkpoints, const render:
     return Status::Error(why.message() + "; the frame so far could not be written either: " +
                          kept.status().message());
   return Status::Error(why.message() + "; " +
-                       WhatIsKept(*kept, film, path, spp,
+                       WhatIsKept(*kept, film, path, checkpoints->png(), spp,
                                   "once the cause is fixed, the same command"));
 }
 

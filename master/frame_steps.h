@@ -113,6 +113,8 @@ Expected<std::string> WriteFrame(const RenderArgs& args, const render::Scene& sc
                                  FrameWriter* writer, std::function<void()> written = nullptr);
 // Frame f's EXR (as WriteFrame names it).
 std::string FrameExrPath(const RenderArgs& args, const render::Scene& scene, size_t f);
+// Frame f's PNG quick-look; empty without --png.
+std::string FramePngPath(const RenderArgs& args, const render::Scene& scene, size_t f);
 
 // While it lives, SIGINT and SIGTERM are noted, not fatal: from the first frame to the last
 // image written (the frame rendering is written by EndInterrupted, one rendered and queued by

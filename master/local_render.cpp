@@ -197,6 +197,7 @@ Status RenderLocally(const RenderArgs& args) {
       Checkpoints checkpoints(args.checkpoint_s, exr_path,
                               Provenance(*scene, f), &writer, args.kill_after_checkpoints,
                               args.fail_checkpoints);
+      checkpoints.AlsoPng(FramePngPath(args, *scene, f), args.exposure);
       uint64_t shown = 0;
       // Polled at least as often as the convergence log asks for rows and checkpoints are due,
       // and often enough for --time-limit to stop within 2% of it (a researcher's 0.15 s limit

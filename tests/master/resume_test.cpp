@@ -245,9 +245,10 @@ TEST_F(Resume, AnInterruptedRunLeavesItsFrameForResume) {
 
 // A three-frame job whose frames each stop after --time-limit, written behind the render by
 // a writer that is slow (--fault-slow-writes) or fails (--fault-fail-writes), interrupted
-// `after` seconds once frame `frame` renders. Returns the run's exit code; `err` its stderr.
+// `after` seconds once frame `frame` renders (with PNG quick-looks when `png`). Returns the
+// run's exit code; `err` its stderr.
 int InterruptFrame(const TempDir& dir, int frame, double after, const std::string& fault,
-                   const std::string& value, std::string* err) {
+                   const std::string& value, std::string* err, bool png = false) {
   std::ofstream(dir.File("three.json")) << R"({ "store": "store",
     "cameras": [ { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 },
                  { "position": [1, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 },
@@ -255,11 +256,12 @@ int InterruptFrame(const TempDir& dir, int frame, double after, const std::strin
     "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
     "integrator": { "type": "path", "max_depth": 3, "spp": 60000, "seed": 4 } })";
   const std::string log = dir.File("three.csv");
-  master::preview::testing::BackgroundProcess run(
-      {kRaystackBinary, "render", dir.File("three.json"), "--threads", "1", "--time-limit", "0.3",
-       "--output", dir.File("frame.exr"), "--no-png", fault, value, "--convergence-log", log,
-       "--log-interval", "0.05"},
-      dir.path());
+  std::vector<std::string> args = {
+      kRaystackBinary, "render", dir.File("three.json"), "--threads", "1", "--time-limit", "0.3",
+      "--output", dir.File("frame.exr"), fault, value, "--convergence-log", log,
+      "--log-interval", "0.05"};
+  if (!png) args.push_back("--no-png");
+  master::preview::testing::BackgroundProcess run(args, dir.path());
   // Progressive passes of 60000 samples: no pixel of a frame is finished when it is interrupted.
   const std::string row = StrFormat("\n%d,tick,", frame);
   auto rendering = [&] { return Slurp(log).find(row) != std::string::npos; };
@@ -301,6 +303,22 @@ TEST_F(Resume, AnInterruptKeepsTheFramesThatFinishedBehindASlowDisk) {
   EXPECT_NE(again.err.find("frame-1.exr: a stopped run's frame with no pixel finished"),
             std::string::npos) << again.err;
   EXPECT_FALSE(image::IsPartialFrame(dir_->File("frame-1.exr")));
+}
+
+// The frame written to look at has its PNG quick-look beside it, of the same pixels: an
+// earlier run's finished PNG stayed there, beside the interrupted frame's EXR.
+TEST_F(Resume, AnInterruptedFrameToLookAtHasItsPngToo) {
+  std::ofstream(dir_->File("frame-1.png")) << "an earlier run's PNG";
+  std::string err;
+  EXPECT_EQ(InterruptFrame(*dir_, 1, 0, "--fault-slow-writes", "0", &err, /*png=*/true),
+            128 + SIGINT) << err;
+  EXPECT_NE(err.find("the frame so far is in " + dir_->File("frame-1.exr") + " (and " +
+                     dir_->File("frame-1.png") + ") to look at"),
+            std::string::npos) << err;
+  EXPECT_TRUE(image::IsPartialFrame(dir_->File("frame-1.exr")));
+  const std::string png = Slurp(dir_->File("frame-1.png"));
+  ASSERT_GT(png.size(), 8u) << err;
+  EXPECT_EQ(png.substr(1, 3), "PNG") << "the earlier run's PNG stayed";
 }
 
 // Ctrl-C while a finished frame's write is tried again (a full disk) gives it up, and the job
