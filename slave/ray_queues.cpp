@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "common/base/check.h"
+
 namespace raystack::slave {
 
 uint32_t RayQueues::Create(uint32_t block, State state) {
@@ -48,7 +50,6 @@ void RayQueues::Push(uint32_t q, const RayRecord& ray) {
   ++queue.rays;
   ++rays_;
   peak_rays_ = std::max(peak_rays_, rays_);
-  if (queue.state == State::kWaiting) ++waiting_rays_;
   if (ray.priority > queue.priority) {
     queue.priority = ray.priority;
     // A ready queue whose priority rose is pushed again; the stale entry is skipped later.
@@ -60,7 +61,6 @@ void RayQueues::MarkReady(uint32_t q) {
   Queue& queue = queues_[q];
   if (queue.state == State::kReady) return;
   queue.state = State::kReady;
-  waiting_rays_ -= queue.rays;
   ready_.push({queue.priority, ++sequence_, q});
 }
 
@@ -110,7 +110,7 @@ void RayQueues::Reset() {
   for (uint32_t c = static_cast<uint32_t>(chunks_.size()); c-- > 0;) free_chunks_.push_back(c);
   ready_ = {};
   sequence_ = 0;
-  rays_ = waiting_rays_ = peak_rays_ = 0;
+  rays_ = peak_rays_ = 0;
   chunks_in_use_ = peak_chunks_ = 0;
 }
 

@@ -12,8 +12,6 @@
 #include <queue>
 #include <vector>
 
-#include "common/base/check.h"
-#include "common/geometry/ray.h"
 #include "slave/ray_record.h"
 
 namespace raystack::slave {
@@ -55,7 +53,6 @@ class RayQueues {
   void Reset();
 
   uint64_t rays() const { return rays_; }
-  uint64_t waiting_rays() const { return waiting_rays_; }
   uint64_t peak_bytes() const { return peak_chunks_ * sizeof(RayChunk); }
   uint64_t peak_rays() const { return peak_rays_; }
 
@@ -85,7 +82,7 @@ class RayQueues {
   };
   std::priority_queue<ReadyItem> ready_;
   uint64_t sequence_ = 0;
-  uint64_t rays_ = 0, waiting_rays_ = 0, peak_rays_ = 0;
+  uint64_t rays_ = 0, peak_rays_ = 0;
   uint64_t chunks_in_use_ = 0, peak_chunks_ = 0;
 };
 

@@ -4,7 +4,6 @@
 #include <chrono>
 #include <memory>
 
-#include "common/base/log.h"
 #include "common/base/thread_cpu.h"
 #include "common/render/pixel_priority.h"
 #include "common/render/random.h"

@@ -84,7 +84,6 @@ class SampleSlots {
 
   uint64_t open() const { return open_; }
   uint64_t peak_open() const { return peak_open_; }
-  static constexpr uint64_t kSlotBytes = 128;
 
  private:
   struct Slot {

@@ -124,10 +124,10 @@ class RemoteTiles final : public TileSource {
                                        "outside the %dx%d image", a.x0, a.x1, a.y0, a.y1, width_,
                                        height_));
       if (a.sample_end != 0 &&
-          (a.sample_end <= a.sample_begin || a.sample_end - a.sample_begin > kMaxTileSamples))
+          (a.sample_end <= a.sample_begin || a.sample_end - a.sample_begin > kMaxTileSampleRange))
         return Status::Error(StrFormat("the master assigned the samples [%u, %u) of a tile (at "
                                        "most %u at once)", a.sample_begin, a.sample_end,
-                                       kMaxTileSamples));
+                                       kMaxTileSampleRange));
       const uint16_t rank_end = a.rank_end == 0 ? 256 : a.rank_end;
       if (a.rank_begin >= rank_end || rank_end > 256)
         return Status::Error(StrFormat("the master assigned the pixel ranks [%u, %u) of a tile",
@@ -152,7 +152,7 @@ class RemoteTiles final : public TileSource {
   }
 
  private:
-  static constexpr uint32_t kMaxTileSamples = 1 << 20;
+  static constexpr uint32_t kMaxTileSampleRange = 1 << 20;
   struct Slot {
     std::deque<Tile> tiles;  // come, not taken yet
     uint32_t requested = 0;  // asked for, not come yet

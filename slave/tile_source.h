@@ -32,8 +32,9 @@ class TileSource {
   virtual void Abort() {}
 };
 
-// The whole frame in one process: its tiles in Hilbert order (common/render/tiles.h), handed
-// to whichever thread asks next.
+// The whole frame's tiles once each, in Hilbert order (common/render/tiles.h), to whichever
+// thread asks next: the simplest source, which the engine's tests drive it with (a render's
+// tiles come from its frame plan: PlanTileSource).
 class GridTileSource final : public TileSource {
  public:
   GridTileSource(int width, int height, int size)

@@ -17,9 +17,7 @@ namespace raystack {
 
 #define CHECK(x) \
   ((x) ? static_cast<void>(0) : ::raystack::CheckFailed(__FILE__, __LINE__, #x))
-#define CHECK_EQ(a, b) CHECK((a) == (b))
 #define CHECK_LE(a, b) CHECK((a) <= (b))
-#define CHECK_LT(a, b) CHECK((a) < (b))
 
 #ifdef NDEBUG
 #define DCHECK(x) static_cast<void>(0)

@@ -20,7 +20,6 @@ class ProgressReporter {
   ~ProgressReporter();  // calls Done() if not done
 
   void Update(uint64_t done_delta);
-  void SetTotal(uint64_t total);
   void Done();
   // Ends without the final line (the task failed: its error is the last word, not "0 samples
   // in 0.0 s"); a bar on a terminal is cleared.

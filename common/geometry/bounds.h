@@ -1,5 +1,5 @@
 #pragma once
-// Axis-aligned boxes. An empty box has lower > upper on every axis, so Union() just works.
+// Axis-aligned boxes. An empty box has lower > upper on every axis, so Extend() just works.
 
 #include <limits>
 
@@ -44,10 +44,6 @@ struct Bounds3f {
   }
 };
 
-inline Bounds3f Union(Bounds3f a, const Bounds3f& b) {
-  a.Extend(b);
-  return a;
-}
 inline Bounds3f Intersection(const Bounds3f& a, const Bounds3f& b) {
   return {Max(a.lower, b.lower), Min(a.upper, b.upper)};
 }

@@ -15,9 +15,7 @@
 #include "common/base/populate.h"
 #include "common/geometry/bounds.h"
 #include "common/geometry/bvh.h"
-#include "common/geometry/next_float.h"
 #include "common/geometry/wide_bvh_collapse.h"
-#include "common/geometry/wide_bvh_internal.h"
 
 namespace raystack {
 

@@ -21,7 +21,6 @@
 
 #include "common/base/huge_page_allocator.h"
 #include "common/geometry/ray.h"
-#include "common/geometry/triangle.h"
 #include "common/geometry/vec.h"
 
 namespace raystack {

@@ -38,7 +38,6 @@ class FixedSum {
     return v * 0x1p-50;
   }
   Int128 raw() const { return value_; }
-  void set_raw(Int128 v) { value_ = v; }
 
   static Int128 ToFixed(double x) {
     // Scaling by a power of two is exact (as ldexp, a library call, would be); a value that

@@ -9,6 +9,7 @@
 
 #include "common/base/check.h"
 #include "common/base/log.h"
+#include "common/store/block_layout.h"
 
 namespace raystack::store {
 namespace {

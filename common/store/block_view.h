@@ -16,7 +16,6 @@
 #include "common/geometry/next_float.h"
 #include "common/geometry/ray.h"
 #include "common/geometry/triangle.h"
-#include "common/store/block_layout.h"
 #include "common/store/format.h"
 #include "common/store/octree.h"
 

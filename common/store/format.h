@@ -3,10 +3,11 @@
 // is its exact layout. All integers and floats are little-endian; every struct is a POD whose
 // size is pinned by a static_assert so a change of layout is a compile error.
 //
-// A store is a directory with three files:
+// A store is a directory with four files:
 //   index.bin   FileHeader + StoreSummary + MaterialRecord[material_count] + BlockEntry[block_count]
 //   octree.bin  FileHeader + OctreeNode[node_count]        (the level-1 octree, always in RAM)
 //   blocks.bin  FileHeader + stored blocks at BlockEntry::offset
+//   lights.bin  FileHeader + EmitterRecord[n]                (the emissive triangles, FORMAT.md)
 // Each stored block is lz4( byte_shuffle( raw block ) ); a raw block is BlockHeader followed by
 // the sections of BlockLayout (block_layout.h).
 
@@ -27,7 +28,7 @@ inline constexpr const char* kLightsFile = "lights.bin";
 // Empty; locked by the converter while it writes the store (not part of the format).
 inline constexpr const char* kLockFile = ".lock";
 
-// Heads each of the three files. The body checksum covers everything after the header (for
+// Heads each of the four files. The body checksum covers everything after the header (for
 // blocks.bin it is 0: each block carries its own checksum in its BlockEntry).
 struct FileHeader {
   char magic[8];
@@ -148,7 +149,7 @@ struct BlockHeader {
   uint32_t vertex_count;
   uint32_t triangle_count;
   uint32_t node_count;
-  uint32_t constant_material;  // material of every triangle when not per-triangle (~0 = none)
+  uint32_t constant_material;  // material of every triangle when not per-triangle (kNoMaterial = none)
   uint32_t reserved[4];        // zero. (No block id here: the index's checksum ties bytes to ids.)
   float cell_lower[3], cell_upper[3];
 };

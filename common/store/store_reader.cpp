@@ -14,7 +14,6 @@
 #include <memory>
 #include <new>
 
-#include "common/base/check.h"
 #include "common/base/log.h"
 
 namespace raystack::store {

@@ -6,7 +6,6 @@
 #include <cstring>
 #include <limits>
 
-#include "common/base/check.h"
 
 namespace raystack::master::preview {
 

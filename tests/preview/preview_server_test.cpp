@@ -154,6 +154,30 @@ TEST(PreviewServer, TheStatusAsJsonLeavesOutFinishedTilesWithoutAViewer) {
   server->DetachFilm();
 }
 
+// A copy of the film costs the merging thread its lock (the whole film at 8K): the server takes
+// none while no page is open, and none while the film does not change.
+TEST(PreviewServer, CopiesTheFilmOnlyForViewersAndOnlyWhenItChanged) {
+  auto server = StartOn("127.0.0.1");
+  ASSERT_TRUE(server);
+  render::Film film(16, 8);
+  server->AttachFilm(&film, 0);
+  for (uint32_t n = 0; n < 20; ++n) {
+    FillFilm(&film, n, 0.5f);
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  EXPECT_EQ(server->counters().snapshots, 0u) << "copies with no page open";
+  WsViewer viewer;
+  ASSERT_TRUE(viewer.Open(server->port()));
+  ASSERT_TRUE(WaitUntil([&] { return server->counters().snapshots >= 1; }));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // several refreshes, no merge
+  const uint64_t paused = server->counters().snapshots;
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(server->counters().snapshots, paused) << "copies of a film that did not change";
+  FillFilm(&film, 20, 0.5f);
+  EXPECT_TRUE(WaitUntil([&] { return server->counters().snapshots > paused; }));
+  server->DetachFilm();
+}
+
 TEST(PreviewServer, OnLoopbackRefusesForeignHostsAndOrigins) {
   auto server = StartOn("127.0.0.1");
   ASSERT_TRUE(server);

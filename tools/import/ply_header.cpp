@@ -2,7 +2,6 @@
 
 #include <optional>
 
-#include "common/base/log.h"
 #include "tools/import/text_scan.h"
 
 namespace raystack::import {

@@ -5,7 +5,6 @@
 #include <random>
 #include <vector>
 
-#include "common/base/log.h"
 
 namespace raystack::prep {
 namespace {
