@@ -490,6 +490,7 @@ void EndIfInterruptedBetweenFrames(size_t frame, FrameRange range, FrameWriter* 
                                              : StrFormat("frames %zu to %zu are", frame,
                                                          range.end - 1).c_str());
   std::fprintf(stderr, "raystack render: %s\n", said.c_str());
+  if (*InterruptCause(signal)) std::fprintf(stderr, "raystack render: %s\n", InterruptCause(signal));
   std::fflush(nullptr);
   then(said);
   std::fflush(nullptr);
@@ -541,6 +542,7 @@ void EndInterrupted(int signal, Checkpoints* checkpoints, const render::Film& fi
   std::fprintf(stderr, "raystack render: %s\n", said.c_str());
   if (signal == SIGTERM && !sigterm_hint.empty())
     std::fprintf(stderr, "raystack render: %s\n", sigterm_hint.c_str());
+  if (*InterruptCause(signal)) std::fprintf(stderr, "raystack render: %s\n", InterruptCause(signal));
   std::fflush(nullptr);
   then(said);
   std::fflush(nullptr);

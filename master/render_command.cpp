@@ -23,6 +23,7 @@ int FailureCode(const std::string& prefix, const std::string& message) {
   }
   std::fprintf(stderr, "%s: interrupted (%s): %s\n", prefix.c_str(), InterruptName(signal),
                message.c_str());
+  if (*InterruptCause(signal)) std::fprintf(stderr, "%s: %s\n", prefix.c_str(), InterruptCause(signal));
   return 128 + signal;
 }
 

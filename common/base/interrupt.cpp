@@ -38,12 +38,31 @@ void CatchInterrupts(bool announce) {
   action.sa_flags = SA_RESTART;
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
+  if (!IgnoredByTheCaller(SIGHUP)) sigaction(SIGHUP, &action, nullptr);
+}
+
+bool IgnoredByTheCaller(int signal) {
+  struct sigaction now {};
+  return sigaction(signal, nullptr, &now) == 0 && now.sa_handler == SIG_IGN;
 }
 
 void HoldInterrupts(bool hold) { g_hold.store(hold); }
 
 int InterruptSignal() { return g_signal.load(); }
 
-const char* InterruptName(int signal) { return signal == SIGINT ? "SIGINT" : "SIGTERM"; }
+const char* InterruptName(int signal) {
+  switch (signal) {
+    case SIGINT: return "SIGINT";
+    case SIGHUP: return "SIGHUP";
+    default: return "SIGTERM";
+  }
+}
+
+const char* InterruptCause(int signal) {
+  return signal == SIGHUP ? "SIGHUP: the terminal or ssh session that started the job closed; a "
+                            "long job outlives it under nohup, setsid, tmux or screen, or a "
+                            "scheduler"
+                          : "";
+}
 
 }  // namespace raystack

@@ -1,6 +1,8 @@
 #pragma once
-// SIGINT and SIGTERM (Ctrl-C; Slurm at a job's time limit, which reaches the ranks through
-// mpirun, and mpirun sends SIGKILL about a second later), once CatchInterrupts has run:
+// SIGINT, SIGTERM and SIGHUP (Ctrl-C; Slurm at a job's time limit, which reaches the ranks
+// through mpirun, and mpirun sends SIGKILL about a second later; the terminal or ssh session
+// closed, which ended a job with nothing written, found by a pipeline review), once
+// CatchInterrupts has run:
 // - while interrupts are held (HoldInterrupts: the master while a frame renders, a slave
 //   always) the signal is noted, not fatal: the master then writes the frame's samples so far
 //   for --resume before it ends (master/frame_steps.h), and a slave waits a moment for the
@@ -10,12 +12,17 @@
 
 namespace raystack {
 
-// `announce`: say on stderr, from the handler, that the signal was noted.
+// `announce`: say on stderr, from the handler, that the signal was noted. SIGHUP is left as it
+// is when ignored (nohup: the user's choice).
 void CatchInterrupts(bool announce);
 void HoldInterrupts(bool hold);
-// The signal noted (SIGINT or SIGTERM), or 0.
+// The signal noted (SIGINT, SIGTERM or SIGHUP), or 0.
 int InterruptSignal();
-// "SIGINT" or "SIGTERM", for messages.
+// "SIGINT", "SIGTERM" or "SIGHUP", for messages.
 const char* InterruptName(int signal);
+// What sent a SIGHUP and how a job outlives it; "" for the others.
+const char* InterruptCause(int signal);
+// Whether `signal` was ignored when this process started (SIG_IGN, as nohup leaves SIGHUP).
+bool IgnoredByTheCaller(int signal);
 
 }  // namespace raystack

@@ -245,10 +245,11 @@ TEST_F(Resume, AnInterruptedRunLeavesItsFrameForResume) {
 
 // A three-frame job whose frames each stop after --time-limit, written behind the render by
 // a writer that is slow (--fault-slow-writes) or fails (--fault-fail-writes), interrupted
-// `after` seconds once frame `frame` renders (with PNG quick-looks when `png`). Returns the
-// run's exit code; `err` its stderr.
+// `after` seconds once frame `frame` renders (with PNG quick-looks when `png`), by `signal`.
+// Returns the run's exit code; `err` its stderr. `wrapper`: a command the job runs under.
 int InterruptFrame(const TempDir& dir, int frame, double after, const std::string& fault,
-                   const std::string& value, std::string* err, bool png = false) {
+                   const std::string& value, std::string* err, bool png = false,
+                   int signal = SIGINT, const std::string& wrapper = "") {
   std::ofstream(dir.File("three.json")) << R"({ "store": "store",
     "cameras": [ { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 },
                  { "position": [1, 5, 10], "look_at": [0, 0.5, 0], "width": 48, "height": 32 },
@@ -256,10 +257,13 @@ int InterruptFrame(const TempDir& dir, int frame, double after, const std::strin
     "lights": [ { "type": "point", "position": [3, 8, 4], "intensity": [100, 100, 100] } ],
     "integrator": { "type": "path", "max_depth": 3, "spp": 60000, "seed": 4 } })";
   const std::string log = dir.File("three.csv");
-  std::vector<std::string> args = {
+  std::filesystem::remove(log);  // (an earlier call's rows would say "rendering" at once)
+  std::vector<std::string> args;
+  if (!wrapper.empty()) args.push_back(wrapper);
+  args.insert(args.end(), {
       kRaystackBinary, "render", dir.File("three.json"), "--threads", "1", "--time-limit", "0.3",
       "--output", dir.File("frame.exr"), fault, value, "--convergence-log", log,
-      "--log-interval", "0.05"};
+      "--log-interval", "0.05"});
   if (!png) args.push_back("--no-png");
   master::preview::testing::BackgroundProcess run(args, dir.path());
   // Progressive passes of 60000 samples: no pixel of a frame is finished when it is interrupted.
@@ -269,7 +273,7 @@ int InterruptFrame(const TempDir& dir, int frame, double after, const std::strin
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   EXPECT_TRUE(rendering()) << run.out() << run.err();
   std::this_thread::sleep_for(std::chrono::duration<double>(after));
-  run.Signal(SIGINT);
+  run.Signal(signal);
   const int code = run.Wait();
   *err = run.err();
   return code;
@@ -319,6 +323,23 @@ TEST_F(Resume, AnInterruptedFrameToLookAtHasItsPngToo) {
   const std::string png = Slurp(dir_->File("frame-1.png"));
   ASSERT_GT(png.size(), 8u) << err;
   EXPECT_EQ(png.substr(1, 3), "PNG") << "the earlier run's PNG stayed";
+}
+
+// Found by a pipeline review: a closed terminal or ssh session (SIGHUP) ended the job with
+// nothing written and no word. It is an interrupt as Ctrl-C is, said with its cause; under
+// nohup (SIGHUP ignored) the job goes on.
+TEST_F(Resume, AHangupIsAnInterruptUnlessIgnored) {
+  std::string err;
+  EXPECT_EQ(InterruptFrame(*dir_, 1, 0, "--fault-slow-writes", "0", &err, false, SIGHUP),
+            128 + SIGHUP) << err;
+  EXPECT_NE(err.find("interrupted (SIGHUP): the frame so far is in " + dir_->File("frame-1.exr")),
+            std::string::npos) << err;
+  EXPECT_NE(err.find("SIGHUP: the terminal or ssh session that started the job closed"),
+            std::string::npos) << err;
+  EXPECT_TRUE(image::IsPartialFrame(dir_->File("frame-1.exr")));
+  EXPECT_EQ(InterruptFrame(*dir_, 1, 0, "--fault-slow-writes", "0", &err, false, SIGHUP, "/usr/bin/nohup"),
+            0) << err;
+  EXPECT_FALSE(image::IsPartialFrame(dir_->File("frame-2.exr"))) << err;
 }
 
 // Ctrl-C while a finished frame's write is tried again (a full disk) gives it up, and the job

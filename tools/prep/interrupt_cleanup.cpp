@@ -10,6 +10,8 @@
 #include <mutex>
 #include <thread>
 
+#include "common/base/interrupt.h"
+
 namespace raystack::prep {
 namespace {
 
@@ -25,13 +27,15 @@ void CleanUpOnInterrupt(const std::string& output) {
   sigemptyset(&set);
   sigaddset(&set, SIGINT);
   sigaddset(&set, SIGTERM);
+  if (!IgnoredByTheCaller(SIGHUP)) sigaddset(&set, SIGHUP);
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
   std::thread([set, output] {
     int sig = 0;
     if (sigwait(&set, &sig) != 0) return;
-    const char* name = sig == SIGINT ? "SIGINT" : "SIGTERM";
+    const char* name = InterruptName(sig);
     std::fflush(stdout);
     std::fprintf(stderr, "\nraystack-prep: interrupted (%s): removing what this conversion wrote\n", name);
+    if (*InterruptCause(sig)) std::fprintf(stderr, "raystack-prep: %s\n", InterruptCause(sig));
     const std::lock_guard lock(g_mu);
     std::string left;
     for (auto& [id, clean] : g_cleanups) {
