@@ -600,6 +600,33 @@ TEST_F(PrepCliTest, OnlyTheMaterialsTheFacesUseAreStored) {
   EXPECT_EQ(r.err.find("materials are used by its faces"), std::string::npos) << r.err;
 }
 
+// Found by a pipeline review: --stats-json on a full disk left a 0-byte file and /dev/full
+// gave exit 0 (the figures lost without a word). Now each is an error (the store is written),
+// and an earlier file is kept whole rather than emptied.
+TEST_F(PrepCliTest, StatsJsonThatCannotBeWrittenIsAnErrorAndKeepsTheEarlierFile) {
+  ProcessResult r = Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "-q",
+                          "--stats-json", "/dev/full"});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("--stats-json /dev/full: cannot write: No space left on device (the "
+                       "store is written)"), std::string::npos) << r.err;
+  // A pipe is written in place (nothing renamed over /dev/stdout).
+  r = Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "-q", "--stats-json", "/dev/stdout"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("{\"triangles\": 108,"), std::string::npos) << r.out;
+  raystack::testing::SmallTmpfs small(dir_->File("small"), "size=8k");
+  if (small.path.empty()) GTEST_SKIP() << small.why;
+  const std::string stats = small.path + "/stats.json";
+  std::ofstream(stats) << "{\"earlier\": 1}\n";
+  std::ofstream(small.path + "/filler") << std::string(4096, 'x');  // the rest of the 8 KB
+  r = Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "-q", "--stats-json", stats});
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("--stats-json " + stats + ": cannot write: No space left on device"),
+            std::string::npos) << r.err;
+  EXPECT_EQ(testing::Slurp(stats), "{\"earlier\": 1}\n");
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(small.path),
+                          std::filesystem::directory_iterator()), 2) << "a temporary is left";
+}
+
 // Found by a converter persona: --stats-json inside the store worked once, and the next
 // conversion into that store refused the folder ("holds other files ('stats.json')").
 TEST_F(PrepCliTest, StatsInsideTheStoreAreRefusedUpFront) {

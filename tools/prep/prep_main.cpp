@@ -1,5 +1,6 @@
 // raystack-prep: converts OBJ/PLY models (or a generated one) into a block store, out of core.
 
+#include <fcntl.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -23,6 +24,42 @@
 
 namespace raystack::prep {
 namespace {
+
+// --stats-json's figures, whole or not at all: a file is written aside and renamed over the
+// path (a full disk left a 0-byte file, and /dev/full an exit 0: a pipeline review); a pipe or
+// a device (/dev/stdout) is written in place. Every write's error is the answer.
+Status WriteStatsJson(const std::string& path, const std::string& json) {
+  const auto cannot = [&](const std::string& why) {
+    return Status::Error("--stats-json " + path + ": cannot write: " + why);
+  };
+  std::error_code ec;
+  const std::filesystem::file_status there = std::filesystem::status(path, ec);
+  const bool in_place = std::filesystem::exists(there) && !std::filesystem::is_regular_file(there);
+  // (Links followed: the file a link names is written, the link stays.)
+  std::filesystem::path file = std::filesystem::weakly_canonical(path, ec);
+  if (ec) file = path;
+  std::string aside = ".";  // (appended: GCC 12 warned of a false overlap in "." + name)
+  aside += file.filename().string();
+  aside += ".tmp-" + std::to_string(getpid());
+  const std::string target = in_place ? path : (file.parent_path() / aside).string();
+  // Non-blocking: a FIFO no program reads is an error now, not a hang (cleared for the write).
+  const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC | O_NONBLOCK |
+                                            (in_place ? 0 : O_CREAT | O_TRUNC), 0666);
+  if (fd < 0) return cannot(errno == ENXIO ? "a pipe that no program reads" : std::strerror(errno));
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+  std::string error;
+  for (size_t done = 0; done < json.size() && error.empty();) {
+    const ssize_t n = ::write(fd, json.data() + done, json.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) error = n < 0 ? std::strerror(errno) : "no progress";
+    else done += static_cast<size_t>(n);
+  }
+  if (::close(fd) != 0 && error.empty()) error = std::strerror(errno);
+  if (error.empty() && !in_place && std::rename(target.c_str(), file.c_str()) != 0)
+    error = std::strerror(errno);
+  if (!error.empty() && !in_place) ::unlink(target.c_str());
+  return error.empty() ? OkStatus() : cannot(error);
+}
 
 constexpr const char* kUsage = R"(usage: raystack-prep INPUT... -o STORE [options]
        raystack-prep --generate KIND:N -o STORE [options]
@@ -271,13 +308,7 @@ int Run(const Args& args) {
                 "and lights go in the shifted frame (their coordinates minus this)\n",
                 r.shift[0] + 0.0, r.shift[1] + 0.0, r.shift[2] + 0.0);  // (+ 0.0: no "-0")
   if (!args.stats_json.empty()) {
-    std::FILE* f = std::fopen(args.stats_json.c_str(), "w");
-    if (!f) {
-      std::fprintf(stderr, "raystack-prep: error: %s: cannot write: %s\n",
-                   args.stats_json.c_str(), std::strerror(errno));
-      return 1;
-    }
-    std::fprintf(f,
+    const std::string json = StrFormat(
                  "{\"triangles\": %llu, \"zero_area_dropped\": %llu, \"blocks\": %llu, "
                  "\"references\": %llu, \"raw_bytes\": %llu, \"stored_bytes\": %llu, "
                  "\"largest_raw_block_bytes\": %u, \"seconds\": %.3f, \"read_seconds\": %.3f, "
@@ -292,7 +323,10 @@ int Run(const Args& args) {
                  r.read_seconds, mtri_s, PeakRssMb(), static_cast<unsigned long long>(r.octree_nodes),
                  r.max_depth, static_cast<unsigned long long>(r.emitters), r.shift[0], r.shift[1],
                  r.shift[2]);
-    std::fclose(f);
+    if (Status s = WriteStatsJson(args.stats_json, json); !s.ok()) {
+      std::fprintf(stderr, "raystack-prep: error: %s (the store is written)\n", s.message().c_str());
+      return 1;
+    }
   }
   return 0;
 }
