@@ -391,7 +391,10 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
     return waiting.WaitForShutdown().ok() ? OkStatus() : scene.status();
   }
   if (net->rank() == 0) {
-    Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);
+    // (The log's lock before the log is opened: opening empties it.)
+    Expected<std::optional<OutputLock>> log_lock = LockConvergenceLog(args);  // held to the end
+    Expected<std::unique_ptr<ConvergenceLog>> log =
+        log_lock.ok() ? OpenLog(args) : Expected<std::unique_ptr<ConvergenceLog>>(log_lock.status());
     Status s = log.ok() ? CheckMemory(*scene, 0) : log.status();
     if (s.ok()) s = CheckOutputOf(args, *scene);
     if (s.ok()) WarnIfCheckpointsKeepLittle(args, *scene);

@@ -109,6 +109,17 @@ Expected<std::optional<OutputLock>> LockStats(const RenderArgs& args) {
   return std::optional<OutputLock>(std::move(*lock));
 }
 
+Expected<std::optional<OutputLock>> LockConvergenceLog(const RenderArgs& args) {
+  if (args.convergence_log.empty()) return std::optional<OutputLock>();
+  std::error_code ec;
+  const std::filesystem::file_status there = std::filesystem::status(args.convergence_log, ec);
+  if (std::filesystem::exists(there) && !std::filesystem::is_regular_file(there))
+    return std::optional<OutputLock>();  // a pipe, a terminal: the job's own stream
+  Expected<OutputLock> lock = OutputLock::Take(args.convergence_log, 0, 1, "--convergence-log");
+  if (!lock.ok()) return lock.status();
+  return std::optional<OutputLock>(std::move(*lock));
+}
+
 Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene) {
   RAYSTACK_RETURN_IF_ERROR(CheckStatsTarget(args, scene));
   const Status s = CheckOutputs(scene, OutputOf(args, scene), args.png, args.checkpoint_s > 0,

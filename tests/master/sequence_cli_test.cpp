@@ -235,6 +235,17 @@ TEST_F(Sequence, JobsOnOtherFramesOfOneSequenceRunSideBySide) {
   EXPECT_NE(stats.err.find("split.json: another raystack render is writing this output now"),
             std::string::npos) << stats.err;
   EXPECT_NE(stats.err.find("give another --stats"), std::string::npos) << stats.err;
+  // Its convergence log too (a pipeline review: two jobs' rows in one log, which
+  // raystack-plot then refused).
+  for (int np : {0, 3}) {
+    SCOPED_TRACE(np);
+    const ProcessResult logged = Render(dir_->File("other3.exr"), np, {"--convergence-log", log});
+    EXPECT_NE(logged.exit_code, 0) << logged.err;
+    EXPECT_NE(logged.err.find("split.csv: another raystack render is writing this output now"),
+              std::string::npos) << logged.err;
+    EXPECT_NE(logged.err.find("give another --convergence-log"), std::string::npos) << logged.err;
+    EXPECT_NE(Slurp(log).find("0,end,"), std::string::npos) << "the first job's log was emptied";
+  }
   // Through a link to it (a review: the lock went by the link's name, the file written by its
   // target's, and one job's records were lost).
   std::filesystem::create_symlink(dir_->File("split.json"), dir_->File("link.json"));
