@@ -7,6 +7,7 @@
 #include <system_error>
 
 #include "common/base/build_id.h"
+#include "common/base/standard_streams.h"
 #include "master/render_command.h"
 
 namespace {
@@ -23,6 +24,7 @@ Stores are made with raystack-prep and inspected with raystack-info.
 }  // namespace
 
 int main(int argc, char** argv) {
+  raystack::OpenClosedStandardStreams();
   // Progress lines reach a log file (Slurm's, a redirect) as they are printed, not at exit.
   std::setvbuf(stdout, nullptr, _IOLBF, 0);
   if (argc >= 2 && std::strcmp(argv[1], "render") == 0) {
@@ -43,11 +45,11 @@ int main(int argc, char** argv) {
   }
   if (argc >= 2 && (std::strcmp(argv[1], "-h") == 0 || std::strcmp(argv[1], "--help") == 0)) {
     std::fputs(kUsage, stdout);
-    return 0;
+    return raystack::EndWithStandardOutput("raystack", 0);
   }
   if (argc >= 2 && std::strcmp(argv[1], "--version") == 0) {
     std::printf("raystack %s\n", raystack::BuildId());
-    return 0;
+    return raystack::EndWithStandardOutput("raystack", 0);
   }
   if (argc >= 2) std::fprintf(stderr, "raystack: unknown command '%s'\n", argv[1]);
   std::fputs(kUsage, stderr);

@@ -627,6 +627,29 @@ TEST_F(PrepCliTest, StatsJsonThatCannotBeWrittenIsAnErrorAndKeepsTheEarlierFile)
                           std::filesystem::directory_iterator()), 2) << "a temporary is left";
 }
 
+// Found by a pipeline review: raystack-info's report to a full disk (or /dev/full) was lost
+// with exit 0, as were --version's line and prep's summary. And with the standard output
+// closed (`>&-`), the next file opened would take its number: printing must not reach it.
+TEST_F(PrepCliTest, AReportThatCannotBeWrittenIsAnError) {
+  ASSERT_EQ(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "-q"}).exit_code, 0);
+  const auto shell = [&](const std::string& command) {
+    return RunProcess({"/bin/sh", "-c", command}, dir_->path());
+  };
+  ProcessResult r = shell(std::string(kInfoBinary) + " " + dir_->File("s") + " > /dev/full");
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("raystack-info: cannot write to the standard output: No space left on "
+                       "device"), std::string::npos) << r.err;
+  r = shell(std::string(kPrepBinary) + " --version > /dev/full");
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("raystack-prep: cannot write to the standard output"), std::string::npos)
+      << r.err;
+  r = shell(std::string(kPrepBinary) + " --generate sphere:100 -o " + dir_->File("t") +
+            " --stats-json " + dir_->File("t.json") + " >&-");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(testing::Slurp(dir_->File("t.json")).rfind("{\"triangles\": 108,", 0), 0u);
+  EXPECT_EQ(Info({dir_->File("t"), "--verify"}).exit_code, 0);
+}
+
 // Found by a converter persona: --stats-json inside the store worked once, and the next
 // conversion into that store refused the folder ("holds other files ('stats.json')").
 TEST_F(PrepCliTest, StatsInsideTheStoreAreRefusedUpFront) {

@@ -125,6 +125,18 @@ class PlotTool(unittest.TestCase):
         # the medians of the rows holding each colour.
         self.assertLess(sorted(blue)[len(blue) // 2], sorted(orange)[len(orange) // 2])
 
+    def test_a_standard_output_that_cannot_be_written_is_said_in_a_line(self):
+        # Found by a pipeline review: --area to /dev/full ended in a Python traceback.
+        a = os.path.join(self.tmp, "a.csv")
+        write_log(a, [(0.0, 2.0), (1.0, 1.0), (3.0, 0.5)])
+        with open("/dev/full", "w") as full:
+            r = subprocess.run([sys.executable, TOOL, a, "-o", os.path.join(self.tmp, "p.png"),
+                                "--area"], stdout=full, stderr=subprocess.PIPE, text=True)
+        self.assertEqual(r.returncode, 1, r.stderr)
+        self.assertIn("raystack-plot: cannot write to the standard output: No space left on device",
+                      r.stderr)
+        self.assertNotIn("Traceback", r.stderr)
+
     def test_area_under_a_step_curve(self):
         a = os.path.join(self.tmp, "a.csv")
         write_log(a, [(0.0, 2.0), (1.0, 1.0), (3.0, 0.5)])

@@ -10,6 +10,7 @@
 #include "common/base/build_id.h"
 #include "common/base/log.h"
 #include "common/base/progress.h"
+#include "common/base/standard_streams.h"
 #include "common/base/unknown_option.h"
 #include "common/render/material_table.h"
 #include "common/store/store_writer.h"
@@ -175,7 +176,10 @@ int Run(const std::string& dir, bool verify, bool list) {
 }  // namespace
 }  // namespace raystack
 
-int main(int argc, char** argv) {
+namespace raystack::info {
+namespace {
+
+int Main(int argc, char** argv) {
   std::string dir;
   bool verify = false, list = false;
   for (int i = 1; i < argc; ++i) {
@@ -221,4 +225,12 @@ int main(int argc, char** argv) {
     return raystack::info::ShowImage(dir);
   }
   return raystack::Run(dir, verify, list);
+}
+
+}  // namespace
+}  // namespace raystack::info
+
+int main(int argc, char** argv) {
+  raystack::OpenClosedStandardStreams();
+  return raystack::EndWithStandardOutput("raystack-info", raystack::info::Main(argc, argv));
 }

@@ -16,6 +16,7 @@
 #include "common/base/build_id.h"
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
+#include "common/base/standard_streams.h"
 #include "common/base/unknown_option.h"
 #include "common/store/format.h"
 #include "tools/prep/convert.h"
@@ -334,7 +335,10 @@ int Run(const Args& args) {
 }  // namespace
 }  // namespace raystack::prep
 
-int main(int argc, char** argv) {
+namespace raystack::prep {
+namespace {
+
+int Main(int argc, char** argv) {
   if (argc == 1) {  // a first run: what to give, not what is missing
     std::fputs(raystack::prep::kUsage, stderr);
     return 2;
@@ -355,4 +359,12 @@ int main(int argc, char** argv) {
     return 2;
   }
   return raystack::prep::Run(args);
+}
+
+}  // namespace
+}  // namespace raystack::prep
+
+int main(int argc, char** argv) {
+  raystack::OpenClosedStandardStreams();
+  return raystack::EndWithStandardOutput("raystack-prep", raystack::prep::Main(argc, argv));
 }
