@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "common/base/log.h"
+#include "common/base/memory_available.h"
 #include "common/base/thread_name.h"
 #include "common/geometry/wide_bvh.h"
 #include "slave/ray_thread.h"

@@ -80,7 +80,4 @@ struct RenderStats {
   std::string ToText() const;
 };
 
-// Peak resident set size of this process (VmHWM), 0 if unknown.
-uint64_t PeakRssBytes();
-
 }  // namespace raystack::slave

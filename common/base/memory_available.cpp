@@ -125,4 +125,12 @@ std::optional<uint64_t> MemoryAvailable() {
   return available;
 }
 
+uint64_t PeakRssBytes() {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("VmHWM:", 0) == 0) return std::stoull(line.substr(6)) * 1024;
+  return 0;
+}
+
 }  // namespace raystack

@@ -12,6 +12,11 @@ namespace raystack {
 
 std::optional<uint64_t> MemoryAvailable();
 
+// Peak resident set size of this process since it started its program (VmHWM), 0 if unknown.
+// Not getrusage's ru_maxrss, which Linux carries across exec from the process that forked it: a
+// prep started by a 100 MB test binary reported "peak RSS 100 MiB" of a 32 MiB run.
+uint64_t PeakRssBytes();
+
 // What this process may still allocate: MemoryAvailable(), or less under an address-space limit
 // (RLIMIT_AS: `ulimit -v`, some batch schedulers' memory limit, e.g. SGE's h_vmem), which
 // counts address space reserved, not memory used: the room left under it, less `reserve`. For the checks before a render or a prep, not

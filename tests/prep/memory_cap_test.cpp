@@ -69,10 +69,10 @@ TEST(MemoryCap, ConvertsAModelLargerThanTheCap) {
   // Its own peak RSS (anonymous memory; the cgroup figure also counts page cache) keeps to
   // --mem-limit.
   std::smatch rss;
-  ASSERT_TRUE(std::regex_search(r.out, rss, std::regex("peak RSS ([0-9]+) MB"))) << r.out;
+  ASSERT_TRUE(std::regex_search(r.out, rss, std::regex("peak RSS ([0-9]+) MiB"))) << r.out;
   const int peak_rss_mb = std::stoi(rss[1].str());
   ::testing::Test::RecordProperty("prep_peak_rss_mb", std::to_string(peak_rss_mb));
-  std::printf("memory cap: raystack-prep peak RSS %d MB (--mem-limit %d)\n", peak_rss_mb, kMemLimitMb);
+  std::printf("memory cap: raystack-prep peak RSS %d MiB (--mem-limit %d)\n", peak_rss_mb, kMemLimitMb);
   EXPECT_LE(peak_rss_mb, kMemLimitMb);
   EXPECT_LE(oom_kills, 0) << "the OOM killer fired in " << group->path();
   EXPECT_GT(max_usage, 0u) << "nothing was charged to the group: the run was not capped";
@@ -103,7 +103,7 @@ TEST(MemoryCap, ABudgetAboveTheCapIsWarnedAbout) {
                                         std::to_string(mb), "-q", "-o", dir->File("s")},
                                        dir->path(), group->Joiner());
     EXPECT_EQ(r.exit_code, 0) << r.err;
-    EXPECT_EQ(r.err.find("--mem-limit " + std::to_string(mb) + " MB is above the") !=
+    EXPECT_EQ(r.err.find("--mem-limit " + std::to_string(mb) + " MiB is above the") !=
                   std::string::npos, mb == 1024) << mb << ": " << r.err;
   }
 }

@@ -153,7 +153,7 @@ TEST_F(PrepCliTest, BadNumberFails) {
                     {"--threads"});
   // Found by a real-model user test, 2026-11-26: a number out of range was "not a number".
   ProcessResult r = Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--mem-limit", "16"});
-  ExpectFailsNaming(r, {"--mem-limit 16: must be from 64 to 16777216 (MB)"});
+  ExpectFailsNaming(r, {"--mem-limit 16: must be from 64 to 16777216 (MiB)"});
   EXPECT_EQ(r.err.find("not a number"), std::string::npos) << r.err;
   ExpectFailsNaming(Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "--threads", "0"}),
                     {"--threads 0: must be from 1 to 1024"});
@@ -681,7 +681,7 @@ TEST_F(PrepCliTest, ThreadsBeyondTheMemoryLimitAreSaidAndBounded) {
   EXPECT_NE(r.err.find("--threads 1024: --mem-limit 64 leaves room for 36 encoding threads"),
             std::string::npos) << r.err;
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(r.out, m, std::regex("peak RSS ([0-9]+) MB"))) << r.out;
+  ASSERT_TRUE(std::regex_search(r.out, m, std::regex("peak RSS ([0-9]+) MiB"))) << r.out;
   EXPECT_LE(std::stoi(m[1]), 64) << r.out;
 }
 

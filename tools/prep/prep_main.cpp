@@ -1,7 +1,6 @@
 // raystack-prep: converts OBJ/PLY models (or a generated one) into a block store, out of core.
 
 #include <fcntl.h>
-#include <sys/resource.h>
 #include <unistd.h>
 
 #include <charconv>
@@ -77,7 +76,7 @@ options:
                           writing a replicated file first)
   --target-block-kb N     mean raw block size to aim for (default 32)
   --max-block-kb N        hard cap on a raw block (default 128)
-  --mem-limit MB          memory budget of the whole converter (default 1024)
+  --mem-limit MiB         memory budget of the whole converter (default 1024)
   --threads N             encoding threads (default: the cores it may use)
   --temp-dir DIR          where temporary files go (default: $TMPDIR or /tmp)
   --no-shuffle            plain lz4 without the byte shuffle (for measurement)
@@ -151,7 +150,7 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       a->convert.max_block_bytes = kb * 1024;
     } else if (arg == "--mem-limit") {
       uint64_t mb = 0;
-      RAYSTACK_RETURN_IF_ERROR(number(&mb, uint64_t{64}, uint64_t{1} << 24, "MB"));
+      RAYSTACK_RETURN_IF_ERROR(number(&mb, uint64_t{64}, uint64_t{1} << 24, "MiB"));
       a->convert.memory_limit_bytes = mb << 20;
     } else if (arg == "--threads") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->convert.threads, 1, 1024));
@@ -212,18 +211,14 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
   return OkStatus();
 }
 
-double PeakRssMb() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_maxrss / 1024.0;
-}
+double PeakRssMb() { return static_cast<double>(PeakRssBytes()) / (1 << 20); }
 
 // A budget above what this process may fill (the machine's available memory, or a cgroup
 // limit nearer) ends in the kernel's OOM killer, without a word from us: say so first.
 void WarnIfBudgetAboveMemory(uint64_t budget) {
   const std::optional<uint64_t> room = MemoryThisProcessMayTake(/*reserve=*/0);
   if (room && budget > *room)
-    LOG_WARNING("prep", "--mem-limit %llu MB is above the %llu MB this process may fill now (the "
+    LOG_WARNING("prep", "--mem-limit %llu MiB is above the %llu MiB this process may fill now (the "
                 "memory available, its cgroup's limit or its address-space limit): it may fail "
                 "or be killed; give a smaller --mem-limit", static_cast<unsigned long long>(budget >> 20),
                 static_cast<unsigned long long>(*room >> 20));
@@ -290,7 +285,7 @@ int Run(const Args& args) {
       "  blocks         %llu, mean raw %.1f KB, largest %.1f KB, %.3f references per triangle\n"
       "  compression    %.2fx (%s), %.1f bytes per triangle on disk\n"
       "  octree         %llu nodes, depth %u, %u partition passes, %u multi-block leaves\n"
-      "  time           %.2f s (reading %.2f s), %.2f M triangles/s, peak RSS %.0f MB\n",
+      "  time           %.2f s (reading %.2f s), %.2f M triangles/s, peak RSS %.0f MiB\n",
       args.convert.output.c_str(), static_cast<unsigned long long>(r.triangles),
       static_cast<unsigned long long>(r.source_triangles),
       static_cast<unsigned long long>(r.zero_area_dropped),
