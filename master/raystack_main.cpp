@@ -28,6 +28,12 @@ int main(int argc, char** argv) {
   // Progress lines reach a log file (Slurm's, a redirect) as they are printed, not at exit.
   std::setvbuf(stdout, nullptr, _IOLBF, 0);
   if (argc >= 2 && std::strcmp(argv[1], "render") == 0) {
+    // `raystack render --version` as `raystack --version` (it was an unknown option).
+    for (int i = 2; i < argc; ++i)
+      if (std::strcmp(argv[i], "--version") == 0) {
+        std::printf("raystack %s\n", raystack::BuildId());
+        return raystack::EndWithStandardOutput("raystack", 0);
+      }
     // A reader that went away (`--stats /dev/stdout | head`, a closed terminal) is a failed write,
     // said and survived: its signal ended the render mid-sequence, the output's lock left.
     std::signal(SIGPIPE, SIG_IGN);

@@ -113,6 +113,7 @@ options:
   -q, --quiet               no progress or information lines (warnings and errors
                             are still printed)
   -h, --help                this text
+  --version                 this build's version and git commit (as `raystack --version`)
 
 fault injection (for tests and drills):
   --fault-rank R            apply the faults below on rank R only (default: every slave)
@@ -268,7 +269,7 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
     } else if (arg == "--coarse-rounds") {
       RAYSTACK_RETURN_IF_ERROR(value(&a->coarse_rounds));
       if (a->coarse_rounds != "auto" && a->coarse_rounds != "on" && a->coarse_rounds != "off")
-        return Status::Error("--coarse-rounds must be auto, on or off, not '" + a->coarse_rounds + "'");
+        return Status::Error("--coarse-rounds must be auto, on or off, got '" + a->coarse_rounds + "'");
     } else if (arg == "--time-limit") {
       RAYSTACK_RETURN_IF_ERROR(number(&a->stop.time_limit_s, 1e-3, 1e9));
     } else if (arg == "--target-error") {

@@ -81,7 +81,7 @@ Status StatsFile::Open() {
     return Write("[\n", 0);
   }
   const std::string aside = target_.path + ".tmp";
-  fd_ = ::open(aside.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  fd_ = ::open(aside.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);  // (the umask decides, as for the images)
   if (fd_ < 0) return CannotWrite(path_, std::strerror(errno));
   return OkStatus();
 }
