@@ -1,12 +1,11 @@
 #include "master/render_args.h"
 
 #include <algorithm>
-#include <charconv>
-#include <cmath>
 #include <filesystem>
 #include <thread>
 
 #include "common/base/log.h"
+#include "common/base/option_number.h"
 #include "common/base/unknown_option.h"
 #include "common/base/usable_cores.h"
 #include "slave/block_loader.h"
@@ -134,12 +133,6 @@ fault injection (for tests and drills):
 
 namespace {
 
-template <typename T>
-bool ParseNumber(const std::string& s, T* out) {
-  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *out);
-  return ec == std::errc() && p == s.data() + s.size();
-}
-
 // --frames: "A", "A-B" or "A-" (to the last camera).
 Status ParseFrameRange(const std::string& range, size_t* first, size_t* last) {
   const size_t dash = range.find('-');
@@ -192,29 +185,11 @@ Status ParseRenderArgs(int argc, char** argv, RenderArgs* a, bool* help) {
       *out = argv[++i];
       return OkStatus();
     };
-    // `unit` names what the number counts, for the message ("MB").
+    // `unit` names what the number counts, for the message ("MiB").
     auto number = [&](auto* out, double lo, double hi, const char* unit = "") -> Status {
       std::string v;
       RAYSTACK_RETURN_IF_ERROR(value(&v));
-      // %.10g: 16777216 in full, not 1.67772e+07.
-      const std::string range = StrFormat("from %.10g to %.10g%s%s%s", lo, hi, *unit ? " (" : "",
-                                          unit, *unit ? ")" : "");
-      if (!ParseNumber(v, out)) {
-        // A number the option's type cannot hold ("-1" for a count, 99999999999 threads, 1.5
-        // threads) is said as what it is, not as "not a number".
-        double wide = 0;
-        if (ParseNumber(v, &wide) && std::isfinite(wide))
-          return Status::Error(StrFormat("%s %s: must be %s%s", arg.c_str(), v.c_str(),
-                                         wide >= lo && wide <= hi ? "a whole number " : "",
-                                         range.c_str()));
-        return Status::Error(StrFormat("%s: '%s' is not a number; give one %s", arg.c_str(),
-                                       v.c_str(), range.c_str()));
-      }
-      // Written so that NaN ("nan" parses) is out of every range. Said as out of range:
-      // "not a number" misled users giving a number too small.
-      if (!(static_cast<double>(*out) >= lo && static_cast<double>(*out) <= hi))
-        return Status::Error(StrFormat("%s %s: must be %s", arg.c_str(), v.c_str(), range.c_str()));
-      return OkStatus();
+      return ParseOptionNumber(arg, v, out, lo, hi, unit);
     };
     if (arg == "-h" || arg == "--help") {
       *help = true;

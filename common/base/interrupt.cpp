@@ -12,6 +12,9 @@ namespace {
 std::atomic<int> g_signal{0};
 std::atomic<bool> g_hold{false};
 std::atomic<bool> g_announce{false};
+// The announcement starts a line of its own after a progress bar (a terminal's, redrawn in
+// place); in a log, where progress comes in whole lines, it had a blank line before it.
+std::atomic<bool> g_after_bar{false};
 static_assert(std::atomic<int>::is_always_lock_free && std::atomic<bool>::is_always_lock_free);
 
 extern "C" void NoteInterrupt(int sig) {
@@ -24,7 +27,8 @@ extern "C" void NoteInterrupt(int sig) {
   if (g_announce.load()) {
     constexpr char kText[] =
         "\nraystack render: interrupted: keeping what can be kept (once more to end at once)\n";
-    (void)!write(STDERR_FILENO, kText, sizeof kText - 1);  // async-signal-safe, unlike stdio
+    const int skip = g_after_bar.load() ? 0 : 1;
+    (void)!write(STDERR_FILENO, kText + skip, sizeof kText - 1 - skip);  // async-signal-safe, unlike stdio
   }
 }
 
@@ -32,6 +36,7 @@ extern "C" void NoteInterrupt(int sig) {
 
 void CatchInterrupts(bool announce) {
   g_announce.store(announce);
+  g_after_bar.store(::isatty(STDERR_FILENO) == 1);
   struct sigaction action {};
   action.sa_handler = NoteInterrupt;
   sigemptyset(&action.sa_mask);

@@ -3,7 +3,6 @@
 #include <fcntl.h>
 #include <unistd.h>
 
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -15,6 +14,7 @@
 #include "common/base/build_id.h"
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
+#include "common/base/option_number.h"
 #include "common/base/standard_streams.h"
 #include "common/base/unknown_option.h"
 #include "common/store/format.h"
@@ -98,12 +98,6 @@ struct Args {
   std::string stats_json;
 };
 
-template <typename T>
-bool ParseNumber(const std::string& s, T* out) {
-  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *out);
-  return ec == std::errc() && p == s.data() + s.size();
-}
-
 Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -112,20 +106,11 @@ Status ParseArgs(int argc, char** argv, Args* a, bool* help) {
       *out = argv[++i];
       return OkStatus();
     };
-    // `unit` names what the number counts, for the message ("MB").
+    // `unit` names what the number counts, for the message ("MiB").
     auto number = [&](auto* out, auto lo, auto hi, const char* unit = "") -> Status {
       std::string v;
       RAYSTACK_RETURN_IF_ERROR(value(&v));
-      const std::string range = StrFormat("from %lld to %lld%s%s%s", static_cast<long long>(lo),
-                                          static_cast<long long>(hi), *unit ? " (" : "", unit,
-                                          *unit ? ")" : "");
-      if (!ParseNumber(v, out))
-        return Status::Error(StrFormat("%s: '%s' is not a whole number; give one %s",
-                                       arg.c_str(), v.c_str(), range.c_str()));
-      // A number out of range is said as such: "not a number" misled users giving 16 MB.
-      if (*out < lo || *out > hi)
-        return Status::Error(StrFormat("%s %s: must be %s", arg.c_str(), v.c_str(), range.c_str()));
-      return OkStatus();
+      return ParseOptionNumber(arg, v, out, static_cast<double>(lo), static_cast<double>(hi), unit);
     };
     if (arg == "-h" || arg == "--help") {
       *help = true;
