@@ -378,8 +378,16 @@ Status StoreReader::OpenBlocks() {
     return Status::Error(StrFormat("%s: damaged header (header size %u, checksum field %llx: "
                                    "expected %zu and 0)", path.c_str(), h.header_bytes,
                                    static_cast<unsigned long long>(h.body_checksum), sizeof h));
-  if (h.body_bytes != blocks_file_bytes_ - sizeof h)
+  if (h.body_bytes != blocks_file_bytes_ - sizeof h) {
+    // The file as long as index.bin's blocks: the header's field is what is wrong (a flipped
+    // byte there read as "1099511627776 bytes shorter than its header says (truncated?)").
+    if (blocks_file_bytes_ - sizeof h == summary_.stored_bytes)
+      return Status::Error(StrFormat("%s: damaged header (its body length says %llu bytes; the "
+                                     "file holds the %llu bytes of blocks index.bin lists)",
+                                     path.c_str(), static_cast<unsigned long long>(h.body_bytes),
+                                     static_cast<unsigned long long>(summary_.stored_bytes)));
     return SizeMismatch(path, blocks_file_bytes_ - sizeof h, h.body_bytes);
+  }
   // Blocks lie back to back in id order, as the writer puts them: the loader reads
   // neighbouring ids as one run of bytes and finds each block at its offset from the run's
   // first. An index out of order made it compute a negative run size (store_fuzz found the
