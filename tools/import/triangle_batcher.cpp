@@ -73,8 +73,9 @@ Status TriangleBatcher::Finish(const std::string& path) {
                 "surface)", path.c_str(),
                 static_cast<unsigned long long>(info_->faces_under_three_corners));
   if (info_->attributes_not_finite > 0)
-    LOG_WARNING("import", "%s: %llu normals or texture coordinates are not finite numbers (NaN, "
-                "inf, -1.#IND): the faces that use them are shaded without them", path.c_str(),
+    LOG_WARNING("import", "%s: %llu normals or texture coordinates are not finite floats (NaN, "
+                "inf, -1.#IND, or beyond float range, as 1e50): the faces that use them are "
+                "shaded without them", path.c_str(),
                 static_cast<unsigned long long>(info_->attributes_not_finite));
   if (fanned_concave_ > 0)
     LOG_WARNING("import", "%s: %llu non-convex faces of more than %zu corners were split as "
