@@ -37,7 +37,8 @@ struct StopRules {
 class ConvergenceLog {
  public:
   // A pipe (a FIFO another program reads) is fine; one that no program reads is an error now,
-  // not a job held in open() until one does.
+  // not a job held in open() until one does. A file is locked for the job (held by the open
+  // log): another job writing it is an error.
   static Expected<std::unique_ptr<ConvergenceLog>> Open(const std::string& path);
   ~ConvergenceLog();
   // A row; a failed write (a full disk) is said at once, once, and kept for Close.

@@ -391,12 +391,12 @@ Status RenderDistributed(const RenderArgs& args, transport::Transport* net) {
     return waiting.WaitForShutdown().ok() ? OkStatus() : scene.status();
   }
   if (net->rank() == 0) {
-    // (The log's lock before the log is opened: opening empties it.)
-    Expected<std::optional<OutputLock>> log_lock = LockConvergenceLog(args);  // held to the end
-    Expected<std::unique_ptr<ConvergenceLog>> log =
-        log_lock.ok() ? OpenLog(args) : Expected<std::unique_ptr<ConvergenceLog>>(log_lock.status());
-    Status s = log.ok() ? CheckMemory(*scene, 0) : log.status();
+    Status s = CheckMemory(*scene, 0);
     if (s.ok()) s = CheckOutputOf(args, *scene);
+    // (After the outputs' checks: opening empties the log. Locked, held to the end.)
+    Expected<std::unique_ptr<ConvergenceLog>> log =
+        s.ok() ? OpenLog(args) : Expected<std::unique_ptr<ConvergenceLog>>(s);
+    if (!log.ok()) s = log.status();
     if (s.ok()) WarnIfCheckpointsKeepLittle(args, *scene);
     if (s.ok()) WarnIfFrameSizesDiffer(*scene, FramesOf(args, *scene));
     Expected<OutputLock> output_lock =  // held to the end of the job

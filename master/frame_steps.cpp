@@ -81,7 +81,7 @@ Status CheckStatsTarget(const RenderArgs& args, const render::Scene& scene) {
   if (std::filesystem::is_directory(args.stats, dir_ec))  // found only after the job, before
     return Status::Error("--stats " + args.stats + " is a folder: give a file (e.g. " +
                          (std::filesystem::path(args.stats) / "stats.json").lexically_normal().string() + ")");
-  const StatsTarget target = ResolveStatsTarget(args.stats);
+  const OutputTarget target = ResolveOutputTarget(args.stats);
   if (target.stream) return OkStatus();  // a pipe, a terminal, the standard output: nothing to replace
   if (Status s = image::CheckWritable(target.path); !s.ok()) return Status::Error("--stats: " + s.message());
   std::error_code ec;
@@ -98,30 +98,42 @@ Status CheckStatsTarget(const RenderArgs& args, const render::Scene& scene) {
   return OkStatus();
 }
 
+// The convergence log is a file of its own: given the --stats file's name or an image's, the
+// job refused itself as "another raystack render" (its own locks) or would have mixed them.
+Status CheckLogTarget(const RenderArgs& args, const render::Scene& scene) {
+  if (args.convergence_log.empty()) return OkStatus();
+  std::error_code ec;
+  const std::filesystem::path log = std::filesystem::weakly_canonical(args.convergence_log, ec);
+  if (!args.stats.empty() && std::filesystem::weakly_canonical(args.stats, ec) == log)
+    return Status::Error("--convergence-log " + args.convergence_log + " is the --stats file: give "
+                         "each a file of its own (e.g. log.csv and stats.json)");
+  const std::string output = OutputOf(args, scene);
+  const size_t frames = scene.cameras.size();
+  for (size_t f = 0; f < frames; ++f)
+    for (const char* ext : {".exr", ".png"}) {
+      const std::string image = FramePath(output, f, frames, ext);
+      if (std::filesystem::weakly_canonical(image, ec) == log)
+        return Status::Error("--convergence-log " + args.convergence_log + " is " + image +
+                             ", an image of this job's output: give the log a file of its own "
+                             "(e.g. log.csv)");
+    }
+  return OkStatus();
+}
+
 }  // namespace
 
 Expected<std::optional<OutputLock>> LockStats(const RenderArgs& args) {
   if (args.stats.empty()) return std::optional<OutputLock>();
-  const StatsTarget target = ResolveStatsTarget(args.stats);
+  const OutputTarget target = ResolveOutputTarget(args.stats);
   if (target.stream) return std::optional<OutputLock>();  // two jobs' pipes are their own
   Expected<OutputLock> lock = OutputLock::Take(target.path, 0, 1, "--stats");
   if (!lock.ok()) return lock.status();
   return std::optional<OutputLock>(std::move(*lock));
 }
 
-Expected<std::optional<OutputLock>> LockConvergenceLog(const RenderArgs& args) {
-  if (args.convergence_log.empty()) return std::optional<OutputLock>();
-  std::error_code ec;
-  const std::filesystem::file_status there = std::filesystem::status(args.convergence_log, ec);
-  if (std::filesystem::exists(there) && !std::filesystem::is_regular_file(there))
-    return std::optional<OutputLock>();  // a pipe, a terminal: the job's own stream
-  Expected<OutputLock> lock = OutputLock::Take(args.convergence_log, 0, 1, "--convergence-log");
-  if (!lock.ok()) return lock.status();
-  return std::optional<OutputLock>(std::move(*lock));
-}
-
 Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene) {
   RAYSTACK_RETURN_IF_ERROR(CheckStatsTarget(args, scene));
+  RAYSTACK_RETURN_IF_ERROR(CheckLogTarget(args, scene));
   const Status s = CheckOutputs(scene, OutputOf(args, scene), args.png, args.checkpoint_s > 0,
                                 FramesOf(args, scene));
   if (s.ok()) return s;

@@ -42,9 +42,6 @@ std::string FrameTitle(size_t f, size_t frames);
 // --stats' lock, held for the job (two jobs' records in one file made it unreadable); none
 // without --stats or for a stream (a pipe, the standard output). On the file a link names.
 Expected<std::optional<OutputLock>> LockStats(const RenderArgs& args);
-// --convergence-log's lock, held for the job likewise (two jobs' rows in one log: raystack-plot
-// refused it, "3 fields, expected 12"; a pipeline review); none without it or for a pipe.
-Expected<std::optional<OutputLock>> LockConvergenceLog(const RenderArgs& args);
 // CheckOutputs (preflight.h) for OutputOf, its errors prefixed by where the output was given
 // ("--output", or the scene file's "output" key); and --stats' file (none of the job's images).
 Status CheckOutputOf(const RenderArgs& args, const render::Scene& scene);

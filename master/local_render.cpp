@@ -83,9 +83,6 @@ Status RenderLocally(const RenderArgs& args) {
   if (!output_lock.ok()) return output_lock.status();
   Expected<std::optional<OutputLock>> stats_lock = LockStats(args);  // held to the end too
   if (!stats_lock.ok()) return stats_lock.status();
-  // (Before the log is opened: opening empties it.)
-  Expected<std::optional<OutputLock>> log_lock = LockConvergenceLog(args);  // held to the end too
-  if (!log_lock.ok()) return log_lock.status();
   RAYSTACK_RETURN_IF_ERROR(CheckNoUnfinishedFrame(args, *scene));
   RAYSTACK_RETURN_IF_ERROR(CheckReferences(*scene, args.reference, range));
   Expected<std::unique_ptr<ConvergenceLog>> log = OpenLog(args);

@@ -1,16 +1,13 @@
 #include "master/stats_file.h"
 
 #include <fcntl.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 
 #include "common/base/log.h"
-#include "common/image/output_file.h"
 
 namespace raystack::master {
 namespace {
@@ -20,36 +17,6 @@ Status CannotWrite(const std::string& path, const std::string& why) {
 }
 
 }  // namespace
-
-StatsTarget ResolveStatsTarget(const std::string& given) {
-  StatsTarget t;
-  t.path = given;
-  struct stat st;
-  const bool there = ::stat(given.c_str(), &st) == 0;
-  if (there) {
-    // /dev/stdout with the output sent to a file: that file, written through the process's own
-    // descriptor (a review: replaced by the first array, the run's text went with the old one).
-    for (const int fd : {1, 2}) {
-      struct stat std_st;
-      if (::fstat(fd, &std_st) == 0 && std_st.st_dev == st.st_dev && std_st.st_ino == st.st_ino) {
-        t.stream = true;
-        t.std_fd = fd;
-        return t;
-      }
-    }
-    if (!S_ISREG(st.st_mode)) {  // a pipe, a terminal, /dev/null (opened by the name given)
-      t.stream = true;
-      return t;
-    }
-  }
-  // A regular file, or none yet: links followed, also to a file not there yet (a job's stats
-  // file appears at its first record), so that the lock is the file's whatever names it.
-  const std::filesystem::path p = image::FollowLinks(given);
-  std::error_code ec;
-  const std::filesystem::path real = std::filesystem::weakly_canonical(p, ec);
-  t.path = ec ? p.string() : real.string();
-  return t;
-}
 
 StatsFile::~StatsFile() {
   (void)Finish();
@@ -69,7 +36,7 @@ Status StatsFile::Write(const std::string& bytes, uint64_t at) {
 }
 
 Status StatsFile::Open() {
-  target_ = ResolveStatsTarget(path_);
+  target_ = ResolveOutputTarget(path_);
   if (target_.stream) {
     // O_NONBLOCK: a FIFO that no program reads fails at once (ENXIO) rather than holding the
     // job in open(), deaf to a first Ctrl-C (found by a hostile-input review).

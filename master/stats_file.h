@@ -10,19 +10,11 @@
 #include <mutex>
 #include <string>
 
+#include "common/base/output_target.h"
 #include "common/base/status.h"
 
 namespace raystack::master {
 
-// Where --stats goes: the file it names (a link followed), and whether it is a stream (a pipe,
-// a terminal, /dev/null, or this process's own standard output or error, even when that is a
-// regular file: it is written in order, at its own offset, never replaced).
-struct StatsTarget {
-  std::string path;     // the file written (or locked), a link followed
-  bool stream = false;
-  int std_fd = -1;      // 1 or 2 when it is this process's standard output or error
-};
-StatsTarget ResolveStatsTarget(const std::string& given);
 
 class StatsFile {
  public:
@@ -47,7 +39,7 @@ class StatsFile {
   void Fail(Status why);
 
   const std::string path_;
-  StatsTarget target_;
+  OutputTarget target_;
   std::mutex mu_;
   int fd_ = -1;
   bool closed_ = false;  // a stream's closing bracket is out

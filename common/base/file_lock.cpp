@@ -26,7 +26,7 @@ namespace {
 // removing the file (it widened its lock to the whole file first, master/output_lock.cpp) or
 // has removed it: the next try meets a new file.
 LockResult TryLockFileOnce(const std::string& path, bool create, int* fd, std::string* error,
-                           LockRange range, bool* again) {
+                           LockRange range, int mode, bool* again) {
   *fd = -1;
   *again = false;
   if (range.start > static_cast<uint64_t>(INT64_MAX) ||
@@ -34,7 +34,7 @@ LockResult TryLockFileOnce(const std::string& path, bool create, int* fd, std::s
     *error = path + ": cannot lock: the range is too large";
     return LockResult::kError;
   }
-  const int f = ::open(path.c_str(), O_RDWR | O_CLOEXEC | (create ? O_CREAT : 0), 0644);
+  const int f = ::open(path.c_str(), O_RDWR | O_CLOEXEC | (create ? O_CREAT : 0), mode);
   if (f < 0) {
     if (errno == ENOENT && !create) return LockResult::kNoFile;
     *error = path + ": cannot open: " + std::strerror(errno);
@@ -77,14 +77,14 @@ bool TryLockWholeFile(int fd) {
 }
 
 LockResult TryLockFile(const std::string& path, bool create, int* fd, std::string* error,
-                       LockRange range) {
+                       LockRange range, int mode) {
   // A lock won on an unlinked file is worthless; the holder that unlinked it is gone by then,
   // so the next try meets the new file (or none). A few tries cover any such race.
   constexpr int kTries = 8;
   LockResult result = LockResult::kError;
   for (int i = 0; i < kTries; ++i) {
     bool again = false;
-    result = TryLockFileOnce(path, create, fd, error, range, &again);
+    result = TryLockFileOnce(path, create, fd, error, range, mode, &again);
     if (result == LockResult::kHeldElsewhere && again && i + 1 < kTries) {
       // A whole-file lock over a range asked for: most likely a job ending, removing the file
       // (an older build's job, or a store's writer, holds it longer: then it stays held).

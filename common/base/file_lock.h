@@ -26,8 +26,9 @@ struct LockRange {
 
 // Opens `path` (read-write, created if `create`) and tries its lock of `range`. *fd is the open
 // descriptor for kLocked and kNoLocks (the caller closes it to release), -1 otherwise.
+// `mode`: a created file's (the umask applies).
 LockResult TryLockFile(const std::string& path, bool create, int* fd, std::string* error,
-                       LockRange range = {});
+                       LockRange range = {}, int mode = 0644);
 // Whether the open file `fd` is still the file at `path` (not removed, nor replaced).
 bool StillAtPath(int fd, const std::string& path);
 // Widens the lock `fd` holds to the whole file if no one else holds any of it: true then (the

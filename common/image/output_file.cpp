@@ -48,17 +48,6 @@ Status CheckFolder(const std::string& path) {
 
 }  // namespace
 
-std::string FollowLinks(const std::string& given) {
-  fs::path p = given;
-  std::error_code ec;
-  for (int hops = 0; hops < 40 && fs::is_symlink(fs::symlink_status(p, ec)); ++hops) {
-    const fs::path to = fs::read_symlink(p, ec);
-    if (ec) break;
-    p = to.is_absolute() ? to : p.parent_path() / to;
-  }
-  return p.string();
-}
-
 Expected<AtomicOutput> AtomicOutput::Create(const std::string& given) {
   const std::string path = FollowLinks(given);
   RAYSTACK_RETURN_IF_ERROR(CheckFolder(path));

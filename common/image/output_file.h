@@ -8,6 +8,7 @@
 #include <string>
 #include <utility>
 
+#include "common/base/follow_links.h"
 #include "common/base/status.h"
 
 namespace raystack::image {
@@ -29,10 +30,8 @@ Expected<uint64_t> FreeSpace(const std::string& path);
 // Other machines' are left alone (a shared folder). Returns how many.
 int RemoveStaleTemporaries(const std::string& path);
 
-// The file `path` names, through any symbolic links (relative ones from their own folder): what
-// AtomicOutput writes and OutputLock locks (a link given as the output was replaced by the file
-// written, its target left as it was: a hostile-input review).
-std::string FollowLinks(const std::string& path);
+// What AtomicOutput writes and OutputLock locks (common/base/follow_links.h).
+using raystack::FollowLinks;
 
 // A temporary file beside `path` (links followed); Commit() makes it the file. Destroyed without a successful
 // Commit(), it removes the temporary. Move-only; not thread-safe.

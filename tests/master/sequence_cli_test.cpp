@@ -241,7 +241,8 @@ TEST_F(Sequence, JobsOnOtherFramesOfOneSequenceRunSideBySide) {
     SCOPED_TRACE(np);
     const ProcessResult logged = Render(dir_->File("other3.exr"), np, {"--convergence-log", log});
     EXPECT_NE(logged.exit_code, 0) << logged.err;
-    EXPECT_NE(logged.err.find("split.csv: another raystack render is writing this output now"),
+    EXPECT_NE(logged.err.find("split.csv: cannot write the convergence log: another raystack "
+                              "render is writing this log now"),
               std::string::npos) << logged.err;
     EXPECT_NE(logged.err.find("give another --convergence-log"), std::string::npos) << logged.err;
     EXPECT_NE(Slurp(log).find("0,end,"), std::string::npos) << "the first job's log was emptied";

@@ -613,6 +613,22 @@ TEST_F(PrepCliTest, StatsJsonThatCannotBeWrittenIsAnErrorAndKeepsTheEarlierFile)
   r = Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "-q", "--stats-json", "/dev/stdout"});
   EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("{\"triangles\": 108,"), std::string::npos) << r.out;
+  // /dev/stdout sent to a file is that file, written in place: the summary stays in it (the
+  // day's review: a rename put the JSON in its place).
+  r = RunProcess({"/bin/sh", "-c", std::string(kPrepBinary) + " --generate sphere:100 -o " +
+                  dir_->File("s") + " --stats-json /dev/stdout > " + dir_->File("out.log")},
+                 dir_->path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  const std::string log = testing::Slurp(dir_->File("out.log"));
+  EXPECT_NE(log.find("store " + dir_->File("s")), std::string::npos) << log;
+  EXPECT_NE(log.find("{\"triangles\": 108,"), std::string::npos) << log;
+  // A link, dangling too, stays a link: the file it names is written.
+  std::filesystem::create_symlink("named.json", dir_->File("link.json"));
+  r = Prep({"--generate", "sphere:100", "-o", dir_->File("s"), "-q", "--stats-json",
+            dir_->File("link.json")});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_TRUE(std::filesystem::is_symlink(dir_->File("link.json")));
+  EXPECT_EQ(testing::Slurp(dir_->File("named.json")).rfind("{\"triangles\": 108,", 0), 0u);
   raystack::testing::SmallTmpfs small(dir_->File("small"), "size=8k");
   if (small.path.empty()) GTEST_SKIP() << small.why;
   const std::string stats = small.path + "/stats.json";

@@ -561,6 +561,25 @@ TEST_F(RenderCli, AConvergenceLogThatCannotBeWrittenIsSaid) {
             std::string::npos) << r.err;
 }
 
+// The day's review: a convergence log given the --stats file's name, or an image's, made the job
+// refuse itself as "another raystack render is writing" (its own locks). Said as what it is,
+// before anything is opened (the stats file of an earlier run is left as it was).
+TEST_F(RenderCli, AConvergenceLogIsAFileOfItsOwn) {
+  std::ofstream(dir_->File("same.txt")) << "earlier";
+  ProcessResult r = RunProcess({kRaystack, "render", Scene(), "-q", "--no-png", "--stats",
+                                dir_->File("same.txt"), "--convergence-log",
+                                dir_->File("./same.txt")},
+                               dir_->path());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("--convergence-log " + dir_->File("./same.txt") + " is the --stats file"), std::string::npos) << r.err;
+  EXPECT_EQ(Slurp(dir_->File("same.txt")), "earlier");
+  r = RunProcess({kRaystack, "render", Scene(), "-q", "--output", dir_->File("o2.exr"),
+                  "--convergence-log", dir_->File("o2.png")}, dir_->path());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("is " + dir_->File("o2.png") + ", an image of this job's output"),
+            std::string::npos) << r.err;
+}
+
 // Whitted sends a shadow ray from every hit to every light: at 1,024 lights a thread that opened
 // more tiles while its rays waited for blocks held 8 tiles' worth (839 MB at 128 x 128, the day's
 // review). It opens more only while fewer than RayThread::kMostWaitingToOpenMore (2^20) wait, so

@@ -15,6 +15,7 @@
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
 #include "common/base/option_number.h"
+#include "common/base/output_target.h"
 #include "common/base/standard_streams.h"
 #include "common/base/unknown_option.h"
 #include "common/store/format.h"
@@ -25,28 +26,8 @@
 namespace raystack::prep {
 namespace {
 
-// --stats-json's figures, whole or not at all: a file is written aside and renamed over the
-// path (a full disk left a 0-byte file, and /dev/full an exit 0: a pipeline review); a pipe or
-// a device (/dev/stdout) is written in place. Every write's error is the answer.
-Status WriteStatsJson(const std::string& path, const std::string& json) {
-  const auto cannot = [&](const std::string& why) {
-    return Status::Error("--stats-json " + path + ": cannot write: " + why);
-  };
-  std::error_code ec;
-  const std::filesystem::file_status there = std::filesystem::status(path, ec);
-  const bool in_place = std::filesystem::exists(there) && !std::filesystem::is_regular_file(there);
-  // (Links followed: the file a link names is written, the link stays.)
-  std::filesystem::path file = std::filesystem::weakly_canonical(path, ec);
-  if (ec) file = path;
-  std::string aside = ".";  // (appended: GCC 12 warned of a false overlap in "." + name)
-  aside += file.filename().string();
-  aside += ".tmp-" + std::to_string(getpid());
-  const std::string target = in_place ? path : (file.parent_path() / aside).string();
-  // Non-blocking: a FIFO no program reads is an error now, not a hang (cleared for the write).
-  const int fd = ::open(target.c_str(), O_WRONLY | O_CLOEXEC | O_NONBLOCK |
-                                            (in_place ? 0 : O_CREAT | O_TRUNC), 0666);
-  if (fd < 0) return cannot(errno == ENXIO ? "a pipe that no program reads" : std::strerror(errno));
-  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+// Writes all of `json` to `fd`, then closes it: "" or why not.
+std::string WriteAndClose(int fd, const std::string& json) {
   std::string error;
   for (size_t done = 0; done < json.size() && error.empty();) {
     const ssize_t n = ::write(fd, json.data() + done, json.size() - done);
@@ -55,9 +36,52 @@ Status WriteStatsJson(const std::string& path, const std::string& json) {
     else done += static_cast<size_t>(n);
   }
   if (::close(fd) != 0 && error.empty()) error = std::strerror(errno);
-  if (error.empty() && !in_place && std::rename(target.c_str(), file.c_str()) != 0)
-    error = std::strerror(errno);
-  if (!error.empty() && !in_place) ::unlink(target.c_str());
+  return error;
+}
+
+// --stats-json's figures, whole or not at all: a file is written aside and renamed over the
+// file the path names (a full disk left a 0-byte file, and /dev/full an exit 0: a pipeline
+// review). Written in place: a stream (a pipe, a device, this process's standard output even
+// when that is a file: common/base/output_target.h), and a file whose folder takes no new file.
+Status WriteStatsJson(const std::string& path, const std::string& json) {
+  const auto cannot = [&](const std::string& why) {
+    return Status::Error("--stats-json " + path + ": cannot write: " + why);
+  };
+  const OutputTarget target = ResolveOutputTarget(path);
+  if (target.stream) {
+    std::fflush(stdout);  // the summary before the figures
+    // Non-blocking: a FIFO no program reads is an error now, not a hang (cleared for the write).
+    const int fd = target.std_fd >= 0 ? ::fcntl(target.std_fd, F_DUPFD_CLOEXEC, 0)
+                                      : ::open(target.path.c_str(), O_WRONLY | O_CLOEXEC | O_NONBLOCK);
+    if (fd < 0) return cannot(errno == ENXIO ? "a pipe that no program reads" : std::strerror(errno));
+    if (target.std_fd < 0) ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+    const std::string error = WriteAndClose(fd, json);
+    return error.empty() ? OkStatus() : cannot(error);
+  }
+  const std::filesystem::path file(target.path);  // a link followed: the link stays
+  std::string aside = ".";  // (appended: GCC 12 warned of a false overlap in "." + name)
+  aside += file.filename().string();
+  aside += ".tmp-" + std::to_string(getpid());
+  const std::string temp = (file.parent_path() / aside).string();
+  int fd = ::open(temp.c_str(), O_WRONLY | O_CLOEXEC | O_CREAT | O_EXCL, 0666);
+  if (fd >= 0) {
+    const OnInterrupt remove([&temp] {
+      ::unlink(temp.c_str());
+      return std::string();
+    });
+    std::string error = WriteAndClose(fd, json);
+    if (error.empty() && std::rename(temp.c_str(), file.c_str()) != 0) error = std::strerror(errno);
+    if (!error.empty()) ::unlink(temp.c_str());
+    return error.empty() ? OkStatus() : cannot(error);
+  }
+  // A folder that takes no new file, over a file that may still be written (the check before
+  // the conversion allowed it): in place.
+  std::error_code ec;
+  if (!std::filesystem::exists(file, ec) || (errno != EACCES && errno != EPERM && errno != EROFS))
+    return cannot(std::strerror(errno));
+  fd = ::open(file.c_str(), O_WRONLY | O_CLOEXEC | O_TRUNC);
+  if (fd < 0) return cannot(std::strerror(errno));
+  const std::string error = WriteAndClose(fd, json);
   return error.empty() ? OkStatus() : cannot(error);
 }
 
