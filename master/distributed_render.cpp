@@ -38,8 +38,9 @@ namespace {
 
 // An operator's slave was killed, and the master said only "interrupted (SIGTERM)".
 constexpr const char* kMpirunSigterm =
-    "(mpirun sends SIGTERM at Ctrl-C, at a scheduler's time limit, and when a rank dies: killed, "
-    "or out of memory; under mpirun --enable-recovery the job goes on without a lost slave)";
+    "(mpirun sends SIGTERM at Ctrl-C, at a scheduler's time limit, when the terminal or ssh "
+    "session that started it closes (its SIGHUP), and when a rank dies: killed, or out of memory; "
+    "under mpirun --enable-recovery the job goes on without a lost slave)";
 
 
 // Per slave, the names a one-process run's --stats uses for the same figures

@@ -1,7 +1,6 @@
 #include "slave/render_stats.h"
 
 #include <cstdio>
-#include <fstream>
 #include <limits>
 #include <sstream>
 #include <string>

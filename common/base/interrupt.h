@@ -22,7 +22,8 @@ int InterruptSignal();
 const char* InterruptName(int signal);
 // What sent a SIGHUP and how a job outlives it; "" for the others.
 const char* InterruptCause(int signal);
-// Whether `signal` was ignored when this process started (SIG_IGN, as nohup leaves SIGHUP).
+// Whether `signal` is ignored now (SIG_IGN: as nohup leaves SIGHUP; asked before
+// CatchInterrupts sets its handler).
 bool IgnoredByTheCaller(int signal);
 
 }  // namespace raystack

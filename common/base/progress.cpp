@@ -52,7 +52,6 @@ ProgressReporter::ProgressReporter(std::string title, uint64_t total, std::strin
 
 ProgressReporter::~ProgressReporter() { Done(); }
 
-
 void ProgressReporter::Update(uint64_t done_delta) {
   done_.fetch_add(done_delta, std::memory_order_relaxed);
   if (quiet_) return;

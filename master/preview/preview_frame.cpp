@@ -6,7 +6,6 @@
 #include <cstring>
 #include <limits>
 
-
 namespace raystack::master::preview {
 
 FilmSnapshot TakeSnapshot(const render::Film& film, uint32_t frame,

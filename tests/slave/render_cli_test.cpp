@@ -666,7 +666,12 @@ TEST_F(RenderCli, BadInputIsAClearError) {
       // number", and options that only another option uses were taken and did nothing.
       {{kRaystack, "render", good, "--threads", "99999999999"}, "--threads 99999999999: must be from 1 to 64", 2},
       {{kRaystack, "render", good, "--spp", "-1"}, "--spp -1: must be from 1", 2},
-      {{kRaystack, "render", good, "--threads", "1.5"}, "--threads 1.5: must be a whole number from 1", 2},
+      {{kRaystack, "render", good, "--threads", "1.5"}, "--threads 1.5: must be a whole number written in digits, from 1", 2},
+      // The day's review: beyond a type's range was "not a number", whole-number bounds
+      // printed as 1e+12, and "+5" refused.
+      {{kRaystack, "render", good, "--exposure", "1e999"}, "--exposure 1e999: must be from -64 to 64", 2},
+      {{kRaystack, "render", good, "--fault-kill-after-tiles", "1e13"}, "must be from 1 to 1000000000000", 2},
+      {{kRaystack, "render", good, "--threads", "+5", "--mode", "fast"}, "--mode must be", 2},
       {{kRaystack, "render", good, "--reference", "r.exr"}, "add --convergence-log FILE", 2},
       {{kRaystack, "render", good, "--fault-fail-checkpoints", "1"}, "add --checkpoint-s S", 2},
       {{kRaystack, "render"}, "scene file is required", 2},

@@ -5,7 +5,6 @@
 #include <random>
 #include <vector>
 
-
 namespace raystack::prep {
 namespace {
 

@@ -336,33 +336,27 @@ int Run(const Args& args) {
   return 0;
 }
 
-}  // namespace
-}  // namespace raystack::prep
-
-namespace raystack::prep {
-namespace {
-
 int Main(int argc, char** argv) {
   if (argc == 1) {  // a first run: what to give, not what is missing
-    std::fputs(raystack::prep::kUsage, stderr);
+    std::fputs(kUsage, stderr);
     return 2;
   }
   if (argc == 2 && std::strcmp(argv[1], "--version") == 0) {
-    std::printf("raystack-prep %s\n", raystack::BuildId());
+    std::printf("raystack-prep %s\n", BuildId());
     return 0;
   }
-  raystack::prep::Args args;
+  Args args;
   bool help = false;
-  raystack::Status s = raystack::prep::ParseArgs(argc, argv, &args, &help);
+  Status s = ParseArgs(argc, argv, &args, &help);
   if (help) {
-    std::fputs(raystack::prep::kUsage, stdout);
+    std::fputs(kUsage, stdout);
     return 0;
   }
   if (!s.ok()) {
     std::fprintf(stderr, "raystack-prep: %s\n", s.message().c_str());
     return 2;
   }
-  return raystack::prep::Run(args);
+  return Run(args);
 }
 
 }  // namespace
