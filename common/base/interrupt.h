@@ -8,7 +8,8 @@
 //   for --resume before it ends (master/frame_steps.h), and a slave waits a moment for the
 //   master's end of the job (slave_node.cpp);
 // - otherwise, and at the second signal, the process ends at once, as the default action
-//   would.
+//   would; the same signal again within a quarter of a second is taken for the same sending
+//   (GNU timeout sends two SIGTERMs at once), not a second one.
 
 namespace raystack {
 
