@@ -75,6 +75,21 @@ namespace {
 // --stats: writable (found out now, not after the render: a user lost a render's figures), and
 // none of the job's images (a review: `--stats t-0.exr --frames 2-3` replaced frame 0 with JSON,
 // and `--stats o.exr --output o.exr` was refused as "another render").
+// The image of this job (any frame's EXR or PNG) that `file` names, or "".
+std::string ImageOfTheJobAt(const RenderArgs& args, const render::Scene& scene,
+                            const std::string& file) {
+  std::error_code ec;
+  const std::filesystem::path given = std::filesystem::weakly_canonical(file, ec);
+  const std::string output = OutputOf(args, scene);
+  const size_t frames = scene.cameras.size();
+  for (size_t f = 0; f < frames; ++f)
+    for (const char* ext : {".exr", ".png"}) {
+      const std::string image = FramePath(output, f, frames, ext);
+      if (std::filesystem::weakly_canonical(image, ec) == given) return image;
+    }
+  return "";
+}
+
 Status CheckStatsTarget(const RenderArgs& args, const render::Scene& scene) {
   if (args.stats.empty()) return OkStatus();
   std::error_code dir_ec;
@@ -84,17 +99,9 @@ Status CheckStatsTarget(const RenderArgs& args, const render::Scene& scene) {
   const OutputTarget target = ResolveOutputTarget(args.stats);
   if (target.stream) return OkStatus();  // a pipe, a terminal, the standard output: nothing to replace
   if (Status s = image::CheckWritable(target.path); !s.ok()) return Status::Error("--stats: " + s.message());
-  std::error_code ec;
-  const std::filesystem::path mine = std::filesystem::weakly_canonical(target.path, ec);
-  const std::string output = OutputOf(args, scene);
-  const size_t frames = scene.cameras.size();
-  for (size_t f = 0; f < frames; ++f)
-    for (const char* ext : {".exr", ".png"}) {
-      const std::string image = FramePath(output, f, frames, ext);
-      if (std::filesystem::weakly_canonical(image, ec) == mine)
-        return Status::Error("--stats " + args.stats + " is " + image + ", an image of this job's "
-                             "output: give the statistics a file of their own (e.g. stats.json)");
-    }
+  if (const std::string image = ImageOfTheJobAt(args, scene, target.path); !image.empty())
+    return Status::Error("--stats " + args.stats + " is " + image + ", an image of this job's "
+                         "output: give the statistics a file of their own (e.g. stats.json)");
   return OkStatus();
 }
 
@@ -107,16 +114,10 @@ Status CheckLogTarget(const RenderArgs& args, const render::Scene& scene) {
   if (!args.stats.empty() && std::filesystem::weakly_canonical(args.stats, ec) == log)
     return Status::Error("--convergence-log " + args.convergence_log + " is the --stats file: give "
                          "each a file of its own (e.g. log.csv and stats.json)");
-  const std::string output = OutputOf(args, scene);
-  const size_t frames = scene.cameras.size();
-  for (size_t f = 0; f < frames; ++f)
-    for (const char* ext : {".exr", ".png"}) {
-      const std::string image = FramePath(output, f, frames, ext);
-      if (std::filesystem::weakly_canonical(image, ec) == log)
-        return Status::Error("--convergence-log " + args.convergence_log + " is " + image +
-                             ", an image of this job's output: give the log a file of its own "
-                             "(e.g. log.csv)");
-    }
+  if (const std::string image = ImageOfTheJobAt(args, scene, args.convergence_log); !image.empty())
+    return Status::Error("--convergence-log " + args.convergence_log + " is " + image +
+                         ", an image of this job's output: give the log a file of its own "
+                         "(e.g. log.csv)");
   return OkStatus();
 }
 

@@ -593,15 +593,19 @@ TEST_F(RenderCli, ManyLightsKeepTheStackBounded) {
       "camera": { "position": [0, 5, 10], "look_at": [0, 0.5, 0], "width": 128, "height": 128 },
       "lights": [ )" + lights + R"( ], "output": "lights.exr" })");
   const ProcessResult r = RunProcess({kRaystack, "render", scene, "--threads", "1", "--cache-mb", "0.2",
-                                      "--coarse-rounds", "off", "--no-png", "-q", "--stats",
-                                      dir_->File("lights.json")}, dir_->path());
+                                      "--coarse-rounds", "off", "--no-png", "-q", "--tile-size", "32",
+                                      "--stats", dir_->File("lights.json")}, dir_->path());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string text = prep::testing::Slurp(dir_->File("lights.json"));
   const size_t at = text.find("\"peak_stack_rays\": ");
   ASSERT_NE(at, std::string::npos) << text;
   const uint64_t peak = std::stoull(text.substr(at + 19));
-  // Measured: 0.86 M with the bound (the first tile's rays), 2.19 M without.
-  EXPECT_LE(peak, 1600000u) << text;
+  // The bound: below 2^20 waiting rays a thread may open one more tile, of at most 32 x 32
+  // pixels x (1,024 shadow rays + 1). Without it a thread opens up to 8 tiles (13 M rays in the
+  // review's run). Measured here: 0.86 M to 1.69 M (a second tile opens when every ray waits
+  // while fewer than 2^20 do, which depends on the loader's pace: a bound of 1.6 M failed 2
+  // runs in 5 on the thirty-second session's machine).
+  EXPECT_LE(peak, (uint64_t{1} << 20) + 32u * 32u * 1025u) << text;  // (kMostWaitingToOpenMore)
   EXPECT_GT(peak, 100000u) << "the scene must make many rays wait";
 }
 
