@@ -1,7 +1,5 @@
 #include "master/convergence_monitor.h"
 
-#include <fcntl.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -11,6 +9,7 @@
 
 #include "common/base/file_lock.h"
 #include "common/base/log.h"
+#include "common/base/output_target.h"
 
 namespace raystack::master {
 
@@ -50,20 +49,11 @@ int OpenLockedFile(const std::string& path, std::string* error) {
 }  // namespace
 
 Expected<std::unique_ptr<ConvergenceLog>> ConvergenceLog::Open(const std::string& path) {
-  struct stat st {};
-  const bool file = ::stat(path.c_str(), &st) != 0 ? errno == ENOENT : S_ISREG(st.st_mode);
-  int fd = -1;
+  // A stream (a pipe, a terminal, the standard output even when that is a file, which a locked
+  // open would have emptied) is the job's own; a file is locked.
+  const OutputTarget target = ResolveOutputTarget(path);
   std::string error;
-  if (file) {
-    fd = OpenLockedFile(path, &error);
-  } else {
-    // A pipe or a terminal, the job's own. O_NONBLOCK: a FIFO no program reads fails at once
-    // (ENXIO) rather than holding the job in open(), deaf to a first Ctrl-C (found by a
-    // hostile-input review); the writes then block.
-    fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC | O_NONBLOCK);
-    if (fd < 0) error = errno == ENXIO ? "a pipe that no program reads" : std::strerror(errno);
-    else ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
-  }
+  const int fd = target.stream ? OpenStream(target, &error) : OpenLockedFile(target.path, &error);
   if (fd < 0)
     return Status::Error(StrFormat("%s: cannot write the convergence log: %s", path.c_str(),
                                    error.c_str()));

@@ -38,13 +38,9 @@ Status StatsFile::Write(const std::string& bytes, uint64_t at) {
 Status StatsFile::Open() {
   target_ = ResolveOutputTarget(path_);
   if (target_.stream) {
-    // O_NONBLOCK: a FIFO that no program reads fails at once (ENXIO) rather than holding the
-    // job in open(), deaf to a first Ctrl-C (found by a hostile-input review).
-    fd_ = target_.std_fd >= 0 ? ::fcntl(target_.std_fd, F_DUPFD_CLOEXEC, 0)
-                             : ::open(target_.path.c_str(), O_WRONLY | O_CLOEXEC | O_NONBLOCK);
-    if (fd_ < 0)
-      return CannotWrite(path_, errno == ENXIO ? "a pipe that no program reads" : std::strerror(errno));
-    if (target_.std_fd < 0) ::fcntl(fd_, F_SETFL, ::fcntl(fd_, F_GETFL) & ~O_NONBLOCK);
+    std::string why;
+    fd_ = OpenStream(target_, &why);
+    if (fd_ < 0) return CannotWrite(path_, why);
     return Write("[\n", 0);
   }
   const std::string aside = target_.path + ".tmp";

@@ -1,6 +1,10 @@
 #include "common/base/output_target.h"
 
+#include <fcntl.h>
 #include <sys/stat.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <filesystem>
 #include <system_error>
@@ -34,6 +38,17 @@ OutputTarget ResolveOutputTarget(const std::string& given) {
   const std::filesystem::path real = std::filesystem::weakly_canonical(p, ec);
   t.path = ec ? p.string() : real.string();
   return t;
+}
+
+int OpenStream(const OutputTarget& target, std::string* why) {
+  const int fd = target.std_fd >= 0 ? ::fcntl(target.std_fd, F_DUPFD_CLOEXEC, 0)
+                                    : ::open(target.path.c_str(), O_WRONLY | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) {
+    *why = errno == ENXIO ? "a pipe that no program reads" : std::strerror(errno);
+    return -1;
+  }
+  if (target.std_fd < 0) ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+  return fd;
 }
 
 }  // namespace raystack

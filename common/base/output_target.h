@@ -16,4 +16,9 @@ struct OutputTarget {
 };
 OutputTarget ResolveOutputTarget(const std::string& given);
 
+// A stream target opened for writing: a copy of the standard descriptor, or the path opened
+// without waiting for a reader (O_NONBLOCK, cleared once open: a FIFO that no program reads
+// held the job in open(), deaf to a first Ctrl-C; a hostile-input review). -1 and *why if not.
+int OpenStream(const OutputTarget& target, std::string* why);
+
 }  // namespace raystack

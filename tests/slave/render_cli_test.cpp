@@ -578,6 +578,15 @@ TEST_F(RenderCli, AConvergenceLogIsAFileOfItsOwn) {
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_NE(r.err.find("is " + dir_->File("o2.png") + ", an image of this job's output"),
             std::string::npos) << r.err;
+  // The standard output sent to a file is a stream, written in place: a locked open emptied it,
+  // and the run's lines before the log went with it.
+  r = RunProcess({"/bin/sh", "-c", std::string(kRaystack) + " render " + Scene() + " --no-png " +
+                  "--output " + dir_->File("o3.exr") + " --convergence-log /dev/stdout > " +
+                  dir_->File("both.txt")}, dir_->path());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  const std::string both = Slurp(dir_->File("both.txt"));
+  EXPECT_NE(both.find("frame,event,pass,"), std::string::npos) << both;
+  EXPECT_LT(both.find("reads: "), both.find("frame,event,pass,")) << both;
 }
 
 // Whitted sends a shadow ray from every hit to every light: at 1,024 lights a thread that opened

@@ -50,12 +50,10 @@ Status WriteStatsJson(const std::string& path, const std::string& json) {
   const OutputTarget target = ResolveOutputTarget(path);
   if (target.stream) {
     std::fflush(stdout);  // the summary before the figures
-    // Non-blocking: a FIFO no program reads is an error now, not a hang (cleared for the write).
-    const int fd = target.std_fd >= 0 ? ::fcntl(target.std_fd, F_DUPFD_CLOEXEC, 0)
-                                      : ::open(target.path.c_str(), O_WRONLY | O_CLOEXEC | O_NONBLOCK);
-    if (fd < 0) return cannot(errno == ENXIO ? "a pipe that no program reads" : std::strerror(errno));
-    if (target.std_fd < 0) ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
-    const std::string error = WriteAndClose(fd, json);
+    std::string error;
+    const int fd = OpenStream(target, &error);
+    if (fd < 0) return cannot(error);
+    error = WriteAndClose(fd, json);
     return error.empty() ? OkStatus() : cannot(error);
   }
   const std::filesystem::path file(target.path);  // a link followed: the link stays
