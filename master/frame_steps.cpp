@@ -17,7 +17,7 @@
 #include "common/base/process_names.h"
 #include "common/base/utf8.h"
 #include "common/image/exr_io.h"
-#include "common/image/output_file.h"
+#include "common/base/output_file.h"
 #include "common/store/format.h"
 #include "master/preflight.h"
 #include "master/provenance.h"
@@ -98,7 +98,7 @@ Status CheckStatsTarget(const RenderArgs& args, const render::Scene& scene) {
                          (std::filesystem::path(args.stats) / "stats.json").lexically_normal().string() + ")");
   const OutputTarget target = ResolveOutputTarget(args.stats);
   if (target.stream) return OkStatus();  // a pipe, a terminal, the standard output: nothing to replace
-  if (Status s = image::CheckWritable(target.path); !s.ok()) return Status::Error("--stats: " + s.message());
+  if (Status s = CheckWritable(target.path); !s.ok()) return Status::Error("--stats: " + s.message());
   if (const std::string image = ImageOfTheJobAt(args, scene, target.path); !image.empty())
     return Status::Error("--stats " + args.stats + " is " + image + ", an image of this job's "
                          "output: give the statistics a file of their own (e.g. stats.json)");

@@ -6,7 +6,7 @@
 
 #include "common/base/file_lock.h"
 #include "common/base/log.h"
-#include "common/image/output_file.h"
+#include "common/base/output_file.h"
 
 namespace raystack::master {
 
@@ -14,7 +14,7 @@ Expected<OutputLock> OutputLock::Take(const std::string& output, size_t first, s
                                       const std::string& option) {
   // The file the name leads to: two jobs writing one file through a link and its target are
   // one output (the day's second review).
-  const std::filesystem::path out(image::FollowLinks(output));
+  const std::filesystem::path out(FollowLinks(output));
   std::string name = ".";  // (not "." + ...: GCC 12 warns falsely of an overlapping copy)
   name += out.filename().string();
   name += ".lock";

@@ -13,7 +13,7 @@
 #include "common/image/exr_io.h"
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
-#include "common/image/output_file.h"
+#include "common/base/output_file.h"
 #include "master/frame_writer.h"
 
 namespace raystack::master {
@@ -111,10 +111,10 @@ Status CheckOutputs(const render::Scene& scene, const std::string& output, bool 
   // pixel in the PNG; less the files already there that they replace.
   uint64_t all = 0, largest = 0;
   for (size_t f = range.begin; f < range.end; ++f) {
-    RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(output, f, frames, ".exr")));
-    if (png) RAYSTACK_RETURN_IF_ERROR(image::CheckWritable(FramePath(output, f, frames, ".png")));
+    RAYSTACK_RETURN_IF_ERROR(CheckWritable(FramePath(output, f, frames, ".exr")));
+    if (png) RAYSTACK_RETURN_IF_ERROR(CheckWritable(FramePath(output, f, frames, ".png")));
     for (const char* ext : {".exr", ".png"})  // a killed run's, as large as the images
-      image::RemoveStaleTemporaries(FramePath(output, f, frames, ext));
+      RemoveStaleTemporaries(FramePath(output, f, frames, ext));
     const uint64_t pixels = static_cast<uint64_t>(scene.cameras[f].width) *
                             static_cast<uint64_t>(scene.cameras[f].height);
     const uint64_t images = pixels * 13 * 4 + (png ? pixels * 4 : 0);
@@ -129,8 +129,8 @@ Status CheckOutputs(const render::Scene& scene, const std::string& output, bool 
   }
   const std::string first = FramePath(output, range.begin, frames, ".exr");
   const uint64_t temporary = checkpoints ? largest : 0;
-  RAYSTACK_RETURN_IF_ERROR(image::CheckRoom(first, largest + temporary));
-  Expected<uint64_t> room = image::FreeSpace(first);
+  RAYSTACK_RETURN_IF_ERROR(CheckRoom(first, largest + temporary));
+  Expected<uint64_t> room = FreeSpace(first);
   if (room.ok() && *room < all + temporary)
     LOG_WARNING("render", "%s: the disk holding it has %.1f MB free; the %zu frames' images take "
                 "up to %.1f MB uncompressed (usually far less): if it fills, a frame's write is "

@@ -10,7 +10,7 @@
 #include "common/base/status.h"
 #include "common/image/exr_pool.h"  // ExrThreads
 #include "common/image/image_layers.h"
-#include "common/image/output_file.h"  // CheckWritable, for the callers of WriteExr
+#include "common/base/output_file.h"  // CheckWritable, for the callers of WriteExr
 
 namespace raystack::image {
 

@@ -6,7 +6,7 @@
 
 #include "common/base/status.h"
 #include "common/image/image_layers.h"
-#include "common/image/output_file.h"  // CheckWritable, for the callers of WritePng
+#include "common/base/output_file.h"  // CheckWritable, for the callers of WritePng
 
 namespace raystack::image {
 

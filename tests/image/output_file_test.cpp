@@ -1,4 +1,4 @@
-#include "common/image/output_file.h"
+#include "common/base/output_file.h"
 
 #include <gtest/gtest.h>
 #include <sys/stat.h>

@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "common/base/memory_available.h"
-#include "common/image/output_file.h"
+#include "common/base/output_file.h"
 #include "common/base/log.h"
 #include "common/store/store_reader.h"
 #include "master/preflight.h"
@@ -135,7 +135,7 @@ TEST(OutputChecks, QuietKeepsOnlyWarningsAndErrors) {
   const std::string out = dir->File("out.exr");
   std::string stale;  // a temporary of this machine's shape, of a process gone
   {
-    Expected<image::AtomicOutput> output = image::AtomicOutput::Create(out);
+    Expected<AtomicOutput> output = AtomicOutput::Create(out);
     ASSERT_TRUE(output.ok());
     stale = output->temp_path();
   }

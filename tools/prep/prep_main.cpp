@@ -15,6 +15,7 @@
 #include "common/base/log.h"
 #include "common/base/memory_available.h"
 #include "common/base/option_number.h"
+#include "common/base/output_file.h"
 #include "common/base/output_target.h"
 #include "common/base/standard_streams.h"
 #include "common/base/unknown_option.h"
@@ -56,31 +57,29 @@ Status WriteStatsJson(const std::string& path, const std::string& json) {
     error = WriteAndClose(fd, json);
     return error.empty() ? OkStatus() : cannot(error);
   }
-  const std::filesystem::path file(target.path);  // a link followed: the link stays
-  std::string aside = ".";  // (appended: GCC 12 warned of a false overlap in "." + name)
-  aside += file.filename().string();
-  aside += ".tmp-" + std::to_string(getpid());
-  const std::string temp = (file.parent_path() / aside).string();
-  int fd = ::open(temp.c_str(), O_WRONLY | O_CLOEXEC | O_CREAT | O_EXCL, 0666);
-  if (fd >= 0) {
-    const OnInterrupt remove([&temp] {
-      ::unlink(temp.c_str());
-      return std::string();
-    });
-    std::string error = WriteAndClose(fd, json);
-    if (error.empty() && std::rename(temp.c_str(), file.c_str()) != 0) error = std::strerror(errno);
-    if (!error.empty()) ::unlink(temp.c_str());
-    return error.empty() ? OkStatus() : cannot(error);
-  }
   // A folder that takes no new file, over a file that may still be written (the check before
   // the conversion allowed it): in place.
   std::error_code ec;
-  if (!std::filesystem::exists(file, ec) || (errno != EACCES && errno != EPERM && errno != EROFS))
-    return cannot(std::strerror(errno));
-  fd = ::open(file.c_str(), O_WRONLY | O_CLOEXEC | O_TRUNC);
+  const std::string folder = std::filesystem::path(target.path).parent_path().string();
+  if (std::filesystem::exists(target.path, ec) && ::access(folder.empty() ? "." : folder.c_str(), W_OK) != 0) {
+    const int fd = ::open(target.path.c_str(), O_WRONLY | O_CLOEXEC | O_TRUNC);
+    if (fd < 0) return cannot(std::strerror(errno));
+    const std::string error = WriteAndClose(fd, json);
+    return error.empty() ? OkStatus() : cannot(error);
+  }
+  // Aside, then renamed over the file (AtomicOutput: links followed, the link stays).
+  Expected<AtomicOutput> out = AtomicOutput::Create(target.path);
+  if (!out.ok()) return Status::Error("--stats-json " + out.status().message());
+  const std::string temp = out->temp_path();
+  const OnInterrupt remove([temp] {  // (an interrupt ends the process without destructors)
+    ::unlink(temp.c_str());
+    return std::string();
+  });
+  const int fd = ::open(temp.c_str(), O_WRONLY | O_CLOEXEC | O_TRUNC);
   if (fd < 0) return cannot(std::strerror(errno));
-  const std::string error = WriteAndClose(fd, json);
-  return error.empty() ? OkStatus() : cannot(error);
+  if (const std::string error = WriteAndClose(fd, json); !error.empty()) return cannot(error);
+  if (Status s = out->Commit(); !s.ok()) return Status::Error("--stats-json " + s.message());
+  return OkStatus();
 }
 
 constexpr const char* kUsage = R"(usage: raystack-prep INPUT... -o STORE [options]

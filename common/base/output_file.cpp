@@ -1,4 +1,4 @@
-#include "common/image/output_file.h"
+#include "common/base/output_file.h"
 
 #include <fcntl.h>
 #include <signal.h>
@@ -18,7 +18,7 @@
 #include "common/base/log.h"
 #include "common/base/process_names.h"
 
-namespace raystack::image {
+namespace raystack {
 namespace {
 
 namespace fs = std::filesystem;
@@ -153,4 +153,4 @@ Status CheckWritable(const std::string& path) {
   return probe.ok() ? OkStatus() : probe.status();  // the probe removes itself
 }
 
-}  // namespace raystack::image
+}  // namespace raystack

@@ -11,7 +11,7 @@
 #include "common/base/follow_links.h"
 #include "common/base/status.h"
 
-namespace raystack::image {
+namespace raystack {
 
 // Checks before a render starts that `path` can be written (folder exists and is writable); an
 // error naming the path otherwise. (It creates and removes a temporary file there: the only
@@ -29,9 +29,6 @@ Expected<uint64_t> FreeSpace(const std::string& path);
 // longer running on this machine left, killed while it wrote: each as large as the image.
 // Other machines' are left alone (a shared folder). Returns how many.
 int RemoveStaleTemporaries(const std::string& path);
-
-// What AtomicOutput writes and OutputLock locks (common/base/follow_links.h).
-using raystack::FollowLinks;
 
 // A temporary file beside `path` (links followed); Commit() makes it the file. Destroyed without a successful
 // Commit(), it removes the temporary. Move-only; not thread-safe.
@@ -57,4 +54,4 @@ class AtomicOutput {
   std::string temp_path_;  // empty once committed or moved from
 };
 
-}  // namespace raystack::image
+}  // namespace raystack
